@@ -1,0 +1,204 @@
+"""Command line: ``bayes-update <command> ...``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import fe
+from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
+
+from . import signals
+from .dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
+
+# the paper's high-level chirp on the default (locking-free) rig [N]
+DEFAULT_CHIRP_AMPLITUDE = 0.1
+
+
+def _add_model_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
+                   help=f"beam elements (default {DEFAULT_ELEMENTS})")
+    p.add_argument("--substeps", type=int, default=DEFAULT_SUBSTEPS,
+                   help=f"generalized-alpha steps per sample (default {DEFAULT_SUBSTEPS})")
+    p.add_argument("--rho-inf", type=float, default=DEFAULT_RHO_INF,
+                   help=f"generalized-alpha spectral radius at infinity (default {DEFAULT_RHO_INF}; "
+                        "the paper used 0.01)")
+
+
+def _add_parameter_options(p: argparse.ArgumentParser) -> None:
+    d = fe.PAPER_PARAMETERS
+    p.add_argument("--eta", type=float, default=d.eta,
+                   help=f"deviatoric material viscosity [Pa s] (default {d.eta:g}, the paper's)")
+    p.add_argument("--c", type=float, default=d.c, help=f"top damper [N s/m] (default {d.c:g})")
+    p.add_argument("--F", type=float, default=d.F, help=f"preload [N] (default {d.F:g})")
+    p.add_argument("--k-s", type=float, default=d.k_s, help=f"top spring [N/m] (default {d.k_s:g})")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bayes-update",
+        description="Probabilistic updating of a nonlinear FE beam model with Volterra series "
+                    "(after Bussetta, Shiki and da Silva, 2017).")
+    sub = parser.add_subparsers(dest="command", metavar="command")
+
+    p = sub.add_parser("simulate", help="run the FE model on the recorded forces of a data set",
+                       description="Drive the model with each test's recorded force and write the "
+                                   "responses as a data-set folder of the same form, plus a plot "
+                                   "per test. Without --data: the paper's 4 s chirp at the paper's "
+                                   "parameters. Units are SI.")
+    p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
+    _add_parameter_options(p)
+    _add_model_options(p)
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("make-dataset", help="regenerate the embedded default data set (virtual rig)",
+                       description="Run the virtual rig (paper-equivalent rig, bending stiffness "
+                                   "factor 1.24, the paper's Table 3 parameters, 20 elements at "
+                                   "4096 Hz, filtered and decimated to 1024 Hz, noisy) on the "
+                                   "paper's six tests and write the data-set folder. With the "
+                                   "defaults it reproduces the embedded data set byte for byte.")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output folder (default: the package's embedded data set, "
+                        "bayes_update/data/default)")
+    p.add_argument("--seed", type=int, default=None, help="noise seed (default 2017)")
+    p.add_argument("--snr-force", type=float, default=None, metavar="DB",
+                   help="force-channel SNR [dB re RMS] (default 40)")
+    p.add_argument("--snr-velocity", type=float, default=None, metavar="DB",
+                   help="velocity-channel SNR [dB re RMS] (default 40)")
+    p.add_argument("--imperfection", type=float, default=0.0, metavar="M",
+                   help="initial bow of the beam at mid-span [m] (hidden effect; default 0)")
+    p.set_defaults(func=cmd_make_dataset)
+
+    p = sub.add_parser("plot-data", help="plot the tests of a data set (time, FRF, PSD)",
+                       description="Write PNG figures of a data set: force and velocity of each "
+                                   "test, H1 FRF and coherence of the chirps (each, and the "
+                                   "levels overlaid), velocity PSD of the sines (each, and the "
+                                   "levels overlaid). Without --data: the embedded default data set.")
+    p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
+    p.add_argument("--out", type=Path, required=True, help="output folder for the PNG files")
+    p.set_defaults(func=cmd_plot_data)
+    return parser
+
+
+def _default_dataset() -> Dataset:
+    force = signals.chirp(DEFAULT_CHIRP_AMPLITUDE)
+    t = np.arange(force.size) / signals.PAPER_FS
+    test = Record("chirp_high.csv", "chirp", "high", "nonlinear", t, force, np.zeros_like(force))
+    return Dataset("paper-chirp", signals.PAPER_FS, fe.Rig(), [test])
+
+
+def cmd_simulate(args) -> int:
+    params = fe.Parameters(eta=args.eta, c=args.c, F=args.F, k_s=args.k_s)
+    from .forward import simulate_dataset
+    from .plots import plot_test
+
+    data = read_dataset(args.data) if args.data else _default_dataset()
+    model = fe.BeamModel(rig=data.rig, n_elements=args.elements, substeps=args.substeps,
+                         rho_inf=args.rho_inf)
+    start = time.perf_counter()
+    out = simulate_dataset(data, model, params)
+    elapsed = time.perf_counter() - start
+    out.extra["model"] = {"kind": "fe", "n_elements": model.n_elements,
+                          "substeps": model.substeps, "rho_inf": model.rho_inf,
+                          "parameters_si": params.to_dict()}
+    write_dataset(out, args.out)
+    for measured, simulated in zip(data.tests, out.tests):
+        has_data = args.data is not None
+        fig = plot_test(measured if has_data else simulated,
+                        simulated.velocity if has_data else None,
+                        title=f"{simulated.name}: model at eta={params.eta:g} Pa s, c={params.c:g} N s/m, "
+                              f"F={params.F:g} N, k_s={params.k_s:g} N/m")
+        fig.savefig(Path(args.out) / f"{simulated.name}.png", dpi=110)
+    modes = model.modal_analysis(params, n_modes=2)
+    summary = {"elapsed_s": elapsed, "tests": [t.file for t in out.tests],
+               "P_eff_N": params.effective_preload(data.rig),
+               "f1_hz": float(modes.frequencies_hz[0]), "zeta1": float(modes.damping_ratios[0])}
+    (Path(args.out) / "simulate.json").write_text(json.dumps(summary, indent=2) + "\n")
+    print(f"simulated {len(out.tests)} test(s) in {elapsed:.2f} s; P_eff = {summary['P_eff_N']:.2f} N, "
+          f"f1 = {summary['f1_hz']:.2f} Hz; wrote {args.out}")
+    return 0
+
+
+def cmd_make_dataset(args) -> int:
+    from .virtual_rig import DEFAULT_DATASET_DIR, DEFAULT_SEED, DEFAULT_SNR_DB, make_dataset
+
+    out = args.out if args.out is not None else DEFAULT_DATASET_DIR
+    start = time.perf_counter()
+    ds = make_dataset(out,
+                      seed=DEFAULT_SEED if args.seed is None else args.seed,
+                      snr_force_db=DEFAULT_SNR_DB if args.snr_force is None else args.snr_force,
+                      snr_velocity_db=(DEFAULT_SNR_DB if args.snr_velocity is None
+                                       else args.snr_velocity),
+                      imperfection=args.imperfection)
+    elapsed = time.perf_counter() - start
+    lin = ds.extra["truth"]["linearised"]
+    size = sum(f.stat().st_size for f in Path(out).iterdir() if f.is_file())
+    print(f"wrote {len(ds.tests)} tests to {out} ({size / 1e6:.2f} MB) in {elapsed:.1f} s; "
+          f"f1 = {lin['f1_hz']:.2f} Hz, 35 Hz / f1 = {lin['sine_frequency_over_f1']:.3f}")
+    return 0
+
+
+def cmd_plot_data(args) -> int:
+
+    from . import spectral
+    from .plots import plot_frf, plot_psd, plot_test
+    from .virtual_rig import load_default_dataset
+
+    data = read_dataset(args.data) if args.data else load_default_dataset()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    fs = data.sampling_rate_hz
+    written = []
+
+    def save(fig, name):
+        fig.savefig(out / name, dpi=110)
+        written.append(name)
+
+    chirps, sines = {}, {}
+    for t in data.tests:
+        save(plot_test(t, title=f"{data.name}: {t.name} ({t.role})"), f"{t.name}.png")
+        if t.signal == "chirp":
+            est = spectral.transient_frf(t.force, t.velocity, fs)
+            chirps[t.name] = est
+            save(plot_frf({t.name: est}, title=f"{t.name}: H1 FRF and coherence"),
+                 f"{t.name}_frf.png")
+        elif t.signal == "sine":
+            spec = {f"{t.name} velocity": spectral.psd(t.velocity, fs)}
+            sines[t.name] = spec
+            freq = t.meta.get("frequency_hz")
+            save(plot_psd(spec, harmonics_of=freq, title=f"{t.name}: velocity PSD"),
+                 f"{t.name}_psd.png")
+    if len(chirps) > 1:
+        save(plot_frf(chirps,
+                      title="chirp tests: H1 FRF by level (distortion = nonlinearity)"),
+             "chirp_frf.png")
+    if len(sines) > 1:
+        merged = {name: next(iter(spec.values())) for name, spec in sines.items()}
+        freqs = {t.meta.get("frequency_hz") for t in data.tests if t.signal == "sine"}
+        save(plot_psd(merged, harmonics_of=freqs.pop() if len(freqs) == 1 else None,
+                      title="sine tests: velocity PSD by level"), "sine_psd.png")
+    print(f"wrote {len(written)} figure(s) to {out}")
+    return 0
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    try:
+        return args.func(args)
+    except (ValueError, DatasetError, fe.ConvergenceError) as exc:
+        print(f"bayes-update {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,21 @@
+"""Run a model of the rig on every test of a data set."""
+
+from __future__ import annotations
+
+import copy
+
+from tqdm.auto import tqdm
+
+import fe
+from .dataset import Dataset
+
+
+def simulate_dataset(dataset: Dataset, model, params: fe.Parameters, progress: bool = True) -> Dataset:
+    """A copy of ``dataset`` whose velocity columns are the model's response at
+    the sensor to each test's recorded force (same time column)."""
+    out = copy.deepcopy(dataset)
+    for test in tqdm(out.tests, desc="simulate", unit="test", disable=not progress):
+        result = fe.simulate(model, params, test.force, fs=dataset.sampling_rate_hz,
+                             positions=[dataset.rig.sensor_position_m])
+        test.velocity = result.sensor_velocity.copy()
+    return out

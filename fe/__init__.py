@@ -1,0 +1,38 @@
+"""fe: a fast, verified geometrically nonlinear beam model of the preloaded-beam rig.
+
+>>> from fe import BeamModel, Parameters, simulate
+>>> model = BeamModel()                      # paper's rig, default mesh and substeps
+>>> result = simulate(model, Parameters(), force, fs=1024.0)
+>>> result.sensor_velocity                   # transverse velocity at mid-span [m/s]
+"""
+
+from .effects import EFFECTS, Effect, InitialImperfection
+from .model import (
+    BeamModel,
+    BucklingError,
+    ConvergenceError,
+    Modes,
+    SimulationResult,
+    StaticState,
+    generalized_alpha_accuracy,
+    generalized_alpha_coefficients,
+)
+from .rig import PAPER_PARAMETERS, Parameters, Rig
+
+__all__ = [
+    "BeamModel", "BucklingError", "ConvergenceError", "EFFECTS", "Effect",
+    "InitialImperfection", "Modes", "PAPER_PARAMETERS", "Parameters", "Rig",
+    "SimulationResult", "StaticState", "generalized_alpha_accuracy",
+    "generalized_alpha_coefficients", "simulate",
+]
+
+
+def simulate(model, params, force, fs=1024.0, **options):
+    """Run any model of the rig (full FE, or a reduced-order model) on a sampled force.
+
+    ``model`` is any object with a ``simulate(params, force, fs, **options)``
+    method returning a :class:`SimulationResult`.
+    """
+    if not hasattr(model, "simulate"):
+        raise TypeError(f"{type(model).__name__} is not a model of the rig (no simulate method)")
+    return model.simulate(params, force, fs, **options)

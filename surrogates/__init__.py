@@ -1,0 +1,1 @@
+"""surrogates: designs of experiments and Gaussian-process surrogates (knows nothing about beams)."""

@@ -1,0 +1,172 @@
+"""fe: the generalized-alpha transient against closed forms and rates."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fe import BeamModel, ConvergenceError, Parameters, generalized_alpha_coefficients
+
+FS = 1024.0
+CONSERVATIVE = Parameters(eta=0.0, c=0.0, F=77.0, k_s=180e3)
+
+
+def mode_displacement(model, params, mode, midspan_amplitude):
+    """Initial displacement in one linearised mode, scaled at mid-span [m]."""
+    modes = model.modal_analysis(params, n_modes=mode + 1)
+    phi = modes.shapes[:, mode]
+    mid = np.argmin(np.abs(model.node_x - model.rig.length_m / 2))
+    return midspan_amplitude * phi / phi[3 * mid + 1], modes
+
+
+def zero_crossing_frequency(v, fs):
+    i = np.flatnonzero((v[:-1] < 0) & (v[1:] >= 0))
+    t = (i + v[i] / (v[i] - v[i + 1])) / fs
+    return 1.0 / np.mean(np.diff(t))
+
+
+def test_coefficients_match_chung_hulbert():
+    am, af, g, b = generalized_alpha_coefficients(0.01)
+    # research notes: rho_inf = 0.01 -> -0.9703, 0.0099, 1.4802, 0.9803
+    assert (am, af, g, b) == pytest.approx((-0.9703, 0.0099, 1.4802, 0.9803), abs=1e-4)
+    with pytest.raises(ValueError, match="rho_inf"):
+        generalized_alpha_coefficients(1.5)
+
+
+@pytest.mark.parametrize("rho_inf", [0.01, 0.9])
+def test_second_order_in_time(rho_inf):
+    params = Parameters(eta=3e6, c=15e3)
+    model = BeamModel(n_elements=6, substeps=1, rho_inf=rho_inf)
+    u0, _ = mode_displacement(model, params, 0, 1e-6)  # linear regime
+    force = np.zeros(257)
+
+    def run(m):
+        return BeamModel(n_elements=6, substeps=m, rho_inf=rho_inf).simulate(
+            params, force, FS, initial_displacement=u0).sensor_displacement
+
+    ref = run(128)
+    steps = np.array([2, 4, 8])
+    err = [np.linalg.norm(run(m) - ref) / np.linalg.norm(ref) for m in steps]
+    order = -np.polyfit(np.log(steps), np.log(err), 1)[0]
+    assert order == pytest.approx(2.0, abs=0.15)
+
+
+def sdof_amplification(rho_inf, omega_dt):
+    """Amplification matrix of the generalized-alpha scheme (paper eq. 4-10) for
+    an undamped oscillator, state (u, dt v, dt^2 a), written out independently."""
+    am, af, g, b = generalized_alpha_coefficients(rho_inf)
+    w2 = omega_dt**2
+    lhs = np.array([[w2 * (1 - af), 0, 1 - am], [1, 0, -b], [0, 1, -g]])
+    rhs = np.array([[-w2 * af, 0, -am], [1, 1, 0.5 - b], [0, 1, 1 - g]])
+    return np.linalg.solve(lhs, rhs)
+
+
+@pytest.mark.parametrize("rho_inf", [0.01, 0.5, 0.9])
+def test_high_frequency_dissipation_and_spectral_radius(rho_inf):
+    """A high bending mode of the beam, integrated at omega dt ~ 80, follows the
+    scheme's amplification matrix step by step; that matrix's spectral radius
+    tends to rho_inf as omega dt -> infinity."""
+    # a triple (defective) eigenvalue: eigvals resolves it to ~eps^(1/3)
+    assert max(abs(np.linalg.eigvals(sdof_amplification(rho_inf, 1e7)))) == pytest.approx(
+        rho_inf, abs=1e-4)
+    params = Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
+    model = BeamModel(n_elements=6, substeps=1, rho_inf=rho_inf)
+    modes = model.modal_analysis(params, n_modes=model.n_dof - 5)
+    bending = [j for j in range(modes.shapes.shape[1])
+               if np.abs(modes.shapes[1::3, j]).max() > np.abs(modes.shapes[0::3, j]).max()]
+    j = bending[-1]
+    phi_t = modes.shapes[1::3, j]
+    omega = 2 * np.pi * modes.frequencies_hz[j]
+    fs = omega / 80.0
+    # small enough to stay linear (the first predictor moves (omega dt)^2/2 q0),
+    # large enough for the Newton tolerance floor (~3e-8 N) to be negligible
+    q0 = 1e-7 / np.abs(phi_t).max()
+    res = model.simulate(params, np.zeros(15), fs, positions=model.node_x,
+                         initial_displacement=q0 * modes.shapes[:, j])
+    q = res.displacement @ phi_t / (phi_t @ phi_t)
+    amp = sdof_amplification(rho_inf, omega / fs)
+    state = np.array([q0, 0.0, -(omega / fs) ** 2 * q0])
+    expected = [q0]
+    for _ in range(14):
+        state = amp @ state
+        expected.append(state[0])
+    expected = np.array(expected)
+    resolved = np.abs(expected) > 1e-2 * q0  # above the Newton tolerance floor
+    assert resolved.sum() >= 3
+    np.testing.assert_allclose(q[resolved], expected[resolved], rtol=2e-3)
+
+
+def test_energy_conserved_without_damping_at_rho_one():
+    model = BeamModel(n_elements=8, substeps=4, rho_inf=1.0, newton_rtol=1e-12)
+    u0, _ = mode_displacement(model, CONSERVATIVE, 0, 1e-5)
+    state = model.static_equilibrium(CONSERVATIVE)
+    res = model.simulate(CONSERVATIVE, np.zeros(1025), FS, initial_displacement=u0)
+    e0 = model.energy(CONSERVATIVE, state.u + u0, np.zeros(model.n_dof))
+    e1 = model.energy(CONSERVATIVE, res.final_displacement, res.final_velocity)
+    es = model.energy(CONSERVATIVE, state.u, np.zeros(model.n_dof))
+    # relative to the vibration energy (the static part is constant)
+    assert abs(e1 - e0) < 1e-6 * (e0 - es)
+
+
+def test_free_decay_damping_matches_modal_prediction():
+    params = Parameters()  # eta = 3 MPa s
+    model = BeamModel(n_elements=10, substeps=8, rho_inf=1.0)  # no algorithmic damping
+    u0, modes = mode_displacement(model, params, 0, 1e-6)
+    res = model.simulate(params, np.zeros(2049), FS, initial_displacement=u0)
+    w = res.sensor_displacement  # the straight beam's static transverse offset is zero
+    peaks = [i for i in range(1, w.size - 1) if w[i] > w[i - 1] and w[i] >= w[i + 1]]
+    t = np.array(peaks) / FS
+    slope = np.polyfit(t, np.log(w[peaks]), 1)[0]  # = -zeta omega_n
+    zeta = -slope / (2 * np.pi * modes.frequencies_hz[0])
+    assert zeta == pytest.approx(modes.damping_ratios[0], rel=0.02)
+    # closed form with the unloaded mode's material stiffness:
+    # zeta ~ beta omega_0^2 / (2 omega_1), beta = eta_b / E
+    beta = model.rig.beam_viscosity(params.eta) / model.rig.youngs_modulus_pa
+    w0 = 2 * np.pi * BeamModel().modal_analysis(Parameters(F=0.0, k_s=0.0), 1).frequencies_hz[0]
+    w1 = 2 * np.pi * modes.frequencies_hz[0]
+    assert modes.damping_ratios[0] == pytest.approx(beta * w0**2 / (2 * w1), rel=0.03)
+
+
+@pytest.mark.parametrize("f_drive", [25.0, 31.0])
+def test_low_amplitude_sine_matches_linear_frf(f_drive):
+    params = Parameters(eta=20e6)  # heavier damping: the transient dies within 2 s
+    model = BeamModel(substeps=16)
+    t = np.arange(int(3 * FS)) / FS
+    force = 1e-4 * np.sin(2 * np.pi * f_drive * t)
+    v = model.simulate(params, force, FS).sensor_velocity
+    last = t > 2.0
+    basis = np.column_stack([np.sin(2 * np.pi * f_drive * t[last]), np.cos(2 * np.pi * f_drive * t[last])])
+    s, c = np.linalg.lstsq(basis, v[last], rcond=None)[0]
+    measured = (s + 1j * c) / 1e-4  # v = Im[H e^{i w t}] for force sin(w t)
+    # the force is linearly interpolated between samples: the sampled response
+    # sees the continuous FRF times sinc^2(f T) (research notes)
+    h = model.linear_frf(params, [f_drive])[0] * np.sinc(f_drive / FS) ** 2
+    assert abs(measured - h) < 0.01 * abs(h)
+
+
+def test_hardening_with_top_spring_or_damper():
+    """The top moves against k_s and c when the beam shortens: the first
+    frequency rises with amplitude; with c = k_s = 0 the shift is far smaller."""
+    def shift(params):
+        model = BeamModel(substeps=8)
+        f = []
+        for amp in (1e-5, 3e-3):
+            u0, _ = mode_displacement(model, params, 0, amp)
+            v = model.simulate(params, np.zeros(257), FS, initial_displacement=u0).sensor_velocity
+            f.append(zero_crossing_frequency(v, FS))
+        return f[1] - f[0]
+
+    with_spring = shift(Parameters(c=0.0, k_s=180e3))
+    with_damper = shift(Parameters(c=15e3, k_s=0.0))
+    paper = shift(Parameters())
+    free = shift(Parameters(c=0.0, k_s=0.0, F=74.06))
+    assert with_spring > 0.5 and with_damper > 0.5 and paper > 0.5  # Hz
+    assert abs(free) < 0.05 * min(with_spring, with_damper)
+
+
+def test_newton_failure_names_the_time_step():
+    model = BeamModel(substeps=1, max_newton_iterations=1)
+    force = np.zeros(64)
+    force[10:] = 50.0  # a violent step load that one Newton iteration cannot absorb
+    with pytest.raises(ConvergenceError, match=r"sample \d+ \(t = "):
+        model.simulate(Parameters(), force, FS)

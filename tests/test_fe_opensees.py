@@ -1,0 +1,159 @@
+"""fe against an independent code: the same rig built in OpenSeesPy.
+
+The OpenSees model (``benchmarks/opensees_model.py``) has the same mesh, the
+same element (``formulation="linear"``: co-rotational, chord-only axial strain =
+``elasticBeamColumn`` + ``Corotational``), the same consistent mass, boundaries,
+top spring/damper, load interpolation and the same Chung-Hulbert scheme
+(``HHTGeneralized``) at the same step.  What differs by construction, and what
+each tolerance below is built from:
+
+1. Viscosity: fe applies Kelvin-Voigt to the true local deformation rates of
+   each element; OpenSees gets the closest linear equivalent, initial-stiffness
+   Rayleigh damping beta K_0.  Linearised about the preloaded state these differ
+   only through the chord length (fe's rates use the compressed length
+   L (1 - P/EA), so every modal damping ratio is 2 P/EA = 7.1e-5 higher); in
+   the large-amplitude response fe also damps the shortening rate (the
+   nonlinear part beta K_0 misses).  ``kelvin_voigt_perturbation`` predicts this
+   difference to first order from the missing force along the OpenSees
+   trajectory; the tests check the difference *is* that prediction.
+2. Integrator, nonlinear terms only: fe averages the internal forces
+   ((1 - alpha_f) f(u_{n+1}) + alpha_f f(u_n), the paper's eq. 4), OpenSees
+   evaluates them at the averaged state.  Both are second-order consistent, so
+   the difference vanishes as dt^2 and is zero for a linear problem.
+3. Newton tolerances (fe: 1e-9 (F + max|p|) plus a round-off floor).
+
+Runtime: about 20 s, most of it OpenSees (about 0.15 ms per step at 20 elements).
+"""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import fe
+from bayes_update.signals import chirp
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+import opensees_model as osm  # noqa: E402
+
+if osm.ops is None:
+    pytest.skip(f"openseespy cannot be imported ({osm.IMPORT_ERROR}); "
+                "the independent-code comparison needs it (pip install openseespy; "
+                "system libraries libblas3 and liblapack3)", allow_module_level=True)
+
+FS = 1024.0
+N_ELEMENTS = 20
+SUBSTEPS = 4
+PAPER = fe.Parameters()  # eta 3 MPa s, c 15 N s/mm, F 77 N, k_s 180 N/mm
+LOW, HIGH = 0.005, 0.1  # chirp amplitudes [N]
+
+
+def rel_l2(a, b):
+    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
+
+
+def model(rho_inf=0.9, substeps=SUBSTEPS):
+    return fe.BeamModel(n_elements=N_ELEMENTS, substeps=substeps, rho_inf=rho_inf,
+                        formulation="linear")
+
+
+# (An earlier fe accepted a Newton predictor already within its tolerance,
+# which is set by F, not by the shaker force; at rho_inf = 0.01 such steps
+# added up to 1.7e-4 of the 0.005 N response.  fe now always takes one
+# correction; the rho_inf = 0.01 cases below guard that.)
+
+
+# ----------------------------------------------------------------- frequencies
+@pytest.mark.parametrize("params", [fe.Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0), PAPER],
+                         ids=["unloaded", "paper"])
+def test_frequencies_agree(params):
+    # Same discrete eigenproblem (same element, mass, boundaries, spring): the
+    # only differences are round-off and the static Newton tolerances (~2e-9 of
+    # F; d ln f1 / d ln P ~ -0.7), so 1e-7 is generous and 1e-4 far too loose.
+    m = model()
+    ours = m.modal_analysis(params, n_modes=3).frequencies_hz
+    theirs = osm.opensees_frequencies(m, params, n_modes=3)
+    np.testing.assert_allclose(theirs, ours, rtol=1e-7)
+    if params.F > 0:  # preloaded: the first mode near 30 Hz (research notes: 29.84 Hz at 40 elements)
+        assert 29.8 < ours[0] < 30.1
+
+
+# ----------------------------------------------------------- linear transient
+@pytest.mark.parametrize("rho_inf", [0.9, 0.01])
+def test_linear_transient_identical_without_viscosity(rho_inf):
+    # 5e-5 N: geometric nonlinearity ~1e-8 relative; eta = 0 removes the one
+    # modelling difference.  The two codes then integrate the same linear system
+    # with the same scheme: agreement to the Newton tolerance.  1 s of the chirp
+    # (through the first resonance near 30 Hz).
+    params = fe.Parameters(eta=0.0)
+    m = model(rho_inf)
+    force = chirp(5e-5)[:1024]
+    ours = m.simulate(params, force, FS).sensor_velocity
+    theirs = osm.run_opensees_transient(m, params, force, FS)
+    assert rel_l2(ours, theirs) < 1e-6  # measured 3e-9 (rho_inf 0.9)
+
+
+# ----------------------------------------------------- chirps, both levels
+_RUNS = {}
+
+
+def compare(amplitude, rho_inf, substeps=SUBSTEPS, params=PAPER):
+    """fe and OpenSees on the chirp, plus the predicted viscosity-model difference."""
+    key = (amplitude, rho_inf, substeps, params)
+    if key not in _RUNS:
+        m = model(rho_inf, substeps)
+        force = chirp(amplitude)
+        ours = m.simulate(params, force, FS).sensor_velocity
+        theirs, states = osm.run_opensees_transient(m, params, force, FS, record_states=True)
+        predicted = osm.kelvin_voigt_perturbation(m, params, states, FS)
+        _RUNS[key] = (ours, theirs, predicted)
+    return _RUNS[key]
+
+
+@pytest.mark.parametrize("rho_inf", [0.9, 0.01])
+def test_low_level_chirp_agrees(rho_inf):
+    ours, theirs, predicted = compare(LOW, rho_inf)
+    # the codes agree far inside the issue's 0.5 %: 5.6e-5 (rho 0.9), 1.8e-4 (0.01)
+    assert rel_l2(ours, theirs) < 5e-4
+    # the part explained by the viscosity model is the linear one: 2 P/EA more
+    # modal damping in fe (5.6e-5 of the response through the resonance)
+    assert 4e-5 < np.linalg.norm(predicted) / np.linalg.norm(theirs) < 7e-5
+
+
+@pytest.mark.parametrize("rho_inf", [0.9, 0.01])
+def test_low_level_difference_is_the_viscosity_model(rho_inf):
+    # Remove the predicted viscosity difference: what is left is the integrator's
+    # nonlinear difference (scales as amplitude^2 and dt^2; 1.4e-5 at 0.005 N even
+    # without viscosity, when the response is 1.5x larger) plus Newton tolerances.
+    ours, theirs, predicted = compare(LOW, rho_inf)
+    assert rel_l2(ours, theirs + predicted) < 3e-5  # measured 1.8e-6 (rho 0.9)
+
+
+def test_high_level_without_viscosity_differs_only_by_the_time_step():
+    # eta = 0: the only difference left is (2), O(alpha_f dt^2) in the nonlinear
+    # terms.  Halving dt must divide it by 4 (measured 1.59e-3 -> 4.0e-4 -> 1.0e-4
+    # for 2, 4, 8 substeps); a modelling difference (element, load, boundary)
+    # would not vanish.
+    params = fe.Parameters(eta=0.0)
+    force = chirp(HIGH)
+    diff = {}
+    for substeps in (2, 4):
+        m = model(0.9, substeps)
+        ours = m.simulate(params, force, FS).sensor_velocity
+        diff[substeps] = rel_l2(ours, osm.run_opensees_transient(m, params, force, FS))
+    assert 3.5 < diff[2] / diff[4] < 4.5
+    assert diff[4] < 1e-3
+
+
+def test_high_level_chirp_agrees_up_to_the_kelvin_voigt_nonlinearity():
+    # With viscosity, fe's Kelvin-Voigt also damps the shortening rate, which
+    # beta K_0 cannot: the codes differ by 0.84 % at 0.1 N (DESIGN: ~0.6 % in the
+    # planning prototype).  The first-order prediction from the missing force
+    # accounts for it: the rest (2.1e-4) is below the integrator difference
+    # measured without viscosity at this step (4.0e-4, previous test).
+    ours, theirs, predicted = compare(HIGH, 0.9)
+    explained = np.linalg.norm(predicted) / np.linalg.norm(theirs)
+    assert 0.004 < explained < 0.015
+    assert rel_l2(ours, theirs) < explained + 1e-3
+    assert rel_l2(ours, theirs + predicted) < 1e-3

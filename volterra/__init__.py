@@ -1,0 +1,54 @@
+"""volterra: discrete-time Volterra series (orders 1-3) in a Kautz orthonormal basis.
+
+Turns an input/output record into kernels and into the components y1, y2, y3
+(paper eq. 11-19).  Knows nothing about beams.
+
+    basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=1024.0,
+                                  n_functions=(2, 2, 6))
+    model = fit_volterra(u, y, basis, ridge=0.0)   # or lists of records
+    y1, y2, y3 = model.components(u)
+    print(model.summary())
+
+Conventions: y_n with no 1/n! factor; symmetric kernels are averages over
+argument permutations; frequencies in Hz, lags in samples,
+``H(f) = sum_n h(n) exp(-j 2 pi f n / fs)``.  See :mod:`volterra.model` for
+what the Kautz-basis kernels can and cannot represent (H3 near
+f1 + f2 + f3 = fn is not representable).
+"""
+from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
+from .kautz import KautzPole, kautz_filter, kautz_frequency_response, kautz_impulse_responses
+from .model import FitInfo, VolterraModel, fit_volterra
+from .poles import estimate_h1, pole_from_frf, pole_from_modal, refine_pole
+from .regressors import index_tuples, multiplicity, n_terms
+
+__all__ = [
+    "KautzPole",
+    "KautzBasis",
+    "DEFAULT_N_FUNCTIONS",
+    "ROBUST_LINEAR_N_FUNCTIONS",
+    "fit_volterra",
+    "VolterraModel",
+    "FitInfo",
+    "pole_from_modal",
+    "pole_from_frf",
+    "refine_pole",
+    "estimate_h1",
+    "kautz_filter",
+    "kautz_impulse_responses",
+    "kautz_frequency_response",
+    "index_tuples",
+    "multiplicity",
+    "n_terms",
+    "plot_components",
+    "plot_h1",
+    "plot_h2",
+]
+
+
+def __getattr__(name):
+    # plotting imports matplotlib lazily: importing volterra stays cheap
+    if name in ("plot_components", "plot_h1", "plot_h2"):
+        from . import plotting
+
+        return getattr(plotting, name)
+    raise AttributeError(f"module 'volterra' has no attribute {name!r}")
