@@ -39,6 +39,47 @@ def _add_parameter_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--k-s", type=float, default=d.k_s, help=f"top spring [N/m] (default {d.k_s:g})")
 
 
+def _add_factor_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--bending-stiffness-factor", type=float, default=None, metavar="X",
+                   help="multiply the model's EI by X (default: the data set's "
+                        "rig.bending_stiffness_factor, 1.0 when absent; 1.24 reproduces the "
+                        "paper's shear-locking mesh)")
+    p.add_argument("--override-factor", action="store_true",
+                   help="allow --bending-stiffness-factor to differ from the factor the data set states")
+
+
+def _rig_for(data: Dataset, args) -> fe.Rig:
+    """The model's rig: the data set's, with the factor from the command line if given.
+    A factor that contradicts the one the data set states needs --override-factor."""
+    import dataclasses
+
+    rig = data.rig
+    factor = getattr(args, "bending_stiffness_factor", None)
+    if factor is None:
+        return rig
+    stated = _stated_factor(data)
+    if stated is not None and stated != factor and not args.override_factor:
+        raise ValueError(f"the data set states bending_stiffness_factor = {stated:g} but "
+                         f"--bending-stiffness-factor {factor:g} was given; pass --override-factor "
+                         "to use it anyway (e.g. to calibrate a locking-free model on the "
+                         "paper-equivalent data)")
+    return dataclasses.replace(rig, bending_stiffness_factor=factor)
+
+
+def _stated_factor(data: Dataset):
+    """The factor written in the data set's dataset.json, or None when absent."""
+    if data.source is None:
+        return None
+    path = Path(data.source)
+    path = path / "dataset.json" if path.is_dir() else path
+    try:
+        rig = json.loads(path.read_text()).get("rig", {})
+    except (OSError, ValueError):
+        return None
+    value = rig.get("bending_stiffness_factor")
+    return None if value is None else float(value)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="bayes-update",
@@ -54,8 +95,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
     _add_parameter_options(p)
     _add_model_options(p)
+    _add_factor_options(p)
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("calibrate", help="the paper's two-stage deterministic updating",
+                       description="Reproduce section 4 of the paper on a data set: e_lin over "
+                                   "(F, k_s) grids per c on the 'linear' test (Table 1), e_lin "
+                                   "against eta (Fig. 8), e_lin + e_nlin over (F, k_s, c) on the "
+                                   "'nonlinear' test (Table 2), a Nelder-Mead refinement "
+                                   "(Table 3) and the validation tests. Writes tables (CSV), "
+                                   "figures (PNG), report.txt and calibration.json (SI). "
+                                   "Without --data: the embedded default data set.")
+    p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--quick", action="store_true",
+                   help="coarse grids (about 1/10 of the runs): a first look, or CI")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes for the grids (default: all cores; 1 = serial)")
+    _add_model_options(p)
+    _add_factor_options(p)
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("make-dataset", help="regenerate the embedded default data set (virtual rig)",
                        description="Run the virtual rig (paper-equivalent rig, bending stiffness "
@@ -99,7 +159,11 @@ def cmd_simulate(args) -> int:
     from .plots import plot_test
 
     data = read_dataset(args.data) if args.data else _default_dataset()
-    model = fe.BeamModel(rig=data.rig, n_elements=args.elements, substeps=args.substeps,
+    rig = _rig_for(data, args)
+    if rig != data.rig:
+        import dataclasses
+        data = dataclasses.replace(data, rig=rig)
+    model = fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps,
                          rho_inf=args.rho_inf)
     start = time.perf_counter()
     out = simulate_dataset(data, model, params)
@@ -122,6 +186,27 @@ def cmd_simulate(args) -> int:
     (Path(args.out) / "simulate.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"simulated {len(out.tests)} test(s) in {elapsed:.2f} s; P_eff = {summary['P_eff_N']:.2f} N, "
           f"f1 = {summary['f1_hz']:.2f} Hz; wrote {args.out}")
+    return 0
+
+
+def cmd_calibrate(args) -> int:
+    import dataclasses
+
+    from .calibrate import CalibrationSettings, calibrate, format_tables, write_result
+    from .virtual_rig import load_default_dataset
+
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    data = read_dataset(args.data) if args.data else load_default_dataset()
+    rig = _rig_for(data, args)
+    data = dataclasses.replace(data, rig=rig)
+    model = fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps,
+                         rho_inf=args.rho_inf)
+    settings = CalibrationSettings.quick() if args.quick else CalibrationSettings()
+    result = calibrate(data, model, settings, workers=args.workers)
+    write_result(result, data, args.out)
+    print(format_tables(result))
+    print(f"wrote {args.out}")
     return 0
 
 

@@ -92,3 +92,121 @@ def plot_psd(spectra: dict, f_max: float = 140.0, harmonics_of: float | None = N
     ax.legend(loc="upper right", fontsize=8)
     ax.set_title(title or "power spectral density")
     return fig
+
+
+# ------------------------------------------------------------------ calibration
+def _grid_panels(rows, key, c_values, label, best_rows, title):
+    """One panel per c: the metric over (F, k_s) on the (P_eff, k_s) grid."""
+    n = len(c_values)
+    ncol = min(3, n)
+    nrow = int(np.ceil(n / ncol))
+    fig = Figure(figsize=(4.2 * ncol, 3.4 * nrow), constrained_layout=True)
+    axes = np.atleast_1d(fig.subplots(nrow, ncol, squeeze=False)).ravel()
+    vals = np.array([r[key] for r in rows], float)
+    finite = vals[np.isfinite(vals)]
+    vmin, vmax = np.log10(finite.min()), np.log10(np.percentile(finite, 95))
+    for ax, c, best in zip(axes, c_values, best_rows):
+        sub = [r for r in rows if r["c_N_s_per_mm"] == c]
+        ks = sorted({r["k_s_N_per_mm"] for r in sub})
+        ps = sorted({r["P_eff_N"] for r in sub})
+        F = np.full((len(ks), len(ps)), np.nan)
+        Z = np.full_like(F, np.nan)
+        for r in sub:
+            i, j = ks.index(r["k_s_N_per_mm"]), ps.index(r["P_eff_N"])
+            F[i, j], Z[i, j] = r["F_N"], np.log10(r[key])
+        K = np.repeat(np.array(ks)[:, None], len(ps), axis=1)
+        m = ax.pcolormesh(F, K, Z, shading="nearest", cmap="viridis_r", vmin=vmin, vmax=vmax)
+        ax.plot(best["F_N"], best["k_s_N_per_mm"], "r*", ms=10)
+        ax.set_title(f"c = {c:g} N s/mm: min {100 * best[key]:.2f} %", fontsize="medium")
+        ax.set_xlabel("F [N]")
+        ax.set_ylabel("k_s [N/mm]")
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.colorbar(m, ax=axes[:n].tolist(), label=f"log10 {label}")
+    fig.suptitle(title)
+    return fig
+
+
+def calibration_figures(result, dataset) -> dict:
+    """The paper's figures for a calibration (Fig. 4, 8, 12, 13, 14 analogues),
+    plus the k_s profile along the ridge.  Returns {name: Figure}."""
+    from .spectral import psd
+
+    figs = {}
+    c_values = result.settings.c_values
+    figs["fig4_e_lin_grid"] = _grid_panels(
+        result.linear_grid, "e_lin", c_values, "e_lin", result.table1,
+        f"e_lin over (F, k_s), low-level chirp, eta = {result.settings.eta_start:g} MPa s (Fig. 4)")
+    figs["table2_e_lin_nlin_grid"] = _grid_panels(
+        result.nonlinear_grid, "e_lin_nlin", c_values, "(e_lin + e_nlin)", result.table2,
+        f"e_lin + e_nlin over (F, k_s), eta = {result.table3['eta_MPa_s']:.2f} MPa s (Table 2)")
+
+    fig = Figure(figsize=(6, 4), constrained_layout=True)
+    ax = fig.subplots()
+    ax.plot([r["eta_MPa_s"] for r in result.eta_scan], [100 * r["e_lin"] for r in result.eta_scan], "o-")
+    ax.axvline(result.table3["eta_MPa_s"], color="r", ls="--",
+               label=f"estimate {result.table3['eta_MPa_s']:.2f} MPa s")
+    ax.set_xlabel("eta [MPa s]")
+    ax.set_ylabel("e_lin [%]")
+    ax.set_title("e_lin against the material viscosity (Fig. 8)")
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    figs["fig8_e_lin_eta"] = fig
+
+    fig = Figure(figsize=(6, 4), constrained_layout=True)
+    ax = fig.subplots()
+    r = result.ridge
+    ax.plot(r["k_s_N_per_mm"], [100 * v for v in r["min_e_lin_nlin"]], "o-")
+    ax.axvline(result.table3["k_s_N_per_mm"], color="r", ls="--", label="estimate")
+    ax.set_xlabel("k_s [N/mm] (F following the ridge)")
+    ax.set_ylabel("min over P_eff of e_lin + e_nlin [%]")
+    ax.set_title(f"How well the high level pins k_s (c = {r['c_N_s_per_mm']:g} N s/mm)")
+    ax.legend()
+    ax.grid(True, alpha=0.3)
+    figs["ridge_k_s_profile"] = fig
+
+    prob = result.problem
+    if prob is not None and "nonlinear" in prob.tests:
+        test = prob.tests["nonlinear"]
+        ref = prob.reference_components("nonlinear")
+        mod = prob.components("nonlinear", result.velocities[test.name])
+        t = np.arange(test.force.size) / prob.fs
+        fig = Figure(figsize=(8, 5.5), constrained_layout=True)
+        axes = fig.subplots(2, 1, sharex=True)
+        for ax, (lab, a, b) in zip(axes, [("y1", ref[1], mod[1]), ("y2 + y3", ref[2] + ref[3], mod[2] + mod[3])]):
+            ax.plot(t, a, lw=0.7, label=f"{lab} data")
+            ax.plot(t, b, lw=0.7, ls="--", label=f"{lab} model")
+            ax.set_ylabel(f"{lab} [m/s]")
+            ax.legend(loc="upper right", fontsize="small")
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("time [s]")
+        fig.suptitle(f"Volterra components, {test.name}, updated model (Fig. 12)")
+        figs["fig12_components_high"] = fig
+
+    val = {k: v for k, v in result.validation.items() if not k.startswith("_")}
+    chirps = [dataset.test(n) for n, v in val.items() if v["signal"] != "sine"]
+    for test in chirps:
+        v = result.velocities[test.name]
+        fig = plot_test(test, v, title=f"{test.name}: data and updated model, rel. L2 = "
+                                       f"{100 * val[test.name]['rel_l2']:.1f} % (Fig. 13)")
+        figs[f"fig13_{test.name}"] = fig
+    sines = [dataset.test(n) for n, v in val.items() if v["signal"] == "sine"]
+    if sines:
+        fig = Figure(figsize=(8, 3 * len(sines)), constrained_layout=True)
+        axes = np.atleast_1d(fig.subplots(len(sines), 1, sharex=True, squeeze=False)).ravel()
+        fs = dataset.sampling_rate_hz
+        for ax, test in zip(axes, sines):
+            f, pd = psd(test.velocity, fs)
+            _, pm = psd(result.velocities[test.name], fs)
+            sel = f <= 140
+            ax.semilogy(f[sel], pd[sel], lw=0.9, label="data")
+            ax.semilogy(f[sel], pm[sel], lw=0.9, ls="--", label="model")
+            h = val[test.name]["harmonics_db"]
+            ax.set_title(f"{test.name}: model - data at 1x/2x/3x = " + ", ".join(
+                "n/a" if d is None else f"{d:+.1f} dB" for d in h.values()), fontsize="medium")
+            ax.set_ylabel("PSD [(m/s)^2/Hz]")
+            ax.legend(fontsize="small")
+            ax.grid(True, alpha=0.3)
+        axes[-1].set_xlabel("frequency [Hz]")
+        figs["fig14_sine_psd"] = fig
+    return figs

@@ -294,3 +294,43 @@ def test_summary_and_plots(exact_case):
     assert all(isinstance(f, Figure) for f in figs)
     assert len(figs[0].axes) == 3
     assert plt.get_fignums() == open_before   # pyplot state untouched, nothing shown
+
+
+# ------------------------------------------------------------ projector (one input, many outputs)
+def test_projector_recovers_exact_components_and_equals_fit(exact_case):
+    from volterra import VolterraProjector
+
+    u, coefs, comps, basis = exact_case
+    proj = VolterraProjector(u, basis)
+    y = comps[1] + comps[2] + comps[3]
+    got = proj.components(y)
+    for n in (1, 2, 3):  # against the independent forward model (explicit loops, closed-form Kautz)
+        assert np.linalg.norm(got[n] - comps[n]) < 1e-9 * np.linalg.norm(comps[n])
+    assert np.abs(proj.coefficients(y) - flat(coefs)).max() < 1e-9
+    # a noisy output: same least-squares answer as a full fit, with and without ridge
+    rng = np.random.default_rng(5)
+    noisy = y + 0.1 * np.std(y) * rng.standard_normal(y.size)
+    for ridge in (0.0, 1e-3):
+        fit = dict(zip((1, 2, 3), fit_volterra(u, noisy, basis, ridge=ridge).components(u)))
+        mine = VolterraProjector(u, basis, ridge=ridge).components(noisy)
+        for n in (1, 2, 3):
+            assert np.linalg.norm(mine[n] - fit[n]) < 1e-8 * np.linalg.norm(fit[n])
+
+
+def test_projector_rejects_bad_input(exact_case):
+    from volterra import VolterraProjector
+
+    u, _, _, basis = exact_case
+    proj = VolterraProjector(u, basis)
+    with pytest.raises(ValueError, match="shape"):
+        proj.components(np.zeros(10))
+    bad = np.zeros(u.size)
+    bad[4] = np.nan
+    with pytest.raises(ValueError, match="NaN"):
+        proj.components(bad)
+    with pytest.raises(ValueError, match="NaN"):
+        VolterraProjector(bad, basis)
+    with pytest.raises(ValueError, match="too few samples"):
+        VolterraProjector(u[:20], basis)
+    with pytest.raises(ValueError, match="KautzBasis"):
+        VolterraProjector(u, None)

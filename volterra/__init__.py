@@ -18,6 +18,7 @@ f1 + f2 + f3 = fn is not representable).
 from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
 from .kautz import KautzPole, kautz_filter, kautz_frequency_response, kautz_impulse_responses
 from .model import FitInfo, VolterraModel, fit_volterra
+from .projector import VolterraProjector
 from .poles import estimate_h1, pole_from_frf, pole_from_modal, refine_pole
 from .regressors import index_tuples, multiplicity, n_terms
 
@@ -29,6 +30,7 @@ __all__ = [
     "fit_volterra",
     "VolterraModel",
     "FitInfo",
+    "VolterraProjector",
     "pole_from_modal",
     "pole_from_frf",
     "refine_pole",

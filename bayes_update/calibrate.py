@@ -1,0 +1,368 @@
+"""The paper's two-stage deterministic updating (section 4), on any data set.
+
+1. Linear stage (test with role ``linear``, the low-level chirp): e_lin over a
+   grid of (F, k_s) for each c of the paper's Table 1, at a provisional eta
+   (the prior box centre); then e_lin against eta at the best (c, F, k_s)
+   (the paper's Fig. 8), refined by a parabola through the three best points.
+2. Nonlinear stage (role ``nonlinear``, the high-level chirp): e_lin + e_nlin
+   over the same (F, k_s) grid for each c at the updated eta (Table 2); then a
+   derivative-free local refinement (Nelder-Mead) of (F, k_s, c) from the best
+   grid point (Table 3).
+3. Validation (roles ``validation``): medium chirp in time, sines by PSD.
+
+The (F, k_s) grid is laid out in (P_eff, k_s): e_lin sees only the preload the
+beam carries, P_eff = F K_b / (K_b + k_s), so each k_s column spans a window of
+P_eff around the preload at which the model's first mode matches the data's
+Kautz pole, and F follows.  A regular F grid would spend most runs far from the
+valley, whose width is a fraction of a newton.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import time
+from concurrent.futures import Executor
+from dataclasses import asdict, dataclass, field
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import minimize
+
+import fe
+
+from .dataset import Dataset
+from .evaluation import default_executor, evaluate_many
+from .metrics import UpdatingProblem
+from .validation import validate
+
+MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
+
+
+@dataclass(frozen=True)
+class CalibrationSettings:
+    """Grids in the paper's units (c [N s/mm], k_s [N/mm], P_eff [N], eta [MPa s])."""
+
+    c_values: tuple = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0)
+    k_s_values: tuple = tuple(float(k) for k in range(0, 601, 60))
+    p_eff_halfwidth: float = 3.0
+    p_eff_step: float = 0.5
+    eta_values: tuple = tuple(float(e) for e in np.round(np.arange(1.0, 6.001, 0.25), 2))
+    eta_start: float = 3.5
+    refine_max_evaluations: int = 80
+
+    def __post_init__(self):
+        for name in ("c_values", "k_s_values", "eta_values"):
+            v = np.asarray(getattr(self, name), float)
+            if v.ndim != 1 or v.size == 0 or not np.all(np.isfinite(v)) or np.any(v < 0):
+                raise ValueError(f"{name} must be a non-empty list of non-negative numbers")
+        if len(self.eta_values) < 3:
+            raise ValueError("eta_values needs at least 3 values (a parabola is fitted)")
+        if not (self.p_eff_step > 0 and self.p_eff_halfwidth >= self.p_eff_step):
+            raise ValueError("need p_eff_step > 0 and p_eff_halfwidth >= p_eff_step")
+        if not self.eta_start > 0:
+            raise ValueError("eta_start must be positive")
+
+    @classmethod
+    def quick(cls) -> "CalibrationSettings":
+        """Coarse grids for tests and a first look (about 1/10 of the runs)."""
+        return cls(c_values=(5.0, 15.0, 25.0), k_s_values=(0.0, 200.0, 400.0, 600.0),
+                   p_eff_halfwidth=1.0, p_eff_step=0.5,
+                   eta_values=(2.0, 2.5, 3.0, 3.5, 4.0, 4.5), refine_max_evaluations=40)
+
+
+def parameters_from(rig: fe.Rig, eta_mpa_s: float, c_n_s_per_mm: float, k_s_n_per_mm: float,
+                    p_eff_n: float) -> fe.Parameters:
+    """Parameters (SI) from (eta, c, k_s) in paper units and the preload P_eff [N]
+    carried by the beam: F = P_eff (K_b + k_s) / K_b."""
+    kb = rig.axial_stiffness
+    k_s = k_s_n_per_mm * N_PER_MM
+    return fe.Parameters(eta=eta_mpa_s * MPA_S, c=c_n_s_per_mm * N_S_PER_MM,
+                         F=p_eff_n * (kb + k_s) / kb, k_s=k_s)
+
+
+def paper_units(params: fe.Parameters, rig: fe.Rig) -> dict:
+    return {"eta_MPa_s": params.eta / MPA_S, "c_N_s_per_mm": params.c / N_S_PER_MM,
+            "F_N": params.F, "k_s_N_per_mm": params.k_s / N_PER_MM,
+            "P_eff_N": params.effective_preload(rig)}
+
+
+def preload_for_frequency(model, freq_hz: float, eta: float = 0.0) -> float:
+    """P_eff [N] at which the model's linearised first mode is ``freq_hz``
+    (bisection; k_s = c = 0 so that F = P_eff)."""
+    p_cr = model.buckling_load()
+
+    def f1(p):
+        return model.modal_analysis(fe.Parameters(eta=eta, c=0.0, F=p, k_s=0.0), n_modes=1).frequencies_hz[0]
+
+    lo, hi = 0.0, 0.995 * p_cr
+    if not f1(hi) < freq_hz < f1(lo):
+        raise ValueError(f"no preload between 0 and {hi:.1f} N gives a first mode at {freq_hz:.2f} Hz "
+                         f"(model: {f1(lo):.2f} Hz unloaded, {f1(hi):.2f} Hz near buckling); "
+                         "check the rig (length, thickness, modulus, bending_stiffness_factor)")
+    for _ in range(50):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if f1(mid) > freq_hz else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def parabola_vertex(x, y) -> float:
+    """Minimiser of the parabola through the lowest sample and its neighbours
+    (the sample itself at an end of the range)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    i = int(np.nanargmin(y))
+    if i == 0 or i == x.size - 1:
+        return float(x[i])
+    a, b, _ = np.polyfit(x[i - 1:i + 2], y[i - 1:i + 2], 2)
+    return float(-b / (2 * a)) if a > 0 else float(x[i])
+
+
+@dataclass
+class CalibrationResult:
+    """Everything the two stages produced (paper units in the tables)."""
+
+    final: dict
+    linear_grid: list
+    eta_scan: list
+    nonlinear_grid: list
+    refinement: list
+    table1: list
+    table2: list
+    table3: dict
+    ridge: dict
+    validation: dict
+    setup: dict
+    timing: dict
+    settings: CalibrationSettings
+    final_params: fe.Parameters = field(repr=False, default=None)
+    velocities: dict = field(repr=False, default_factory=dict)
+    problem: UpdatingProblem | None = field(repr=False, default=None)
+
+    def calibration_json(self) -> dict:
+        f = self.final_params
+        return {"eta": f.eta, "c": f.c, "F": f.F, "k_s": f.k_s, "P_eff": self.final["P_eff_N"],
+                "e_lin": self.final["e_lin"], "e_nlin": self.final["e_nlin"],
+                "units": {"eta": "Pa s", "c": "N s/m", "F": "N", "k_s": "N/m", "P_eff": "N"},
+                "paper_units": self.table3, "ridge": self.ridge,
+                "validation": {k: v for k, v in self.validation.items() if not k.startswith("_")},
+                "setup": self.setup, "timing_s": self.timing, "settings": asdict(self.settings)}
+
+
+def _best(rows, key):
+    ok = [r for r in rows if np.isfinite(r[key])]
+    if not ok:
+        raise RuntimeError(f"every model run of this stage failed; first error: {rows[0].get('error')}")
+    return min(ok, key=lambda r: r[key])
+
+
+def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None = None,
+              executor: Executor | None = None, workers: int | None = None,
+              progress: bool = True, log=print) -> CalibrationResult:
+    """Run the two-stage updating on ``dataset`` (see the module docstring).
+
+    model : a model of the rig (default ``fe.BeamModel(rig=dataset.rig)``).
+    executor : any ``concurrent.futures.Executor`` for the grids; default a
+        local process pool over ``workers`` processes (all cores); ``workers=1``
+        runs serially.
+    """
+    settings = settings or CalibrationSettings()
+    rig = dataset.rig
+    model = model if model is not None else fe.BeamModel(rig=rig)
+    t_start = time.perf_counter()
+    problem = UpdatingProblem(dataset, model)
+    if "nonlinear" not in problem.stages:
+        raise ValueError(f"{problem.source}: the nonlinear stage needs a test with role 'nonlinear'")
+    pole = problem.basis.pole(1)
+    p0 = preload_for_frequency(model, pole.freq_hz, eta=settings.eta_start * MPA_S)
+    p_grid = p0 + np.arange(-settings.p_eff_halfwidth, settings.p_eff_halfwidth + 1e-9,
+                            settings.p_eff_step)
+    p_grid = p_grid[(p_grid > 0) & (p_grid < 0.99 * model.buckling_load())]
+    log(f"Kautz pole from {problem.tests['linear'].name}: {pole.freq_hz:.3f} Hz, zeta = "
+        f"{pole.damping_ratio:.4f}; model first mode there at P_eff = {p0:.2f} N; "
+        f"grid P_eff {p_grid[0]:.2f}..{p_grid[-1]:.2f} N")
+    own_pool = executor is None and (workers or 2) > 1
+    pool = default_executor(workers) if own_pool else executor
+    n_runs = 0
+    timing = {}
+    try:
+        # ---------------------------------------------------------------- linear stage
+        t0 = time.perf_counter()
+        combos = [(c, ks, p) for c in settings.c_values for ks in settings.k_s_values for p in p_grid]
+        pts = [parameters_from(rig, settings.eta_start, c, ks, p) for c, ks, p in combos]
+        res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
+                            progress=progress, desc="linear grid")
+        n_runs += len(pts)
+        linear_grid = [{**paper_units(q, rig), "e_lin": r["e_lin"], "error": r["error"]}
+                       for q, r in zip(pts, res)]
+        table1 = [_best([g for g in linear_grid if g["c_N_s_per_mm"] == c], "e_lin")
+                  for c in settings.c_values]
+        best_lin = _best(linear_grid, "e_lin")
+        timing["linear_grid"] = time.perf_counter() - t0
+
+        t0 = time.perf_counter()
+        pts = [parameters_from(rig, e, best_lin["c_N_s_per_mm"], best_lin["k_s_N_per_mm"],
+                               best_lin["P_eff_N"]) for e in settings.eta_values]
+        res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
+                            progress=progress, desc="eta scan")
+        n_runs += len(pts)
+        eta_scan = [{"eta_MPa_s": e, "e_lin": r["e_lin"]} for e, r in zip(settings.eta_values, res)]
+        eta_hat = parabola_vertex(settings.eta_values, [r["e_lin"] for r in eta_scan])
+        eta_hat = float(np.clip(eta_hat, min(settings.eta_values), max(settings.eta_values)))
+        timing["eta_scan"] = time.perf_counter() - t0
+        log(f"linear stage: best c = {best_lin['c_N_s_per_mm']:g} N s/mm, F = {best_lin['F_N']:.2f} N, "
+            f"k_s = {best_lin['k_s_N_per_mm']:g} N/mm (P_eff = {best_lin['P_eff_N']:.2f} N), "
+            f"e_lin = {100 * best_lin['e_lin']:.2f} %; eta = {eta_hat:.3f} MPa s")
+
+        # ------------------------------------------------------------- nonlinear stage
+        t0 = time.perf_counter()
+        pts = [parameters_from(rig, eta_hat, c, ks, p) for c, ks, p in combos]
+        res = evaluate_many(problem.evaluate, pts, pool, progress=progress, desc="nonlinear grid")
+        n_runs += 2 * len(pts)
+        nonlinear_grid = [{**paper_units(q, rig), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
+                           "e_lin_nlin": r["e_lin"] + r["e_nlin"], "error": r["error"]}
+                          for q, r in zip(pts, res)]
+        table2 = [_best([g for g in nonlinear_grid if g["c_N_s_per_mm"] == c], "e_lin_nlin")
+                  for c in settings.c_values]
+        best_nl = _best(nonlinear_grid, "e_lin_nlin")
+        timing["nonlinear_grid"] = time.perf_counter() - t0
+    finally:
+        if own_pool:
+            pool.shutdown()
+
+    # ------------------------------------------------------------------ refinement
+    t0 = time.perf_counter()
+    scale = np.array([settings.p_eff_step, 60.0, 2.5])   # N, N/mm, N s/mm: one unit each
+    x0 = np.array([best_nl["P_eff_N"], best_nl["k_s_N_per_mm"], best_nl["c_N_s_per_mm"]])
+    p_max = 0.99 * model.buckling_load()
+    history = []
+
+    def objective(z):
+        p, ks, c = x0 + z * scale
+        q = parameters_from(rig, eta_hat, max(c, 0.0), max(ks, 0.0), p)
+        r = problem.evaluate(q)
+        history.append({**paper_units(q, rig), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
+                        "e_lin_nlin": r["e_lin"] + r["e_nlin"]})
+        val = r["e_lin"] + r["e_nlin"]
+        return val if np.isfinite(val) else 10.0
+
+    bounds = [((1.0 - x0[0]) / scale[0], (p_max - x0[0]) / scale[0]),
+              (-x0[1] / scale[1], None), (-x0[2] / scale[2], None)]
+    opt = minimize(objective, np.zeros(3), method="Nelder-Mead", bounds=bounds,
+                   options={"maxfev": settings.refine_max_evaluations, "xatol": 0.02, "fatol": 1e-5,
+                            "initial_simplex": np.vstack([np.zeros(3), np.eye(3)])})
+    n_runs += 2 * len(history)
+    best_ref = min(history, key=lambda r: r["e_lin_nlin"])
+    final_params = parameters_from(rig, eta_hat, best_ref["c_N_s_per_mm"], best_ref["k_s_N_per_mm"],
+                                   best_ref["P_eff_N"])
+    timing["refinement"] = time.perf_counter() - t0
+    log(f"nonlinear stage: grid best c = {best_nl['c_N_s_per_mm']:g} N s/mm, k_s = "
+        f"{best_nl['k_s_N_per_mm']:g} N/mm, e_lin+nlin = {100 * best_nl['e_lin_nlin']:.2f} %; refined "
+        f"({len(history)} evaluations, {opt.message}): c = {best_ref['c_N_s_per_mm']:.2f} N s/mm, "
+        f"F = {best_ref['F_N']:.2f} N, k_s = {best_ref['k_s_N_per_mm']:.1f} N/mm, "
+        f"e_lin+nlin = {100 * best_ref['e_lin_nlin']:.2f} %")
+
+    # ----------------------------------------------------- the ridge along k_s
+    ridge = _ridge_profile(nonlinear_grid, best_ref["c_N_s_per_mm"], settings.c_values)
+
+    # ------------------------------------------------------------------ validation
+    t0 = time.perf_counter()
+    val = validate(dataset, model, final_params, progress=progress)
+    velocities = dict(val["_velocity"])
+    for stage in problem.stages:
+        velocities[problem.tests[stage].name] = problem.simulate(final_params, stage)
+    n_runs += len(velocities)
+    timing["validation"] = time.perf_counter() - t0
+    timing["total"] = time.perf_counter() - t_start
+
+    final = {**paper_units(final_params, rig), "e_lin": best_ref["e_lin"], "e_nlin": best_ref["e_nlin"],
+             "e_lin_nlin": best_ref["e_lin_nlin"]}
+    table3 = {"eta_MPa_s": eta_hat, "c_N_s_per_mm": final["c_N_s_per_mm"], "F_N": final["F_N"],
+              "k_s_N_per_mm": final["k_s_N_per_mm"], "P_eff_N": final["P_eff_N"],
+              "e_lin": final["e_lin"], "e_nlin": final["e_nlin"]}
+    setup = {**problem.describe(), "p_eff_window_centre_N": p0, "n_model_runs": n_runs,
+             "data": problem.source, "rig": rig.to_dict()}
+    return CalibrationResult(final=final, linear_grid=linear_grid, eta_scan=eta_scan,
+                             nonlinear_grid=nonlinear_grid, refinement=history, table1=table1,
+                             table2=table2, table3=table3, ridge=ridge, validation=val, setup=setup,
+                             timing=timing, settings=settings, final_params=final_params,
+                             velocities=velocities, problem=problem)
+
+
+def _ridge_profile(grid, c_best, c_values, rise=0.10) -> dict:
+    """How well the data pin k_s along the P_eff ridge: the minimum of
+    e_lin + e_nlin over P_eff for each k_s, at the grid c nearest to the
+    estimate, and the k_s range where it stays within ``rise`` (10 %) of its
+    minimum."""
+    c_near = min(c_values, key=lambda c: abs(c - c_best))
+    rows = [g for g in grid if g["c_N_s_per_mm"] == c_near and np.isfinite(g["e_lin_nlin"])]
+    ks = sorted({g["k_s_N_per_mm"] for g in rows})
+    prof = [min(g["e_lin_nlin"] for g in rows if g["k_s_N_per_mm"] == k) for k in ks]
+    m = min(prof)
+    inside = [k for k, v in zip(ks, prof) if v <= (1 + rise) * m]
+    return {"c_N_s_per_mm": c_near, "k_s_N_per_mm": ks, "min_e_lin_nlin": prof,
+            "k_s_within_10pct_of_min": [min(inside), max(inside)]}
+
+
+# ---------------------------------------------------------------------- output
+def _write_csv(path: Path, rows: list, columns: list) -> None:
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([("" if r.get(c) is None else
+                         (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c))) for c in columns])
+
+
+def format_tables(result: CalibrationResult) -> str:
+    """Tables 1-3 in the paper's units, as text."""
+    lines = ["Table 1 (linear stage, low-level chirp): minimum of e_lin per c",
+             f"{'c [N s/mm]':>11} {'e_lin [%]':>10} {'F [N]':>8} {'k_s [N/mm]':>11} {'P_eff [N]':>10}"]
+    for r in result.table1:
+        lines.append(f"{r['c_N_s_per_mm']:11g} {100 * r['e_lin']:10.3f} {r['F_N']:8.2f} "
+                     f"{r['k_s_N_per_mm']:11g} {r['P_eff_N']:10.2f}")
+    lines += ["", f"e_lin against eta: minimum at eta = {result.table3['eta_MPa_s']:.3f} MPa s", "",
+              "Table 2 (nonlinear stage, high-level chirp): minimum of e_lin + e_nlin per c",
+              f"{'c [N s/mm]':>11} {'e_lin+nlin [%]':>15} {'F [N]':>8} {'k_s [N/mm]':>11} {'P_eff [N]':>10}"]
+    for r in result.table2:
+        lines.append(f"{r['c_N_s_per_mm']:11g} {100 * r['e_lin_nlin']:15.3f} {r['F_N']:8.2f} "
+                     f"{r['k_s_N_per_mm']:11g} {r['P_eff_N']:10.2f}")
+    t = result.table3
+    lines += ["", "Table 3 (final, after local refinement)",
+              f"eta = {t['eta_MPa_s']:.3f} MPa s, c = {t['c_N_s_per_mm']:.2f} N s/mm, F = {t['F_N']:.2f} N, "
+              f"k_s = {t['k_s_N_per_mm']:.1f} N/mm, P_eff = {t['P_eff_N']:.2f} N; "
+              f"e_lin = {100 * t['e_lin']:.3f} %, e_nlin = {100 * t['e_nlin']:.2f} %",
+              f"k_s along the ridge: e_lin+nlin within 10 % of its minimum for k_s in "
+              f"{result.ridge['k_s_within_10pct_of_min'][0]:g}..{result.ridge['k_s_within_10pct_of_min'][1]:g}"
+              f" N/mm (c = {result.ridge['c_N_s_per_mm']:g} N s/mm)", "", "Validation"]
+    for name, v in result.validation.items():
+        if name.startswith("_"):
+            continue
+        s = f"  {name:14s} velocity rel. L2 = {100 * v['rel_l2']:.2f} %"
+        if "harmonics_db" in v:
+            h = ", ".join(f"{k} {'n/a' if d is None else f'{d:+.2f} dB'}" for k, d in v["harmonics_db"].items())
+            s += f"; PSD model - data: {h}; RMS over 1-140 Hz {v['psd_db_rms']:.2f} dB"
+        lines.append(s)
+    lines.append(f"\n{result.setup['n_model_runs']} model runs in {result.timing['total']:.1f} s")
+    return "\n".join(lines)
+
+
+def write_result(result: CalibrationResult, dataset: Dataset, out) -> Path:
+    """Write tables (CSV), figures (PNG), calibration.json and report.txt to ``out``."""
+    from . import plots
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    pcols = ["c_N_s_per_mm", "F_N", "k_s_N_per_mm", "P_eff_N", "eta_MPa_s"]
+    _write_csv(out / "table1_linear.csv", result.table1, pcols + ["e_lin"])
+    _write_csv(out / "table2_nonlinear.csv", result.table2, pcols + ["e_lin_nlin", "e_lin", "e_nlin"])
+    _write_csv(out / "table3_final.csv", [result.table3], list(result.table3))
+    _write_csv(out / "grid_linear.csv", result.linear_grid, pcols + ["e_lin", "error"])
+    _write_csv(out / "grid_nonlinear.csv", result.nonlinear_grid, pcols + ["e_lin", "e_nlin", "e_lin_nlin", "error"])
+    _write_csv(out / "eta_scan.csv", result.eta_scan, ["eta_MPa_s", "e_lin"])
+    _write_csv(out / "refinement.csv", result.refinement, pcols + ["e_lin", "e_nlin", "e_lin_nlin"])
+    (out / "calibration.json").write_text(json.dumps(result.calibration_json(), indent=2) + "\n")
+    (out / "report.txt").write_text(format_tables(result) + "\n")
+    figs = plots.calibration_figures(result, dataset)
+    for name, fig in figs.items():
+        fig.savefig(out / f"{name}.png", dpi=110)
+    return out
