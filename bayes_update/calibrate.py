@@ -1,9 +1,11 @@
 """The paper's two-stage deterministic updating (section 4), on any data set.
 
-1. Linear stage (test with role ``linear``, the low-level chirp): e_lin over a
-   grid of (F, k_s) for each c of the paper's Table 1, at a provisional eta
-   (the prior box centre); then e_lin against eta at the best (c, F, k_s)
-   (the paper's Fig. 8), refined by a parabola through the three best points.
+1. Linear stage (test with role ``linear``, the low-level chirp): a first
+   scan of e_lin against eta at the preload where the model's first mode
+   matches the data's Kautz pole; e_lin over a grid of (F, k_s) for each c of
+   the paper's Table 1 at that eta; then e_lin against eta at the best
+   (c, F, k_s) (the paper's Fig. 8), refined by a parabola through the three
+   best points.
 2. Nonlinear stage (role ``nonlinear``, the high-level chirp): e_lin + e_nlin
    over the same (F, k_s) grid for each c at the updated eta (Table 2); then a
    derivative-free local refinement (Nelder-Mead) of (F, k_s, c) from the best
@@ -48,7 +50,6 @@ class CalibrationSettings:
     p_eff_halfwidth: float = 3.0
     p_eff_step: float = 0.5
     eta_values: tuple = tuple(float(e) for e in np.round(np.arange(1.0, 6.001, 0.25), 2))
-    eta_start: float = 3.5
     refine_max_evaluations: int = 80
 
     def __post_init__(self):
@@ -60,8 +61,6 @@ class CalibrationSettings:
             raise ValueError("eta_values needs at least 3 values (a parabola is fitted)")
         if not (self.p_eff_step > 0 and self.p_eff_halfwidth >= self.p_eff_step):
             raise ValueError("need p_eff_step > 0 and p_eff_halfwidth >= p_eff_step")
-        if not self.eta_start > 0:
-            raise ValueError("eta_start must be positive")
 
     @classmethod
     def quick(cls) -> "CalibrationSettings":
@@ -173,7 +172,7 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the nonlinear stage needs a test with role 'nonlinear'")
     pole = problem.basis.pole(1)
-    p0 = preload_for_frequency(model, pole.freq_hz, eta=settings.eta_start * MPA_S)
+    p0 = preload_for_frequency(model, pole.freq_hz, eta=float(np.median(settings.eta_values)) * MPA_S)
     p_grid = p0 + np.arange(-settings.p_eff_halfwidth, settings.p_eff_halfwidth + 1e-9,
                             settings.p_eff_step)
     p_grid = p_grid[(p_grid > 0) & (p_grid < 0.99 * model.buckling_load())]
@@ -186,9 +185,14 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
     timing = {}
     try:
         # ---------------------------------------------------------------- linear stage
+        # eta first, at the frequency-matched preload (e_lin is sharp in eta, so a
+        # grid at a wrong eta would report misfits that are only damping)
         t0 = time.perf_counter()
+        c_mid = float(np.median(settings.c_values))
+        eta_pre, _ = _eta_scan(problem, rig, settings, pool, progress, c_mid, 0.0, p0, "eta pre-scan")
+        n_runs += len(settings.eta_values)
         combos = [(c, ks, p) for c in settings.c_values for ks in settings.k_s_values for p in p_grid]
-        pts = [parameters_from(rig, settings.eta_start, c, ks, p) for c, ks, p in combos]
+        pts = [parameters_from(rig, eta_pre, c, ks, p) for c, ks, p in combos]
         res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
                             progress=progress, desc="linear grid")
         n_runs += len(pts)
@@ -200,18 +204,13 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
         timing["linear_grid"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
-        pts = [parameters_from(rig, e, best_lin["c_N_s_per_mm"], best_lin["k_s_N_per_mm"],
-                               best_lin["P_eff_N"]) for e in settings.eta_values]
-        res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
-                            progress=progress, desc="eta scan")
-        n_runs += len(pts)
-        eta_scan = [{"eta_MPa_s": e, "e_lin": r["e_lin"]} for e, r in zip(settings.eta_values, res)]
-        eta_hat = parabola_vertex(settings.eta_values, [r["e_lin"] for r in eta_scan])
-        eta_hat = float(np.clip(eta_hat, min(settings.eta_values), max(settings.eta_values)))
+        eta_hat, eta_scan = _eta_scan(problem, rig, settings, pool, progress, best_lin["c_N_s_per_mm"],
+                                      best_lin["k_s_N_per_mm"], best_lin["P_eff_N"], "eta scan")
+        n_runs += len(settings.eta_values)
         timing["eta_scan"] = time.perf_counter() - t0
-        log(f"linear stage: best c = {best_lin['c_N_s_per_mm']:g} N s/mm, F = {best_lin['F_N']:.2f} N, "
-            f"k_s = {best_lin['k_s_N_per_mm']:g} N/mm (P_eff = {best_lin['P_eff_N']:.2f} N), "
-            f"e_lin = {100 * best_lin['e_lin']:.2f} %; eta = {eta_hat:.3f} MPa s")
+        log(f"linear stage (eta pre-scan: {eta_pre:.3f} MPa s): best c = {best_lin['c_N_s_per_mm']:g} "
+            f"N s/mm, F = {best_lin['F_N']:.2f} N, k_s = {best_lin['k_s_N_per_mm']:g} N/mm (P_eff = "
+            f"{best_lin['P_eff_N']:.2f} N), e_lin = {100 * best_lin['e_lin']:.2f} %; eta = {eta_hat:.3f} MPa s")
 
         # ------------------------------------------------------------- nonlinear stage
         t0 = time.perf_counter()
@@ -279,7 +278,8 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
     table3 = {"eta_MPa_s": eta_hat, "c_N_s_per_mm": final["c_N_s_per_mm"], "F_N": final["F_N"],
               "k_s_N_per_mm": final["k_s_N_per_mm"], "P_eff_N": final["P_eff_N"],
               "e_lin": final["e_lin"], "e_nlin": final["e_nlin"]}
-    setup = {**problem.describe(), "p_eff_window_centre_N": p0, "n_model_runs": n_runs,
+    setup = {**problem.describe(), "p_eff_window_centre_N": p0, "eta_pre_scan_MPa_s": eta_pre,
+             "n_model_runs": n_runs,
              "data": problem.source, "rig": rig.to_dict()}
     return CalibrationResult(final=final, linear_grid=linear_grid, eta_scan=eta_scan,
                              nonlinear_grid=nonlinear_grid, refinement=history, table1=table1,
@@ -288,19 +288,40 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
                              velocities=velocities, problem=problem)
 
 
-def _ridge_profile(grid, c_best, c_values, rise=0.10) -> dict:
+def _eta_scan(problem, rig, settings, pool, progress, c, k_s, p_eff, desc):
+    """e_lin against eta at (c, k_s, P_eff); the estimate is the vertex of the
+    parabola through the three lowest points (clipped to the scanned range)."""
+    pts = [parameters_from(rig, e, c, k_s, p_eff) for e in settings.eta_values]
+    res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
+                        progress=progress, desc=desc)
+    scan = [{"eta_MPa_s": e, "e_lin": r["e_lin"]} for e, r in zip(settings.eta_values, res)]
+    eta = parabola_vertex(settings.eta_values, [r["e_lin"] for r in scan])
+    return float(np.clip(eta, min(settings.eta_values), max(settings.eta_values))), scan
+
+
+def _ridge_profile(grid, c_best, c_values, rise=0.5) -> dict:
     """How well the data pin k_s along the P_eff ridge: the minimum of
     e_lin + e_nlin over P_eff for each k_s, at the grid c nearest to the
-    estimate, and the k_s range where it stays within ``rise`` (10 %) of its
-    minimum."""
+    estimate, and the k_s interval (linear interpolation between grid points)
+    where it stays below (1 + ``rise``) x its minimum, i.e. 50 % above it."""
     c_near = min(c_values, key=lambda c: abs(c - c_best))
     rows = [g for g in grid if g["c_N_s_per_mm"] == c_near and np.isfinite(g["e_lin_nlin"])]
-    ks = sorted({g["k_s_N_per_mm"] for g in rows})
-    prof = [min(g["e_lin_nlin"] for g in rows if g["k_s_N_per_mm"] == k) for k in ks]
-    m = min(prof)
-    inside = [k for k, v in zip(ks, prof) if v <= (1 + rise) * m]
-    return {"c_N_s_per_mm": c_near, "k_s_N_per_mm": ks, "min_e_lin_nlin": prof,
-            "k_s_within_10pct_of_min": [min(inside), max(inside)]}
+    ks = np.array(sorted({g["k_s_N_per_mm"] for g in rows}))
+    prof = np.array([min(g["e_lin_nlin"] for g in rows if g["k_s_N_per_mm"] == k) for k in ks])
+    i = int(np.argmin(prof))
+    level = (1 + rise) * prof[i]
+
+    def crossing(step):
+        j = i
+        while 0 <= j + step < ks.size and prof[j + step] <= level:
+            j += step
+        if not 0 <= j + step < ks.size:
+            return float(ks[j])             # still below the level at the grid's end
+        k0, k1, e0, e1 = ks[j], ks[j + step], prof[j], prof[j + step]
+        return float(k0 + (level - e0) / (e1 - e0) * (k1 - k0))
+
+    return {"c_N_s_per_mm": c_near, "k_s_N_per_mm": ks.tolist(), "min_e_lin_nlin": prof.tolist(),
+            "rise": rise, "k_s_interval_N_per_mm": [crossing(-1), crossing(+1)]}
 
 
 # ---------------------------------------------------------------------- output
@@ -331,8 +352,9 @@ def format_tables(result: CalibrationResult) -> str:
               f"eta = {t['eta_MPa_s']:.3f} MPa s, c = {t['c_N_s_per_mm']:.2f} N s/mm, F = {t['F_N']:.2f} N, "
               f"k_s = {t['k_s_N_per_mm']:.1f} N/mm, P_eff = {t['P_eff_N']:.2f} N; "
               f"e_lin = {100 * t['e_lin']:.3f} %, e_nlin = {100 * t['e_nlin']:.2f} %",
-              f"k_s along the ridge: e_lin+nlin within 10 % of its minimum for k_s in "
-              f"{result.ridge['k_s_within_10pct_of_min'][0]:g}..{result.ridge['k_s_within_10pct_of_min'][1]:g}"
+              f"k_s along the ridge: min over P_eff of e_lin+nlin stays within "
+              f"{100 * result.ridge['rise']:.0f} % of its minimum for k_s in "
+              f"{result.ridge['k_s_interval_N_per_mm'][0]:.0f}..{result.ridge['k_s_interval_N_per_mm'][1]:.0f}"
               f" N/mm (c = {result.ridge['c_N_s_per_mm']:g} N s/mm)", "", "Validation"]
     for name, v in result.validation.items():
         if name.startswith("_"):

@@ -107,16 +107,18 @@ def _grid_panels(rows, key, c_values, label, best_rows, title):
     vmin, vmax = np.log10(finite.min()), np.log10(np.percentile(finite, 95))
     for ax, c, best in zip(axes, c_values, best_rows):
         sub = [r for r in rows if r["c_N_s_per_mm"] == c]
-        ks = sorted({r["k_s_N_per_mm"] for r in sub})
-        ps = sorted({r["P_eff_N"] for r in sub})
+        # P_eff is recomputed from (F, k_s): round so one grid column is one value
+        ks = sorted({round(r["k_s_N_per_mm"], 6) for r in sub})
+        ps = sorted({round(r["P_eff_N"], 6) for r in sub})
         F = np.full((len(ks), len(ps)), np.nan)
         Z = np.full_like(F, np.nan)
         for r in sub:
-            i, j = ks.index(r["k_s_N_per_mm"]), ps.index(r["P_eff_N"])
+            i, j = ks.index(round(r["k_s_N_per_mm"], 6)), ps.index(round(r["P_eff_N"], 6))
             F[i, j], Z[i, j] = r["F_N"], np.log10(r[key])
         K = np.repeat(np.array(ks)[:, None], len(ps), axis=1)
         m = ax.pcolormesh(F, K, Z, shading="nearest", cmap="viridis_r", vmin=vmin, vmax=vmax)
         ax.plot(best["F_N"], best["k_s_N_per_mm"], "r*", ms=10)
+        ax.set_ylim(bottom=max(ax.get_ylim()[0], 0.0))
         ax.set_title(f"c = {c:g} N s/mm: min {100 * best[key]:.2f} %", fontsize="medium")
         ax.set_xlabel("F [N]")
         ax.set_ylabel("k_s [N/mm]")
@@ -136,7 +138,7 @@ def calibration_figures(result, dataset) -> dict:
     c_values = result.settings.c_values
     figs["fig4_e_lin_grid"] = _grid_panels(
         result.linear_grid, "e_lin", c_values, "e_lin", result.table1,
-        f"e_lin over (F, k_s), low-level chirp, eta = {result.settings.eta_start:g} MPa s (Fig. 4)")
+        f"e_lin over (F, k_s), low-level chirp, eta = {result.setup['eta_pre_scan_MPa_s']:.2f} MPa s (Fig. 4)")
     figs["table2_e_lin_nlin_grid"] = _grid_panels(
         result.nonlinear_grid, "e_lin_nlin", c_values, "(e_lin + e_nlin)", result.table2,
         f"e_lin + e_nlin over (F, k_s), eta = {result.table3['eta_MPa_s']:.2f} MPa s (Table 2)")
