@@ -4,6 +4,8 @@
 >>> model = BeamModel()                      # paper's rig, default mesh and substeps
 >>> result = simulate(model, Parameters(), force, fs=1024.0)
 >>> result.sensor_velocity                   # transverse velocity at mid-span [m/s]
+>>> rom = ModalROM(rig=model.rig)            # modal reduced-order model, ~1 ms per run
+>>> simulate(rom, Parameters(), force, fs=1024.0).sensor_velocity
 """
 
 from .effects import EFFECTS, Effect, InitialImperfection
@@ -18,10 +20,11 @@ from .model import (
     generalized_alpha_coefficients,
 )
 from .rig import PAPER_PARAMETERS, Parameters, Rig
+from .rom import ModalROM
 
 __all__ = [
     "BeamModel", "BucklingError", "ConvergenceError", "EFFECTS", "Effect",
-    "InitialImperfection", "Modes", "PAPER_PARAMETERS", "Parameters", "Rig",
+    "InitialImperfection", "ModalROM", "Modes", "PAPER_PARAMETERS", "Parameters", "Rig",
     "SimulationResult", "StaticState", "generalized_alpha_accuracy",
     "generalized_alpha_coefficients", "simulate",
 ]
