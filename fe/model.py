@@ -35,6 +35,17 @@ class BucklingError(ValueError):
     """The preload is at or beyond the beam's buckling load."""
 
 
+def check_below_buckling(params: Parameters, rig: Rig, p_cr: float) -> float:
+    """P_eff [N] of ``params``; raises BucklingError at or beyond ``p_cr`` [N]."""
+    p_eff = params.effective_preload(rig)
+    if p_eff >= p_cr:
+        raise BucklingError(
+            f"the preload is at or beyond buckling: P_eff = F K_b / (K_b + k_s) = {p_eff:.2f} N "
+            f">= buckling load {p_cr:.2f} N of this beam (F = {params.F} N, k_s = {params.k_s} N/m); "
+            "lower F or raise k_s")
+    return p_eff
+
+
 class ConvergenceError(RuntimeError):
     """Newton's method failed; the message names the time step."""
 
@@ -406,13 +417,8 @@ class BeamModel:
         Raises BucklingError when P_eff = F K_b/(K_b + k_s) reaches the buckling
         load or the tangent is not positive definite at the solution.
         """
-        p_eff = params.effective_preload(self.rig)
+        p_eff = check_below_buckling(params, self.rig, self.buckling_load())
         p_cr = self.buckling_load()
-        if p_eff >= p_cr:
-            raise BucklingError(
-                f"the preload is at or beyond buckling: P_eff = F K_b / (K_b + k_s) = {p_eff:.2f} N "
-                f">= buckling load {p_cr:.2f} N of this beam (F = {params.F} N, k_s = {params.k_s} N/m); "
-                "lower F or raise k_s")
         system = self.describe(params)
         a = self._arrays(system, params)
         n = system.n_dof

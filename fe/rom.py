@@ -93,7 +93,8 @@ import scipy.linalg
 from numba import njit
 
 from .effects import Effect
-from .model import BeamModel, BucklingError, ConvergenceError, SimulationResult, hermite_weights
+from .model import (BeamModel, BucklingError, ConvergenceError, SimulationResult, check_below_buckling,
+                    hermite_weights)
 from .rig import Parameters, Rig
 
 try:  # a declared dependency; without it the default BLAS threading is used
@@ -357,14 +358,7 @@ class ModalROM:
     def _check_params(self, params: Parameters) -> float:
         if not isinstance(params, Parameters):
             raise TypeError("params must be an fe.Parameters")
-        p_eff = params.effective_preload(self.rig)
-        p_cr = self.buckling_load()
-        if p_eff >= p_cr:
-            raise BucklingError(
-                f"the preload is at or beyond buckling: P_eff = F K_b / (K_b + k_s) = {p_eff:.2f} N "
-                f">= buckling load {p_cr:.2f} N of this beam (F = {params.F} N, k_s = {params.k_s} N/m); "
-                "lower F or raise k_s")
-        return p_eff
+        return check_below_buckling(params, self.rig, self.buckling_load())
 
     def reduced(self, params: Parameters) -> ReducedSystem:
         """The reduced matrices at the preload of ``params`` (cached per P_eff)."""
