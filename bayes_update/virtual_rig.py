@@ -190,7 +190,11 @@ class VirtualRig:
     def model(self) -> fe.BeamModel:
         """The FE model the rig runs (at ``fs_fine``)."""
         return fe.BeamModel(rig=self.rig, n_elements=self.n_elements, substeps=self.substeps,
-                            rho_inf=self.rho_inf, effects=self.effects)
+                            rho_inf=self.rho_inf, effects=self.effects,
+                            # the rig's force is the analytic signal on the fine grid:
+                            # linear between fine samples (gain error 2.7e-4 at 37 Hz)
+                            # keeps the embedded data set bit for bit
+                            input_interpolation="linear")
 
     @property
     def fs_fine(self) -> float:

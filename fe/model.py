@@ -19,6 +19,7 @@ import scipy.linalg
 from . import _kernels as K
 from ._banded import band_to_dense
 from .effects import Effect
+from .excitation import check_interpolation, upsample
 from .rig import Parameters, Rig
 
 # Defaults of the updating model, chosen by the convergence study in
@@ -237,6 +238,8 @@ class BeamModel:
     effects : extensions of the model (see :mod:`fe.effects`).
     max_newton_iterations : Newton iterations per time step before the run is
         declared failed.
+    input_interpolation : the force between samples, ``"bandlimited"``
+        (default) or ``"linear"`` (see :mod:`fe.excitation`).
     newton_rtol : Newton tolerance on the residual, relative to
         F + max |shaker force| [-] (plus a floor at the round-off of the
         internal forces, 8 eps EA L / L_element).
@@ -250,6 +253,7 @@ class BeamModel:
     effects: tuple = ()
     newton_rtol: float = 1e-9
     max_newton_iterations: int = 30
+    input_interpolation: str = "bandlimited"
 
     def __post_init__(self):
         if not isinstance(self.rig, Rig):
@@ -265,6 +269,7 @@ class BeamModel:
         for eff in self.effects:
             if not isinstance(eff, Effect):
                 raise TypeError(f"effects must be fe.effects.Effect instances, got {eff!r}")
+        check_interpolation(self.input_interpolation)
         if not (self.newton_rtol > 0 and math.isfinite(self.newton_rtol)):
             raise ValueError(f"newton_rtol must be positive, got {self.newton_rtol}")
 
@@ -500,8 +505,8 @@ class BeamModel:
         Parameters
         ----------
         params : the updated parameters (SI).
-        force : shaker force samples [N], spacing 1/fs, linearly interpolated
-            between samples.
+        force : shaker force samples [N], spacing 1/fs, interpolated between
+            samples as ``input_interpolation`` says.
         fs : output sampling rate [Hz]; the integrator takes ``substeps`` steps
             per sample.
         positions : transverse output positions from the clamp [m]
@@ -538,14 +543,21 @@ class BeamModel:
         dt = 1.0 / (fs * self.substeps)
         tol = self.newton_rtol * (params.F + np.abs(force).max()) + self._roundoff_force
         ns = force.size
-        out_d = np.empty((ns, positions.size))
-        out_v = np.empty((ns, positions.size))
-        out_a = np.empty(ns)
+        if self.input_interpolation == "linear":
+            fine, m = force, 1          # the kernel interpolates linearly between samples
+        else:
+            # one step per point of the upsampled force; every substeps-th is a sample
+            fine, m = upsample(force, self.substeps, self.input_interpolation), self.substeps
+        out_d = np.empty((fine.size, positions.size))
+        out_v = np.empty((fine.size, positions.size))
+        out_a = np.empty(fine.size)
         status, failed, iters = K.transient(
             a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"], a["beta"], a["shallow"],
             a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"], a["fixed"], a["m_band"], a["f_const"],
-            a["b_load"], force, self.substeps, dt, am, af, gam, bet, u, v, tol,
+            a["b_load"], fine, self.substeps // m, dt, am, af, gam, bet, u, v, tol,
             self.max_newton_iterations, W, self.top_axial_dof, out_d, out_v, out_a)
+        out_d, out_v, out_a = out_d[::m], out_v[::m], out_a[::m]
+        failed = -(-failed // m)
         if status != 0:
             what = "did not converge" if status == 1 else "hit a singular Newton matrix"
             raise ConvergenceError(

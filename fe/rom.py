@@ -61,8 +61,8 @@ naming it.
 
 Time integration
 ----------------
-Classical RK4 for (q, q'), the force interpolated linearly between samples
-(as in the full FE).  RK4 is stable to |omega dt| = 2.8 on the imaginary
+Classical RK4 for (q, q'), the force read at the stage times from the
+band-limited (or linear) interpolation of :mod:`fe.excitation`, as in the full FE.  RK4 is stable to |omega dt| = 2.8 on the imaginary
 axis: the substeps hold the highest retained mode of the *unloaded* beam
 (above any preloaded frequency) and its Kelvin-Voigt decay rate
 beta omega^2 at omega dt <= 2 (one substep per 1/1024 s for 3 modes).  The
@@ -93,6 +93,7 @@ import scipy.linalg
 from numba import njit
 
 from .effects import Effect
+from .excitation import check_interpolation, upsample
 from .model import (BeamModel, BucklingError, ConvergenceError, SimulationResult, check_below_buckling,
                     hermite_weights)
 from .rig import Parameters, Rig
@@ -235,6 +236,9 @@ class ModalROM:
     effects : effects that fit the reduced form (a bow, see the module docstring).
     substeps : RK4 steps per sample; None (default) chooses them from the
         highest retained mode (:meth:`choose_substeps`).
+    input_interpolation : the force between samples, ``"bandlimited"``
+        (default) or ``"linear"`` (see :mod:`fe.excitation`); RK4 reads it at
+        its stage times, i.e. at 2 x substeps points per sample.
 
     :meth:`simulate` is the model interface of :func:`fe.simulate`;
     :meth:`linear_frf`, :meth:`static_equilibrium` and :meth:`buckling_load`
@@ -248,6 +252,7 @@ class ModalROM:
     n_elements: int = DEFAULT_ROM_ELEMENTS
     effects: tuple = ()
     substeps: int | None = None
+    input_interpolation: str = "bandlimited"
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False, hash=False)
 
     def __post_init__(self):
@@ -270,6 +275,7 @@ class ModalROM:
         for eff in self.effects:
             if not isinstance(eff, Effect):
                 raise TypeError(f"effects must be fe.effects.Effect instances, got {eff!r}")
+        check_interpolation(self.input_interpolation)
         self._fe_model  # raises if an effect does not fit the reduced form
 
     # ------------------------------------------------------ per-model precompute
@@ -497,8 +503,8 @@ class ModalROM:
         Parameters
         ----------
         params : the updated parameters (SI).
-        force : shaker force samples [N], spacing 1/fs, linearly interpolated
-            between samples.
+        force : shaker force samples [N], spacing 1/fs, interpolated between
+            samples as ``input_interpolation`` says.
         fs : sampling rate [Hz].
         positions : transverse output positions from the clamp [m]
             (default: the sensor position).
@@ -541,7 +547,8 @@ class ModalROM:
         out_v = np.empty((ns, positions.size))
         out_a = np.empty(ns)
         _transient(red.kappa, red.G, red.g0, red.b, W, beta, rig.axial_stiffness, params.F,
-                   params.k_s, params.c, force, substeps, 1.0 / (fs * substeps),
+                   params.k_s, params.c, upsample(force, 2 * substeps, self.input_interpolation),
+                   ns, substeps, 1.0 / (fs * substeps),
                    q, qd, st.top_displacement, out_d, out_v, out_a)
         if not (np.isfinite(out_v[-1]).all() and np.isfinite(out_a[-1])):
             raise ConvergenceError(
@@ -622,13 +629,14 @@ def _accel(kappa, b, beta, q, qd, a, N, f, out):
 
 
 @njit(cache=True)
-def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, substeps, h,
+def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, ns, substeps, h,
                q, qd, U, out_d, out_v, out_a):
     """RK4 in (q, q') with the top state U integrated exactly for an
-    interpolated drive (see :func:`_top_weights`).  Outputs W q, W q' and U at
-    every sample; ``q``, ``qd`` hold the final state on return."""
+    interpolated drive (see :func:`_top_weights`).  ``force`` holds the force
+    at every RK4 stage time, 2 substeps points per sample.  Outputs W q, W q'
+    and U at each of the ``ns`` samples; ``q``, ``qd`` hold the final state on
+    return."""
     n = q.shape[0]
-    ns = force.shape[0]
     nout = W.shape[0]
     bkb = beta * kb
     ktop = kb + ks
@@ -653,10 +661,11 @@ def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, substeps, h,
     r1 = _drive(G, g0, q, qd, a, F, kb, bkb)
     for k in range(ns):
         if k > 0:
-            f0 = force[k - 1]
-            df = (force[k] - f0) / substeps
             for sub in range(substeps):
-                fa = f0 + df * sub
+                j = 2 * (substeps * (k - 1) + sub)
+                fa = force[j]
+                fm = force[j + 1]
+                fb = force[j + 2]
                 # stage 1 (t); ``a`` holds G q + g0 of the current state
                 N = -F - ks * U - cd * (r1 - ktop * U)
                 _accel(kappa, b, beta, q, qd, a, N, fa, k1)
@@ -667,7 +676,7 @@ def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, substeps, h,
                 r2 = _drive(G, g0, q2, v2, a, F, kb, bkb)
                 U2 = eh * U + a0 * r1 + a1 * r2
                 N = -F - ks * U2 - cd * (r2 - ktop * U2)
-                _accel(kappa, b, beta, q2, v2, a, N, fa + 0.5 * df, k2)
+                _accel(kappa, b, beta, q2, v2, a, N, fm, k2)
                 for i in range(n):
                     q3[i] = q[i] + 0.5 * h * v2[i]
                     v3[i] = qd[i] + 0.5 * h * k2[i]
@@ -675,7 +684,7 @@ def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, substeps, h,
                 r3 = _drive(G, g0, q3, v3, a, F, kb, bkb)
                 U3 = eh * U + a0 * r1 + a1 * r3
                 N = -F - ks * U3 - cd * (r3 - ktop * U3)
-                _accel(kappa, b, beta, q3, v3, a, N, fa + 0.5 * df, k3)
+                _accel(kappa, b, beta, q3, v3, a, N, fm, k3)
                 for i in range(n):
                     q4[i] = q[i] + h * v3[i]
                     v4[i] = qd[i] + h * k3[i]
@@ -684,7 +693,7 @@ def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, substeps, h,
                 r4 = _drive(G, g0, q4, v4, a, F, kb, bkb)
                 U4 = ef * U + b0 * r1 + bm * rm + b1 * r4
                 N = -F - ks * U4 - cd * (r4 - ktop * U4)
-                _accel(kappa, b, beta, q4, v4, a, N, fa + df, k4)
+                _accel(kappa, b, beta, q4, v4, a, N, fb, k4)
                 for i in range(n):
                     q[i] += h / 6.0 * (qd[i] + 2.0 * v2[i] + 2.0 * v3[i] + v4[i])
                     qd[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])

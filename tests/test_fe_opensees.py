@@ -54,8 +54,9 @@ def rel_l2(a, b):
 
 
 def model(rho_inf=0.9, substeps=SUBSTEPS):
+    # OpenSees' Path series interpolates the force linearly between samples
     return fe.BeamModel(n_elements=N_ELEMENTS, substeps=substeps, rho_inf=rho_inf,
-                        formulation="linear")
+                        formulation="linear", input_interpolation="linear")
 
 
 # (An earlier fe accepted a Newton predictor already within its tolerance,
