@@ -21,6 +21,11 @@ DEFAULT_CHIRP_AMPLITUDE = 0.1
 
 
 def _add_model_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", choices=("fe", "rom"), default="fe",
+                   help="fe: the full FE model (default); rom: the modal reduced-order model "
+                        "(fe.ModalROM, ~1 ms per run)")
+    p.add_argument("--modes", type=int, default=None,
+                   help="modes kept by --model rom (default 3)")
     p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
                    help=f"beam elements (default {DEFAULT_ELEMENTS})")
     p.add_argument("--substeps", type=int, default=DEFAULT_SUBSTEPS,
@@ -46,6 +51,16 @@ def _add_factor_options(p: argparse.ArgumentParser) -> None:
                         "paper's shear-locking mesh)")
     p.add_argument("--override-factor", action="store_true",
                    help="allow --bending-stiffness-factor to differ from the factor the data set states")
+
+
+def _model_for(args, rig: fe.Rig):
+    """The model the options ask for, on ``rig``."""
+    if args.model == "rom":
+        from fe.rom import DEFAULT_ROM_MODES
+        return fe.ModalROM(rig=rig, n_modes=args.modes or DEFAULT_ROM_MODES)
+    if args.modes is not None:
+        raise ValueError("--modes applies to --model rom only")
+    return fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps, rho_inf=args.rho_inf)
 
 
 def _rig_for(data: Dataset, args) -> fe.Rig:
@@ -117,6 +132,30 @@ def build_parser() -> argparse.ArgumentParser:
     _add_factor_options(p)
     p.set_defaults(func=cmd_calibrate)
 
+    p = sub.add_parser("sample", help="posterior of (eta, c, F, k_s) with emcee (GP surrogate or direct)",
+                       description="Bayesian updating on a data set: likelihood from e_lin (test "
+                                   "with role 'linear') and e_nlin (role 'nonlinear') with noise "
+                                   "and model-error scales measured at the deterministic estimate, "
+                                   "uniform prior on the box eta 1-6 MPa s, c 0-30 N s/mm, F 60-95 N, "
+                                   "k_s 0-600 N/mm, Gaussian-process surrogates refined where the "
+                                   "posterior is, emcee. Writes posterior.nc (ArviZ, SI units), "
+                                   "posterior_summary.json and figures. Without --data: the "
+                                   "embedded default data set.")
+    p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--direct", action="store_true",
+                   help="sample on the model itself, no surrogate (the reference posterior; "
+                        "use with --model rom)")
+    p.add_argument("--quick", action="store_true", help="small designs and chains (a first look, or CI)")
+    p.add_argument("--seed", type=int, default=None, help="seed of every random choice (default 0)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes for the model runs (default: all cores; 1 = serial)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="do not keep model runs in OUT/cache (by default an interrupted run resumes)")
+    _add_model_options(p)
+    _add_factor_options(p)
+    p.set_defaults(func=cmd_sample)
+
     p = sub.add_parser("make-dataset", help="regenerate the embedded default data set (virtual rig)",
                        description="Run the virtual rig (paper-equivalent rig, bending stiffness "
                                    "factor 1.24, the paper's Table 3 parameters, 20 elements at "
@@ -163,14 +202,12 @@ def cmd_simulate(args) -> int:
     if rig != data.rig:
         import dataclasses
         data = dataclasses.replace(data, rig=rig)
-    model = fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps,
-                         rho_inf=args.rho_inf)
+    model = _model_for(args, rig)
     start = time.perf_counter()
     out = simulate_dataset(data, model, params)
     elapsed = time.perf_counter() - start
-    out.extra["model"] = {"kind": "fe", "n_elements": model.n_elements,
-                          "substeps": model.substeps, "rho_inf": model.rho_inf,
-                          "parameters_si": params.to_dict()}
+    from .metrics import _describe_model
+    out.extra["model"] = {**_describe_model(model), "parameters_si": params.to_dict()}
     write_dataset(out, args.out)
     for measured, simulated in zip(data.tests, out.tests):
         has_data = args.data is not None
@@ -200,13 +237,52 @@ def cmd_calibrate(args) -> int:
     data = read_dataset(args.data) if args.data else load_default_dataset()
     rig = _rig_for(data, args)
     data = dataclasses.replace(data, rig=rig)
-    model = fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps,
-                         rho_inf=args.rho_inf)
+    model = _model_for(args, rig)
     settings = CalibrationSettings.quick() if args.quick else CalibrationSettings()
     result = calibrate(data, model, settings, workers=args.workers)
     write_result(result, data, args.out)
     print(format_tables(result))
     print(f"wrote {args.out}")
+    return 0
+
+
+def _truth_paper_units(data: Dataset):
+    """The virtual rig's true parameters (paper units) when the data set states
+    them: used to mark the figures, never by the updating."""
+    truth = (data.extra or {}).get("truth", {}).get("parameters_si")
+    if not truth:
+        return None
+    rig = data.rig
+    kb = rig.axial_stiffness
+    return {"eta": truth["eta"] / 1e6, "c": truth["c"] / 1e3, "F": truth["F"], "k_s": truth["k_s"] / 1e3,
+            "P_eff": truth["F"] * kb / (kb + truth["k_s"])}
+
+
+def cmd_sample(args) -> int:
+    import dataclasses
+
+    from .posterior import PosteriorSettings, format_summary, sample, write_posterior
+    from .virtual_rig import load_default_dataset
+
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    if args.direct and args.model != "rom":
+        print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
+              "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
+    data = read_dataset(args.data) if args.data else load_default_dataset()
+    rig = _rig_for(data, args)
+    data = dataclasses.replace(data, rig=rig)
+    model = _model_for(args, rig)
+    kw = {} if args.seed is None else {"seed": args.seed}
+    settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
+    res = sample(data, model, settings, workers=args.workers, direct=args.direct,
+                 cache_dir=None if args.no_cache else Path(args.out) / "cache")
+    truth = _truth_paper_units(data)
+    write_posterior(res, args.out, truth=truth)
+    print(format_summary(res))
+    t = res.timing
+    print(f"time: {t['total']:.0f} s ({', '.join(f'{k} {v:.0f} s' for k, v in t.items() if k != 'total')}); "
+          f"{res.n_model_runs['total']} model runs; wrote {args.out}")
     return 0
 
 

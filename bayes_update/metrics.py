@@ -224,7 +224,7 @@ class UpdatingProblem:
 
 
 def _describe_model(model) -> dict:
-    keys = ("n_elements", "substeps", "rho_inf", "formulation", "n_modes")
+    keys = ("n_elements", "substeps", "rho_inf", "formulation", "n_modes", "input_interpolation")
     d = {"kind": type(model).__name__}
     d.update({k: getattr(model, k) for k in keys if hasattr(model, k)})
     effects = getattr(model, "effects", ())

@@ -360,6 +360,11 @@ class ModalROM:
         axis shortened by the load, as the full FE)."""
         return self.rig_matrices.buckling_load
 
+    def modal_analysis(self, params: Parameters, n_modes: int | None = None):
+        """Modes of the full FE the ROM is built on (its ``n_elements`` mesh),
+        linearised about the preloaded state; ``n_modes`` defaults to the ROM's."""
+        return self._fe_model.modal_analysis(params, self.n_modes if n_modes is None else n_modes)
+
     # ------------------------------------------------ per-parameter precompute
     def _check_params(self, params: Parameters) -> float:
         if not isinstance(params, Parameters):

@@ -1,0 +1,362 @@
+"""The likelihood of (eta, c, F, k_s) given e_lin and e_nlin, and the prior box.
+
+Derivation (docs/likelihood.md has the long form)
+------------------------------------------------
+Each metric compares Volterra components of the measured and the simulated
+velocity projected on the same regressors: ``e = ||Phi (theta_ref -
+theta_mod(x))|| / ||y_ref||``, where ``Phi`` holds the p regressors of the
+stage (p = J1 = 2 for e_lin; the 59 order-2 and order-3 products for e_nlin).
+At the true parameters the difference ``Phi (theta_ref - theta_mod)`` is
+noise: the output noise projected on the regressors, and, larger here, the
+response to the *input* noise, since the model is driven by the recorded
+(noisy) force while the structure felt the true one.  If that difference is
+Gaussian with variance ``s_n^2 ||y_ref||^2`` in each of ``nu`` effective
+directions,
+
+    e^2 / s_n^2 ~ chi^2_nu    and    log L(x) = -e(x)^2 / (2 s_n^2) + const,
+
+so the metric (not its log, and not with a variance marginalised away) enters
+as a squared distance.  Two facts decide this form on this problem:
+
+* the noise scale cannot be read from the misfit at the optimum: for the
+  linear stage p = 2 coefficients meet 2 parameters (P_eff, eta), so e_lin
+  reaches ~1e-7 at its minimum (measured), and a likelihood with the noise
+  variance marginalised (``-n_eff log e``) would put infinite density there;
+* the regression residual underestimates it 17-fold (0.027 % against 0.46 %
+  for e_lin at the truth of the default data set), because most of the
+  metric's noise is the input-noise response, which lies inside the span of
+  the regressors.
+
+So ``s_n`` and ``nu`` come from a parametric bootstrap at the estimate
+(:func:`estimate_likelihood`): the white noise levels of both channels are
+read from their spectra above the excited band, the model at the estimate is
+taken as truth, K replicates of the measurement (the recorded force plus
+force noise drives the model and builds the regressors; the model's response
+to the clean force plus velocity noise is the "measurement") give K metric
+values; ``mean(e^2) = nu s_n^2`` and ``var(e^2) = 2 nu s_n^4`` give both.
+
+Model error: the updating model is a discretisation (or a reduction); its
+error at the estimate, ``e_model``, is measured against a refined model
+(:meth:`refined_model`) and added as ``s^2 = s_n^2 + e_model^2``.  The bias is
+deterministic and mostly in one direction (a frequency error moves P_eff), so
+it is budgeted as one standard deviation in *any* direction, not spread over
+nu of them: a bias of that size then shifts any parameter by at most one
+posterior sd.
+
+Parameter space: the prior is uniform on the DESIGN.md box of (eta, c, F,
+k_s).  Inference runs in the internal coordinates x = (eta [MPa s], c [N
+s/mm], P_eff [N], k_s [N/mm]), because e_lin depends on F and k_s almost only
+through the preload the beam carries, P_eff = F K_b / (K_b + k_s); the
+uniform prior then has density (K_b + k_s) / K_b (the Jacobian of F ->
+P_eff) on the image of the box.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+import fe
+import volterra
+
+from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band
+from .spectral import psd
+
+MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
+
+#: Internal coordinate names and units.
+NAMES = ("eta", "c", "P_eff", "k_s")
+UNITS = {"eta": "MPa s", "c": "N s/mm", "P_eff": "N", "k_s": "N/mm", "F": "N"}
+#: SI units of the public parameters.
+SI_UNITS = {"eta": "Pa s", "c": "N s/m", "F": "N", "k_s": "N/m", "P_eff": "N"}
+#: Factors from paper units to SI.
+TO_SI = {"eta": MPA_S, "c": N_S_PER_MM, "F": 1.0, "k_s": N_PER_MM, "P_eff": 1.0}
+
+
+@dataclass(frozen=True)
+class ParameterSpace:
+    """Uniform prior box of (eta, c, F, k_s) in paper units, and the internal
+    coordinates x = (eta [MPa s], c [N s/mm], P_eff [N], k_s [N/mm])."""
+
+    rig: fe.Rig = field(default_factory=fe.Rig)
+    eta: tuple = (1.0, 6.0)       # MPa s
+    c: tuple = (0.0, 30.0)        # N s/mm
+    F: tuple = (60.0, 95.0)       # N
+    k_s: tuple = (0.0, 600.0)     # N/mm
+
+    def __post_init__(self):
+        for name in ("eta", "c", "F", "k_s"):
+            lo, hi = (float(v) for v in getattr(self, name))
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+                raise ValueError(f"prior range of {name} must be finite with low < high, got {(lo, hi)}")
+            if lo < 0 or (name in ("eta", "F") and lo <= 0):
+                raise ValueError(f"prior range of {name} must be {'positive' if name in ('eta', 'F') else 'non-negative'}, "
+                                 f"got {(lo, hi)} {UNITS[name]}")
+            object.__setattr__(self, name, (lo, hi))
+
+    @property
+    def kb(self) -> float:
+        """Axial stiffness of the beam EA/L [N/mm]."""
+        return self.rig.axial_stiffness / N_PER_MM
+
+    def box(self) -> np.ndarray:
+        """(4, 2) bounding box of the prior in internal coordinates."""
+        kb = self.kb
+        p_lo = self.F[0] * kb / (kb + self.k_s[1])
+        p_hi = self.F[1] * kb / (kb + self.k_s[0])
+        return np.array([self.eta, self.c, (p_lo, p_hi), self.k_s], float)
+
+    def F_of(self, X) -> np.ndarray:
+        X = np.atleast_2d(X)
+        return X[:, 2] * (self.kb + X[:, 3]) / self.kb
+
+    def log_prior(self, X) -> np.ndarray:
+        """Log density (up to a constant) of the uniform box prior at internal points (n, 4)."""
+        X = np.atleast_2d(np.asarray(X, float))
+        F = self.F_of(X)
+        inside = ((X[:, 0] >= self.eta[0]) & (X[:, 0] <= self.eta[1]) & (X[:, 1] >= self.c[0])
+                  & (X[:, 1] <= self.c[1]) & (X[:, 3] >= self.k_s[0]) & (X[:, 3] <= self.k_s[1])
+                  & (F >= self.F[0]) & (F <= self.F[1]))
+        with np.errstate(divide="ignore"):
+            return np.where(inside, np.log((self.kb + X[:, 3]) / self.kb), -np.inf)
+
+    def contains(self, params: fe.Parameters) -> bool:
+        return bool(np.isfinite(self.log_prior(self.to_internal(params)))[0])
+
+    def check(self, params: fe.Parameters, what: str = "parameters") -> None:
+        """Raise a ValueError naming the parameter that is outside the prior box."""
+        u = {"eta": params.eta / MPA_S, "c": params.c / N_S_PER_MM, "F": params.F, "k_s": params.k_s / N_PER_MM}
+        for name, v in u.items():
+            lo, hi = getattr(self, name)
+            if not lo <= v <= hi:
+                raise ValueError(f"{what}: {name} = {v:g} {UNITS[name]} is outside the prior box "
+                                 f"[{lo:g}, {hi:g}] {UNITS[name]}")
+
+    def to_internal(self, params: fe.Parameters) -> np.ndarray:
+        return np.array([params.eta / MPA_S, params.c / N_S_PER_MM, params.effective_preload(self.rig),
+                         params.k_s / N_PER_MM])
+
+    def to_parameters(self, x) -> fe.Parameters:
+        x = np.asarray(x, float)
+        return fe.Parameters(eta=x[0] * MPA_S, c=x[1] * N_S_PER_MM, F=float(self.F_of(x)[0]),
+                             k_s=x[3] * N_PER_MM)
+
+    def to_si(self, X) -> dict:
+        """{name: array} in SI for the public parameters and P_eff."""
+        X = np.atleast_2d(np.asarray(X, float))
+        return {"eta": X[:, 0] * MPA_S, "c": X[:, 1] * N_S_PER_MM, "F": self.F_of(X),
+                "k_s": X[:, 3] * N_PER_MM, "P_eff": X[:, 2]}
+
+    def sample_prior(self, n: int, seed=None) -> np.ndarray:
+        """``n`` internal points drawn from the prior (uniform in (eta, c, F, k_s))."""
+        rng = np.random.default_rng(seed)
+        lo = np.array([self.eta[0], self.c[0], self.F[0], self.k_s[0]])
+        hi = np.array([self.eta[1], self.c[1], self.F[1], self.k_s[1]])
+        U = lo + (hi - lo) * rng.random((int(n), 4))
+        P = U[:, 2] * self.kb / (self.kb + U[:, 3])
+        return np.column_stack([U[:, 0], U[:, 1], P, U[:, 3]])
+
+    def to_dict(self) -> dict:
+        return {"eta_MPa_s": list(self.eta), "c_N_s_per_mm": list(self.c), "F_N": list(self.F),
+                "k_s_N_per_mm": list(self.k_s)}
+
+
+@dataclass(frozen=True)
+class StageScale:
+    """Noise and model-error scale of one metric (all dimensionless, relative)."""
+
+    stage: str
+    noise_mean_square: float   # mean of e^2 over the noise replicates at the estimate
+    noise_dof: float           # nu: effective directions of the noise
+    model_error: float         # e_model: model against its refined version at the estimate
+    n_regressors: int
+    n_replicates: int
+    noise_levels: dict = field(default_factory=dict)   # sigma of force [N] and velocity [m/s]
+
+    @property
+    def noise_sd(self) -> float:
+        return math.sqrt(self.noise_mean_square / self.noise_dof)
+
+    @property
+    def sd(self) -> float:
+        """s = sqrt(s_n^2 + e_model^2): the metric's scale in the likelihood."""
+        return math.hypot(self.noise_sd, self.model_error)
+
+    def to_dict(self) -> dict:
+        return {**asdict(self), "noise_sd": self.noise_sd, "sd": self.sd}
+
+
+@dataclass(frozen=True)
+class Likelihood:
+    """``log L = -1/2 sum_stage (e_stage / s_stage)^2`` (see the module docstring)."""
+
+    scales: dict   # stage -> StageScale
+
+    def __post_init__(self):
+        for st, sc in self.scales.items():
+            if st not in STAGE_ORDERS:
+                raise ValueError(f"unknown stage {st!r}")
+            if not (sc.sd > 0 and math.isfinite(sc.sd)):
+                raise ValueError(f"stage {st}: the likelihood scale must be positive and finite, got {sc.sd}")
+
+    @property
+    def stages(self) -> tuple:
+        return tuple(s for s in STAGE_ORDERS if s in self.scales)
+
+    @staticmethod
+    def key(stage: str) -> str:
+        return "e_lin" if stage == "linear" else "e_nlin"
+
+    def restricted(self, stages) -> "Likelihood":
+        return Likelihood({s: self.scales[s] for s in stages})
+
+    def log_likelihood(self, metrics: dict) -> float:
+        """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""
+        total = 0.0
+        for st, sc in self.scales.items():
+            e = metrics[self.key(st)]
+            if not np.isfinite(e):
+                return -np.inf
+            total += (e / sc.sd) ** 2
+        return -0.5 * total
+
+    # The surrogate emulates z = log(1 + e^2 / s^2): quadratic (smooth) near the
+    # minimum, where e itself has a kink (|.| of a linear function) and log e a
+    # -inf spike; logarithmic far from it, where e^2 spans decades.
+    def to_z(self, stage: str, e):
+        return np.log1p((np.asarray(e, float) / self.scales[stage].sd) ** 2)
+
+    def from_z(self, stage: str, z):
+        return self.scales[stage].sd * np.sqrt(np.expm1(np.maximum(np.asarray(z, float), 0.0)))
+
+    @staticmethod
+    def log_likelihood_from_z(z_by_stage: dict):
+        """-1/2 sum (e/s)^2 written in z: -1/2 sum (exp(z) - 1)."""
+        return -0.5 * sum(np.expm1(z) for z in z_by_stage.values())
+
+    def to_dict(self) -> dict:
+        return {st: sc.to_dict() for st, sc in self.scales.items()}
+
+
+# --------------------------------------------------------------------- noise
+def white_noise_sd(x, fs: float, band: tuple[float, float]) -> float:
+    """sd of a white noise floor from the median Welch PSD in ``band`` [Hz]
+    (one-sided PSD of white noise of variance v is 2 v / fs).  The median
+    ignores the peaks of modes and harmonics that fall in the band."""
+    f, p = psd(np.asarray(x, float), fs, nperseg=min(len(x), 256))
+    sel = (f >= band[0]) & (f <= band[1])
+    if sel.sum() < 8:
+        raise ValueError(f"band {band} Hz holds too few PSD lines to estimate a noise floor")
+    # median of a chi^2 with 2 K dof is below its mean; Welch with 50 % overlap
+    # and K segments: the bias is small (K ~ 30 here), ignored
+    return float(math.sqrt(np.median(p[sel]) * fs / 2.0))
+
+
+def noise_band(force, fs: float) -> tuple[float, float]:
+    """Band used for the noise floor: from 3x the top of the excited band
+    (above the harmonics that matter) to 0.45 fs."""
+    _, f_hi = excited_band(force, fs)
+    lo = max(3.0 * f_hi, f_hi + 20.0)
+    hi = 0.45 * fs
+    if lo >= hi - 20.0:
+        raise ValueError(f"the force excites up to {f_hi:.0f} Hz: no band above 3x that, below "
+                         f"0.45 fs = {hi:.0f} Hz, is left to estimate the noise floor from")
+    return lo, hi
+
+
+def refined_model(model):
+    """A finer version of ``model`` for the model-error term.
+
+    ``fe.BeamModel``: 3x the elements and 4x the substeps; ``fe.ModalROM``:
+    the full FE at those settings (the ROM's truncation and its integration are
+    the error).  Anything else: ``model.refined()`` if it has one."""
+    if hasattr(model, "refined"):
+        return model.refined()
+    if isinstance(model, fe.BeamModel):
+        import dataclasses
+        return dataclasses.replace(model, n_elements=3 * model.n_elements, substeps=4 * model.substeps)
+    if isinstance(model, fe.ModalROM):
+        return fe.BeamModel(rig=model.rig, n_elements=3 * fe.model.DEFAULT_ELEMENTS,
+                            substeps=4 * fe.model.DEFAULT_SUBSTEPS, effects=model.effects)
+    raise TypeError(f"no refined version of {type(model).__name__} is known: give refined= explicitly "
+                    "or model_error=False")
+
+
+def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
+    """(mean of e^2, nu) from replicate values of e^2, assuming e^2 = s^2 chi^2_nu:
+    mean = nu s^2 and var = 2 nu s^4 give nu = 2 mean^2 / var, clipped to
+    [1, max_dof] (the metric cannot have more directions than regressors)."""
+    e2 = np.asarray(e2, float)
+    if e2.ndim != 1 or e2.size < 4 or not np.all(np.isfinite(e2)) or np.any(e2 < 0):
+        raise ValueError("need at least 4 finite non-negative replicate values of e^2")
+    mean = float(e2.mean())
+    var = float(e2.var(ddof=1))
+    nu = float(np.clip(2 * mean ** 2 / var, 1.0, max_dof)) if var > 0 else float(max_dof)
+    return mean, nu
+
+
+def _stage_metric(problem: UpdatingProblem, stage: str, comps: dict) -> np.ndarray:
+    return comps[1] if stage == "linear" else comps[2] + comps[3]
+
+
+def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refined=None,
+                        model_error: bool = True, n_replicates: int = 32, seed=0,
+                        stages=None) -> Likelihood:
+    """Measure the likelihood scales at the estimate ``params`` (module docstring).
+
+    n_replicates : noise replicates per stage (K model runs each); the relative
+        sd of the estimated s_n is about 1/sqrt(2 K nu).
+    refined : the model the model error is measured against (default
+        :func:`refined_model`); ignored with ``model_error=False`` (e.g. when
+        the data come from the updating model itself).
+    """
+    if int(n_replicates) != n_replicates or n_replicates < 4:
+        raise ValueError(f"n_replicates must be an integer >= 4, got {n_replicates!r}")
+    stages = problem.stages if stages is None else tuple(stages)
+    ref_model = None
+    if model_error:
+        ref_model = refined if refined is not None else refined_model(problem.model)
+    scales = {}
+    for i, stage in enumerate(stages):
+        test = problem.tests[stage]
+        fs = problem.fs
+        band = noise_band(test.force, fs)
+        sig_f = white_noise_sd(test.force, fs, band)
+        sig_y = white_noise_sd(test.velocity, fs, band)
+        basis = problem.projector(stage).basis
+        v0 = problem.simulate(params, stage)
+        ref_norm = np.linalg.norm(_stage_metric(problem, stage, problem.reference_components(stage)))
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
+        e2 = []
+        for _ in range(int(n_replicates)):
+            u = test.force + sig_f * rng.standard_normal(test.force.size)
+            y_meas = v0 + sig_y * rng.standard_normal(v0.size)
+            v = fe.simulate(problem.model, params, u, fs=fs, positions=[problem.rig.sensor_position_m]).sensor_velocity
+            proj = volterra.VolterraProjector(u, basis)
+            d = _stage_metric(problem, stage, proj.components(y_meas)) - _stage_metric(problem, stage, proj.components(v))
+            e2.append((np.linalg.norm(d) / ref_norm) ** 2)
+        n_reg = _n_regressors(basis, stage)
+        mean, nu = noise_scale_from_replicates(e2, n_reg)
+        e_model = 0.0
+        if ref_model is not None:
+            v_ref = fe.simulate(ref_model, params, test.force, fs=fs,
+                                positions=[problem.rig.sensor_position_m]).sensor_velocity
+            d = _stage_metric(problem, stage, problem.components(stage, v0)) - \
+                _stage_metric(problem, stage, problem.components(stage, v_ref))
+            e_model = float(np.linalg.norm(d) / ref_norm)
+        scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
+                                   n_regressors=n_reg, n_replicates=int(n_replicates),
+                                   noise_levels={"force_N": sig_f, "velocity_m_s": sig_y,
+                                                 "band_hz": list(band)})
+    return Likelihood(scales)
+
+
+def _n_regressors(basis: volterra.KautzBasis, stage: str) -> int:
+    """Regressors behind the stage's metric: order 1 for e_lin, orders 2 and 3 for e_nlin."""
+    orders = (1,) if stage == "linear" else (2, 3)
+    n = 0
+    for k in orders:
+        J = basis.n_functions[k]
+        n += math.comb(J + k - 1, k)
+    return n

@@ -1,0 +1,175 @@
+"""Figures of the posterior (matplotlib ``Figure`` objects, no pyplot state).
+
+Paper units on every axis: eta [MPa s], c [N s/mm], F [N], k_s [N/mm], P_eff [N].
+"""
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from .likelihood import UNITS
+
+LABELS = {"eta": "eta [MPa s]", "c": "c [N s/mm]", "F": "F [N]", "k_s": "k_s [N/mm]", "P_eff": "P_eff [N]"}
+ORDER = ("eta", "c", "F", "k_s", "P_eff")
+
+
+def paper_draws(space, X) -> dict:
+    """{name: draws in paper units} from internal-coordinate draws (n, 4)."""
+    return {"eta": X[:, 0], "c": X[:, 1], "F": space.F_of(X), "k_s": X[:, 3], "P_eff": X[:, 2]}
+
+
+def corner(space, X, truth: dict | None = None, map_point: dict | None = None, title: str = "posterior",
+           max_points: int = 4000, seed: int = 0):
+    """Pair plot: histograms on the diagonal, draws below it; ``truth`` and
+    ``map_point`` (paper units) marked."""
+    d = paper_draws(space, X)
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(len(X), size=min(max_points, len(X)), replace=False)
+    n = len(ORDER)
+    fig = Figure(figsize=(11, 11), constrained_layout=True)
+    axes = fig.subplots(n, n)
+    for i, a in enumerate(ORDER):
+        for j, b in enumerate(ORDER):
+            ax = axes[i, j]
+            if j > i:
+                ax.axis("off")
+                continue
+            if i == j:
+                ax.hist(d[a], bins=40, color="C0", alpha=0.8)
+                lo, hi = np.percentile(d[a], [3, 97])
+                ax.axvline(lo, color="C0", ls=":", lw=0.8)
+                ax.axvline(hi, color="C0", ls=":", lw=0.8)
+                if truth and a in truth:
+                    ax.axvline(truth[a], color="C3", lw=1.2)
+                ax.set_yticks([])
+            else:
+                ax.plot(d[b][pick], d[a][pick], ".", ms=1.5, alpha=0.3, color="C0")
+                if truth and a in truth and b in truth:
+                    ax.plot(truth[b], truth[a], "x", color="C3", ms=8, mew=2)
+                if map_point and a in map_point and b in map_point:
+                    ax.plot(map_point[b], map_point[a], "+", color="k", ms=8, mew=1.5)
+            if i == n - 1:
+                ax.set_xlabel(LABELS[b])
+            else:
+                ax.set_xticklabels([])
+            if j == 0 and i > 0:
+                ax.set_ylabel(LABELS[a])
+            elif j > 0:
+                ax.set_yticklabels([])
+            ax.tick_params(labelsize=7)
+    fig.suptitle(f"{title}: draws, 94 % HDI (dotted: 3-97 % quantiles); x = truth, + = MAP")
+    return fig
+
+
+def traces(sampler_chain, space, title: str = "traces"):
+    """Walker traces in paper units (chain: (steps, walkers, 4))."""
+    steps, walkers, _ = sampler_chain.shape
+    flat = sampler_chain.reshape(-1, 4)
+    d = {k: v.reshape(steps, walkers) for k, v in paper_draws(space, flat).items()}
+    fig = Figure(figsize=(9, 9), constrained_layout=True)
+    axes = fig.subplots(len(ORDER), 1, sharex=True)
+    for ax, name in zip(axes, ORDER):
+        ax.plot(d[name], lw=0.3, alpha=0.5)
+        ax.set_ylabel(LABELS[name], fontsize=8)
+    axes[-1].set_xlabel("step (after burn-in)")
+    axes[0].set_title(title)
+    return fig
+
+
+def predictive_bands(bands: dict, fs: float, names: dict | None = None):
+    """5-95 % band of y1 (linear test) and y2 + y3 (nonlinear test) over
+    posterior draws against the reference decomposition."""
+    fig = Figure(figsize=(9, 6), constrained_layout=True)
+    axes = fig.subplots(len(bands), 1, squeeze=False)[:, 0]
+    for ax, (stage, b) in zip(axes, bands.items()):
+        t = np.arange(len(b["reference"])) / fs
+        ax.plot(t, b["reference"], color="k", lw=0.6, label="data (reference decomposition)")
+        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.5, lw=0, label="model, 5-95 % over draws")
+        ax.plot(t, b["median"], color="C1", lw=0.5, ls="--")
+        what = "y1" if stage == "linear" else "y2 + y3"
+        test = (names or {}).get(stage, stage)
+        ax.set_title(f"{what}, {test}")
+        ax.set_ylabel("velocity [m/s]")
+        ax.legend(loc="upper right", fontsize=7)
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
+def ridge(space, X_linear, X_full, truth: dict | None = None, max_points: int = 4000, seed: int = 0):
+    """(k_s, F) of the linear-only posterior (the ridge of constant P_eff) and
+    of the full posterior."""
+    rng = np.random.default_rng(seed)
+    fig = Figure(figsize=(11, 4.5), constrained_layout=True)
+    ax1, ax2 = fig.subplots(1, 2)
+    for X, color, label in ((X_linear, "C0", "low level only"), (X_full, "C3", "low + high level")):
+        pick = rng.choice(len(X), size=min(max_points, len(X)), replace=False)
+        d = paper_draws(space, X[pick])
+        ax1.plot(d["k_s"], d["F"], ".", ms=1.5, alpha=0.3, color=color, label=label)
+        ax2.plot(d["c"], d["k_s"], ".", ms=1.5, alpha=0.3, color=color, label=label)
+    if truth:
+        ax1.plot(truth["k_s"], truth["F"], "x", color="k", ms=9, mew=2, label="truth")
+        ax2.plot(truth["c"], truth["k_s"], "x", color="k", ms=9, mew=2)
+    ax1.set_xlabel(LABELS["k_s"])
+    ax1.set_ylabel(LABELS["F"])
+    ax1.set_title("the linear-only ridge: F = P_eff (K_b + k_s) / K_b")
+    ax2.set_xlabel(LABELS["c"])
+    ax2.set_ylabel(LABELS["k_s"])
+    ax2.set_title("c and k_s: unidentified by the low level")
+    ax1.legend(markerscale=6, fontsize=8)
+    return fig
+
+
+def gp_diagnostics(predictive: dict, sensitivity: dict):
+    """Left: surrogate against model metrics at posterior draws.  Right: Sobol'
+    indices of log e_lin and log e_nlin over the prior box."""
+    fig = Figure(figsize=(11, 4.5), constrained_layout=True)
+    ax1, ax2 = fig.subplots(1, 2)
+    for st, key, color in (("linear", "e_lin", "C0"), ("nonlinear", "e_nlin", "C3")):
+        pairs = predictive.get(f"_{st}_pairs")
+        if pairs is None:
+            continue
+        e_model, e_gp = pairs
+        ax1.loglog(100 * e_model, 100 * e_gp, "o", ms=4, color=color,
+                   label=f"{key}: median |error| {100 * predictive[f'{key}_gp_median_rel_error']:.1f} %")
+    lim = ax1.get_xlim()
+    ax1.plot(lim, lim, "k-", lw=0.6)
+    ax1.set_xlabel("metric from the model [%]")
+    ax1.set_ylabel("metric from the GP [%]")
+    ax1.set_title("surrogate honesty at posterior draws")
+    ax1.legend(fontsize=8)
+    names = ("eta", "c", "F", "k_s")
+    width = 0.2
+    for k, (key, color) in enumerate((("e_lin", "C0"), ("e_nlin", "C3"))):
+        if key not in sensitivity:
+            continue
+        s1 = [sensitivity[key]["S1"][n] for n in names]
+        st = [sensitivity[key]["ST"][n] for n in names]
+        x = np.arange(4) + (k - 0.5) * 2 * width
+        ax2.bar(x - width / 2, s1, width, color=color, alpha=0.5, label=f"S1, log {key}")
+        ax2.bar(x + width / 2, st, width, color=color, label=f"ST, log {key}")
+    ax2.set_xticks(np.arange(4), [LABELS[n] for n in names])
+    ax2.set_ylabel("Sobol' index")
+    ax2.set_title("global sensitivity over the prior box")
+    ax2.legend(fontsize=8)
+    return fig
+
+
+def posterior_figures(res, truth: dict | None = None) -> dict:
+    """{file stem: Figure} of a :class:`~bayes_update.posterior.PosteriorResult`."""
+    mp = dict(zip(("eta", "c", "P_eff", "k_s"), res.map.x))
+    mp["F"] = float(res.space.F_of(res.map.x)[0])
+    kind = "direct" if res.direct else "surrogate"
+    figs = {"corner": corner(res.space, res.draws, truth, mp, title=f"posterior ({kind})")}
+    chain = res.draws.reshape(-1, res.settings.n_walkers, 4)
+    figs["traces"] = traces(chain, res.space, title=f"emcee walkers ({kind})")
+    if res.predictive.get("_bands"):
+        names = {st: t.name for st, t in res.problem.tests.items()}
+        figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names)
+    if res.linear_only.get("_draws") is not None:
+        figs["ridge"] = ridge(res.space, res.linear_only["_draws"], res.draws, truth)
+    if res.surrogates or res.sensitivity:
+        figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
+    return figs
+
+
+__all__ = ["UNITS", "corner", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge", "traces"]
