@@ -152,9 +152,23 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes for the model runs (default: all cores; 1 = serial)")
     p.add_argument("--no-cache", action="store_true",
                    help="do not keep model runs in OUT/cache (by default an interrupted run resumes)")
+    p.add_argument("--prior", action="append", default=[], metavar="NAME=LO:HI",
+                   help="change one range of the uniform prior box, in paper units (eta MPa s, c N s/mm, "
+                        "F N, k_s N/mm), e.g. --prior F=20:95; repeatable")
     _add_model_options(p)
     _add_factor_options(p)
     p.set_defaults(func=cmd_sample)
+
+    p = sub.add_parser("reproduce", help="the whole study on the embedded default data set, with a report",
+                       description="Deterministic updating (Tables 1-3) with the data set's bending "
+                                   "stiffness factor and with a locking-free beam, f1 against the "
+                                   "preload, the posterior for both, and report.md with every table "
+                                   "and figure. About 10 minutes on 2 cores (--quick: about 2).")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--quick", action="store_true", help="coarse grids and small posterior settings")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes for the model runs (default: all cores; 1 = serial)")
+    p.set_defaults(func=cmd_reproduce)
 
     p = sub.add_parser("make-dataset", help="regenerate the embedded default data set (virtual rig)",
                        description="Run the virtual rig (paper-equivalent rig, bending stiffness "
@@ -258,6 +272,22 @@ def _truth_paper_units(data: Dataset):
             "P_eff": truth["F"] * kb / (kb + truth["k_s"])}
 
 
+def _prior_space(rig, items):
+    from .likelihood import ParameterSpace
+
+    ranges = {}
+    for item in items:
+        try:
+            name, rng = item.split("=", 1)
+            lo, hi = (float(v) for v in rng.split(":"))
+        except ValueError:
+            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI, e.g. F=20:95") from None
+        if name not in ("eta", "c", "F", "k_s"):
+            raise ValueError(f"--prior {item!r}: NAME must be one of eta, c, F, k_s")
+        ranges[name] = (lo, hi)
+    return ParameterSpace(rig, **ranges)
+
+
 def cmd_sample(args) -> int:
     import dataclasses
 
@@ -275,7 +305,8 @@ def cmd_sample(args) -> int:
     model = _model_for(args, rig)
     kw = {} if args.seed is None else {"seed": args.seed}
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
-    res = sample(data, model, settings, workers=args.workers, direct=args.direct,
+    space = _prior_space(rig, args.prior)
+    res = sample(data, model, settings, workers=args.workers, direct=args.direct, space=space,
                  cache_dir=None if args.no_cache else Path(args.out) / "cache")
     truth = _truth_paper_units(data)
     write_posterior(res, args.out, truth=truth)
@@ -283,6 +314,15 @@ def cmd_sample(args) -> int:
     t = res.timing
     print(f"time: {t['total']:.0f} s ({', '.join(f'{k} {v:.0f} s' for k, v in t.items() if k != 'total')}); "
           f"{res.n_model_runs['total']} model runs; wrote {args.out}")
+    return 0
+
+
+def cmd_reproduce(args) -> int:
+    from .reproduce import reproduce
+
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    reproduce(args.out, quick=args.quick, workers=args.workers)
     return 0
 
 

@@ -510,13 +510,16 @@ def _chain_diagnostics(sampler, burn: int, box: np.ndarray, space: ParameterSpac
 def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
            start: fe.Parameters | None = None, space: ParameterSpace | None = None,
-           cache_dir=None, progress: bool = True, log=print) -> PosteriorResult:
+           likelihood: Likelihood | None = None, cache_dir=None, progress: bool = True,
+           log=print) -> PosteriorResult:
     """Sample the posterior of (eta, c, F, k_s) given ``dataset`` (module docstring).
 
     model : the updating model (default ``fe.BeamModel(rig=dataset.rig)``).
     direct : run emcee on the model itself (no surrogate); sensible with
         ``fe.ModalROM`` (about 2 ms per likelihood evaluation).
     start : skip the deterministic start and begin at these parameters.
+    likelihood : use these scales instead of measuring them at the start
+        (e.g. to compare a direct and a surrogate posterior under one likelihood).
     cache_dir : folder of the netCDF evaluation cache (an interrupted run resumes).
     """
     settings = settings or PosteriorSettings()
@@ -533,15 +536,15 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        return _sample(dataset, problem, space, settings, pool, direct, start, cache_dir, progress, log,
-                       stages, timing, runs, t_all)
+        return _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress,
+                       log, stages, timing, runs, t_all)
     finally:
         if own_pool:
             pool.shutdown()
 
 
-def _sample(dataset, problem, space, settings, pool, direct, start, cache_dir, progress, log, stages,
-            timing, runs, t_all):
+def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress, log,
+            stages, timing, runs, t_all):
     from .calibrate import CalibrationSettings, calibrate, paper_units
 
     rig = problem.rig
@@ -564,9 +567,15 @@ def _sample(dataset, problem, space, settings, pool, direct, start, cache_dir, p
     timing["start"] = time.perf_counter() - t0
     # 2. likelihood scales ------------------------------------------------------
     t0 = time.perf_counter()
-    lik = estimate_likelihood(problem, start, model_error=settings.model_error,
-                              n_replicates=settings.n_replicates, seed=seed_of[0])
-    runs["likelihood_scales"] = len(stages) * (settings.n_replicates + 1 + int(settings.model_error))
+    if likelihood is None:
+        lik = estimate_likelihood(problem, start, model_error=settings.model_error,
+                                  n_replicates=settings.n_replicates, seed=seed_of[0])
+        runs["likelihood_scales"] = len(stages) * (settings.n_replicates + 1 + int(settings.model_error))
+    else:
+        if set(likelihood.stages) != set(stages):
+            raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
+        lik = likelihood
+        runs["likelihood_scales"] = 0
     timing["likelihood_scales"] = time.perf_counter() - t0
     for st, sc in lik.scales.items():
         log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % ({sc.noise_dof:.1f} dof), model error "
@@ -822,8 +831,13 @@ def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress,
                        "F": float(res.space.F_of(full).std())},
            "units": dict(UNITS), "_draws": draws}
     out["narrowing"] = {k: out["sd"][k] / out["sd_full"][k] for k in ("c", "k_s")}
+    # the high level leaves a band in (c, k_s), not a point: the joint spread
+    # (sqrt of the determinant of the covariance) says how much it removes
+    det = [np.sqrt(np.linalg.det(np.cov(D[:, [1, 3]].T))) for D in (draws, full)]
+    out["narrowing"]["c_k_s_area"] = float(det[0] / det[1])
     log(f"linear-only posterior: corr(F, k_s) = {corr:.3f}; adding the high level narrows c "
-        f"{out['narrowing']['c']:.1f}x, k_s {out['narrowing']['k_s']:.1f}x (sd ratio)")
+        f"{out['narrowing']['c']:.1f}x, k_s {out['narrowing']['k_s']:.1f}x (sd ratio), the (c, k_s) "
+        f"area {out['narrowing']['c_k_s_area']:.1f}x")
     return out
 
 

@@ -77,21 +77,29 @@ def traces(sampler_chain, space, title: str = "traces"):
 
 
 def predictive_bands(bands: dict, fs: float, names: dict | None = None):
-    """5-95 % band of y1 (linear test) and y2 + y3 (nonlinear test) over
-    posterior draws against the reference decomposition."""
-    fig = Figure(figsize=(9, 6), constrained_layout=True)
-    axes = fig.subplots(len(bands), 1, squeeze=False)[:, 0]
-    for ax, (stage, b) in zip(axes, bands.items()):
-        t = np.arange(len(b["reference"])) / fs
-        ax.plot(t, b["reference"], color="k", lw=0.6, label="data (reference decomposition)")
-        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.5, lw=0, label="model, 5-95 % over draws")
-        ax.plot(t, b["median"], color="C1", lw=0.5, ls="--")
+    """Left: y1 (linear test) and y2 + y3 (nonlinear test) of the data with the
+    model's 5-95 % band over posterior draws.  Right: the band of model - data,
+    where the two would otherwise be indistinguishable."""
+    fig = Figure(figsize=(12, 6), constrained_layout=True)
+    axes = fig.subplots(len(bands), 2, squeeze=False)
+    for (ax, ax_r), (stage, b) in zip(axes, bands.items()):
+        ref = b["reference"]
+        t = np.arange(len(ref)) / fs
+        ax.plot(t, ref, color="k", lw=0.6, label="data (reference decomposition)")
+        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.6, lw=0, label="model, 5-95 % over draws")
+        ax_r.fill_between(t, b["low"] - ref, b["high"] - ref, color="C1", alpha=0.6, lw=0,
+                          label="model - data, 5-95 % over draws")
+        ax_r.plot(t, b["median"] - ref, color="C1", lw=0.4)
+        ax_r.axhline(0.0, color="k", lw=0.5)
         what = "y1" if stage == "linear" else "y2 + y3"
         test = (names or {}).get(stage, stage)
         ax.set_title(f"{what}, {test}")
+        ax_r.set_title(f"{what}, {test}: model - data (RMS of data {np.sqrt(np.mean(ref ** 2)):.2e} m/s)")
         ax.set_ylabel("velocity [m/s]")
         ax.legend(loc="upper right", fontsize=7)
-    axes[-1].set_xlabel("time [s]")
+        ax_r.legend(loc="upper right", fontsize=7)
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[-1, 1].set_xlabel("time [s]")
     return fig
 
 
@@ -107,7 +115,8 @@ def ridge(space, X_linear, X_full, truth: dict | None = None, max_points: int = 
         ax1.plot(d["k_s"], d["F"], ".", ms=1.5, alpha=0.3, color=color, label=label)
         ax2.plot(d["c"], d["k_s"], ".", ms=1.5, alpha=0.3, color=color, label=label)
     if truth:
-        ax1.plot(truth["k_s"], truth["F"], "x", color="k", ms=9, mew=2, label="truth")
+        ax1.plot(truth["k_s"], truth["F"], "x", color="k", ms=9, mew=2)
+        ax1.annotate("truth", (truth["k_s"], truth["F"]), xytext=(8, -12), textcoords="offset points")
         ax2.plot(truth["c"], truth["k_s"], "x", color="k", ms=9, mew=2)
     ax1.set_xlabel(LABELS["k_s"])
     ax1.set_ylabel(LABELS["F"])

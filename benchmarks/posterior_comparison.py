@@ -94,7 +94,7 @@ def main(argv=None):
     t_sur = time.perf_counter() - t0
     t0 = time.perf_counter()
     start = sur.space.to_parameters(sur.map.x)
-    direct = sample(data, model, settings, direct=True, start=start, progress=True)
+    direct = sample(data, model, settings, direct=True, start=start, likelihood=sur.likelihood, progress=True)
     t_dir = time.perf_counter() - t0
     a, b = paper_draws(sur.space, sur.draws), paper_draws(direct.space, direct.draws)
     truth_si = data.extra["truth"]["parameters_si"]

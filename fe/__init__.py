@@ -8,7 +8,8 @@
 >>> simulate(rom, Parameters(), force, fs=1024.0).sensor_velocity
 """
 
-from .effects import EFFECTS, Effect, InitialImperfection
+from .effects import (EFFECTS, AmplitudeDependentDamping, ClampCompliance, Effect, InitialImperfection,
+                      ShakerAttachment)
 from .model import (
     BeamModel,
     BucklingError,
@@ -23,9 +24,9 @@ from .rig import PAPER_PARAMETERS, Parameters, Rig
 from .rom import ModalROM
 
 __all__ = [
-    "BeamModel", "BucklingError", "ConvergenceError", "EFFECTS", "Effect",
-    "InitialImperfection", "ModalROM", "Modes", "PAPER_PARAMETERS", "Parameters", "Rig",
-    "SimulationResult", "StaticState", "generalized_alpha_accuracy",
+    "AmplitudeDependentDamping", "BeamModel", "BucklingError", "ClampCompliance", "ConvergenceError",
+    "EFFECTS", "Effect", "InitialImperfection", "ModalROM", "Modes", "PAPER_PARAMETERS", "Parameters",
+    "Rig", "ShakerAttachment", "SimulationResult", "StaticState", "generalized_alpha_accuracy",
     "generalized_alpha_coefficients", "simulate",
 ]
 
