@@ -61,6 +61,7 @@ class PosteriorSettings:
     thin: int = 10              # kept draws: every thin-th step after burn-in
     direct_steps: int = 3000
     direct_burn: int = 1000
+    box_attempts: int = 3       # re-centred, wider boxes when the first cuts the posterior
     n_linear: int = 64          # design of the linear-only posterior (0: skip it)
     n_global: int = 128         # global design for the sensitivity indices (0: skip)
     sobol_n: int = 1024         # SALib base sample size
@@ -71,15 +72,15 @@ class PosteriorSettings:
 
     def __post_init__(self):
         for name in ("n_replicates", "n_initial", "n_rounds", "batch", "n_walkers", "n_steps", "burn", "thin",
-                     "direct_steps", "direct_burn",
+                     "direct_steps", "direct_burn", "box_attempts",
                      "n_linear", "n_global", "sobol_n", "n_predictive", "map_max_evaluations"):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < 0:
                 raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
         if self.n_walkers < 8 or self.n_steps <= self.burn or self.direct_steps <= self.direct_burn:
             raise ValueError("need n_walkers >= 8, n_steps > burn and direct_steps > direct_burn")
-        if self.thin < 1:
-            raise ValueError("thin must be >= 1")
+        if self.thin < 1 or self.box_attempts < 1:
+            raise ValueError("thin and box_attempts must be >= 1")
         if self.n_initial < 8:
             raise ValueError("n_initial must be at least 8")
         if not self.box_sd > 1:
@@ -337,8 +338,11 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     n = count[0]
     # the Hessian of the likelihood alone (the prior box only truncates), on a
     # stencil kept where the parameters are physical (c, k_s >= 0; eta, P_eff > 0)
-    centre = np.maximum(best, 1.01 * h)
-    cov = laplace(partial(_neg_log_likelihood, evaluate, lik), centre, h, executor, progress)
+    # near a bound (c or k_s close to 0) the step shrinks to fit, down to a
+    # tenth of the conditional sd; only then does the stencil's centre move in
+    h_fd = np.maximum(np.minimum(h, best / 1.01), 0.1 * h)
+    centre = np.maximum(best, 1.01 * h_fd)
+    cov = laplace(partial(_neg_log_likelihood, evaluate, lik), centre, h_fd, executor, progress)
     return MapResult(x=best, value=f(best), steps=h, covariance=cov, n_evaluations=n + 4 * len(x0) ** 2)
 
 
@@ -606,20 +610,36 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         t0 = time.perf_counter()
         whitening = Whitening.from_covariance(mp.x, mp.covariance)
         ubox = np.array([[-settings.box_sd, settings.box_sd]] * len(NAMES), float)
-        gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
-                                                settings, pool, cache_dir, stages, seed_of[3], progress, log)
-        n_run = int(np.sum(np.all(np.isfinite(Y), axis=1)))
-        runs["design"] = len(stages) * n_run
-        timing["design_and_gp"] = time.perf_counter() - t0
-        timing["gp_fit"] = fit_time
-        result["design"] = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
-        t0 = time.perf_counter()
-        logp_u = WhitenedLogPosterior(gps, space, ubox, whitening)
-        u_init = initial_walkers(logp_u, np.zeros(len(NAMES)), np.eye(len(NAMES)), settings.n_walkers, seed_of[1])
-        sampler = run_emcee(logp_u, u_init, settings.n_walkers, settings.n_steps, seed_of[2], vectorize=True,
-                            progress=progress)
+        timing["gp_fit"], timing["mcmc"], runs["design"] = 0.0, 0.0, 0
+        for attempt in range(settings.box_attempts):
+            t0 = time.perf_counter()
+            gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
+                                                    settings, pool, cache_dir, stages, seed_of[3] + attempt,
+                                                    progress, log)
+            runs["design"] += len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1)))
+            timing["design_and_gp"] = timing.get("design_and_gp", 0.0) + time.perf_counter() - t0
+            timing["gp_fit"] += fit_time
+            result["design"] = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
+            t0 = time.perf_counter()
+            logp_u = WhitenedLogPosterior(gps, space, ubox, whitening)
+            u_init = initial_walkers(logp_u, np.zeros(len(NAMES)), np.eye(len(NAMES)), settings.n_walkers,
+                                     seed_of[1])
+            sampler = run_emcee(logp_u, u_init, settings.n_walkers, settings.n_steps, seed_of[2],
+                                vectorize=True, progress=progress)
+            timing["mcmc"] += time.perf_counter() - t0
+            u_draws = sampler.get_chain(discard=settings.burn, flat=True)
+            cut = _box_cut_fraction(u_draws, settings.box_sd, whitening, space)
+            if cut <= 0.01 or attempt == settings.box_attempts - 1:
+                break
+            # the Laplace box cut the posterior (a non-Gaussian posterior, or a
+            # MAP at a bound): re-centre and re-whiten on the surrogate
+            # posterior's draws, 1.5x wider (they are truncated by the old box)
+            x_draws = whitening.to_x(u_draws)
+            log(f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 1.5x wider "
+                f"(attempt {attempt + 2} of {settings.box_attempts})")
+            whitening = Whitening.from_covariance(x_draws.mean(axis=0), 2.25 * np.cov(x_draws.T))
+        diag_attempts = attempt + 1
         sampler = _XSampler(sampler, whitening)
-        timing["mcmc"] = time.perf_counter() - t0
     burn = settings.direct_burn if direct else settings.burn
     thin = 1 if direct else settings.thin
     diag = _chain_diagnostics(sampler, burn, box, space)
@@ -627,6 +647,8 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         diag["box_cut_fraction"] = _box_cut_fraction(sampler.sampler.get_chain(discard=burn, flat=True),
                                                      settings.box_sd, sampler.whitening, space)
     diag["thin"] = thin
+    if not direct:
+        diag["box_attempts"] = diag_attempts
     chain = sampler.get_chain(discard=burn, thin=thin)
     lp = sampler.get_log_prob(discard=burn, thin=thin)
     idata = to_inference_data(chain, lp, space, {"source": str(problem.source), "direct": int(direct),

@@ -103,6 +103,25 @@ def prior_box_times(rom, n_points=40, seed=0):
     return float(np.median(times)), float(np.max(times))
 
 
+def opensees_time(full, repeats=3):
+    """Median seconds of one OpenSeesPy run on the full FE's mesh and step, in
+    this process (so under the same load as the rows above); None without openseespy."""
+    try:
+        from opensees_model import run_opensees_transient
+    except ImportError:
+        return None
+    try:
+        run_opensees_transient(full, PARAMS, FORCE[:64], FS)
+    except Exception:
+        return None
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        run_opensees_transient(full, PARAMS, FORCE, FS)
+        ts.append(time.perf_counter() - t0)
+    return float(np.median(ts))
+
+
 def first_call_seconds():
     code = ("import time; t0 = time.perf_counter(); import fe, numpy as np; "
             "r = fe.ModalROM(rig=fe.Rig(bending_stiffness_factor=1.24)); "
@@ -139,6 +158,11 @@ def main():
           f"{1e3 * med:.3f} ({1e3 * low:.3f}) | |")
     print(f"| full FE ({full.n_elements} elements, {full.substeps} substeps) | "
           f"{1e3 * fe_med:.1f} ({1e3 * fe_min:.1f}) | 1x |")
+    os_med = opensees_time(full)
+    if os_med is not None:
+        inc = t["incl"][0]
+        print(f"| OpenSeesPy, the full FE's mesh and step (corotational, HHTGeneralized; 3 runs) | "
+              f"{1e3 * os_med:.0f} | {os_med / fe_med:.0f}x the full FE, {os_med / inc:.0f}x the ROM |")
     print()
     print(f"Per-model setup (FE matrices of {model_setup.mass.shape[0]} free transverse dofs, "
           f"Cholesky, buckling load; once per ModalROM): {1e3 * setup:.1f} ms (first call, "

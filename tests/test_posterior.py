@@ -236,3 +236,22 @@ def test_cli_sample_writes_posterior_files(tmp_path):
     summary = json.loads((out / "posterior_summary.json").read_text())
     assert summary["parameters"]["P_eff"]["units"] == "N"
     assert main(["sample", "--modes", "4", "--quick", "--out", str(out)]) == 2   # --modes needs --model rom
+
+
+def test_whitening_round_trip_and_box_cut_fraction(data):
+    from bayes_update.posterior import Whitening, _box_cut_fraction
+
+    space = ParameterSpace(data.rig)
+    cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2
+    cov[1, 3] = cov[3, 1] = -0.9 * 2.0 * 150.0
+    w = Whitening.from_covariance(np.array([3.0, 15.0, 74.0, 200.0]), cov)
+    X = np.array([[3.1, 14.0, 74.02, 250.0], [2.9, 16.0, 73.99, 150.0]])
+    assert np.allclose(w.to_x(w.to_u(X)), X)
+    emp = np.cov(w.to_x(np.random.default_rng(0).standard_normal((200000, 4))).T)
+    scale = np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
+    assert np.all(np.abs(emp - cov) < 0.02 * scale)
+    # draws at the u box's edge count as cut only where the prior goes on beyond it
+    U = np.zeros((4, 4))
+    U[0, 0] = 3.9                                  # eta direction, inside the prior beyond: cut
+    assert _box_cut_fraction(U, 4.0, w, space) == pytest.approx(0.25)
+    assert _box_cut_fraction(np.zeros((4, 4)), 4.0, w, space) == 0.0
