@@ -260,18 +260,6 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _truth_paper_units(data: Dataset):
-    """The virtual rig's true parameters (paper units) when the data set states
-    them: used to mark the figures, never by the updating."""
-    truth = (data.extra or {}).get("truth", {}).get("parameters_si")
-    if not truth:
-        return None
-    rig = data.rig
-    kb = rig.axial_stiffness
-    return {"eta": truth["eta"] / 1e6, "c": truth["c"] / 1e3, "F": truth["F"], "k_s": truth["k_s"] / 1e3,
-            "P_eff": truth["F"] * kb / (kb + truth["k_s"])}
-
-
 def _prior_space(rig, items):
     from .likelihood import ParameterSpace
 
@@ -308,7 +296,8 @@ def cmd_sample(args) -> int:
     space = _prior_space(rig, args.prior)
     res = sample(data, model, settings, workers=args.workers, direct=args.direct, space=space,
                  cache_dir=None if args.no_cache else Path(args.out) / "cache")
-    truth = _truth_paper_units(data)
+    from .virtual_rig import truth_paper_units
+    truth = truth_paper_units(data)
     write_posterior(res, args.out, truth=truth)
     print(format_summary(res))
     t = res.timing

@@ -60,7 +60,7 @@ import numpy as np
 import fe
 import volterra
 
-from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band
+from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band, stage_output
 from .spectral import psd
 
 MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
@@ -296,10 +296,6 @@ def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
     return mean, nu
 
 
-def _stage_metric(problem: UpdatingProblem, stage: str, comps: dict) -> np.ndarray:
-    return comps[1] if stage == "linear" else comps[2] + comps[3]
-
-
 def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refined=None,
                         model_error: bool = True, n_replicates: int = 32, seed=0,
                         stages=None) -> Likelihood:
@@ -326,7 +322,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         sig_y = white_noise_sd(test.velocity, fs, band)
         basis = problem.projector(stage).basis
         v0 = problem.simulate(params, stage)
-        ref_norm = np.linalg.norm(_stage_metric(problem, stage, problem.reference_components(stage)))
+        ref_norm = np.linalg.norm(stage_output(stage, problem.reference_components(stage)))
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
         e2 = []
         for _ in range(int(n_replicates)):
@@ -334,7 +330,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
             y_meas = v0 + sig_y * rng.standard_normal(v0.size)
             v = fe.simulate(problem.model, params, u, fs=fs, positions=[problem.rig.sensor_position_m]).sensor_velocity
             proj = volterra.VolterraProjector(u, basis)
-            d = _stage_metric(problem, stage, proj.components(y_meas)) - _stage_metric(problem, stage, proj.components(v))
+            d = stage_output(stage, proj.components(y_meas)) - stage_output(stage, proj.components(v))
             e2.append((np.linalg.norm(d) / ref_norm) ** 2)
         n_reg = _n_regressors(basis, stage)
         mean, nu = noise_scale_from_replicates(e2, n_reg)
@@ -342,8 +338,8 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         if ref_model is not None:
             v_ref = fe.simulate(ref_model, params, test.force, fs=fs,
                                 positions=[problem.rig.sensor_position_m]).sensor_velocity
-            d = _stage_metric(problem, stage, problem.components(stage, v0)) - \
-                _stage_metric(problem, stage, problem.components(stage, v_ref))
+            d = stage_output(stage, problem.components(stage, v0)) - \
+                stage_output(stage, problem.components(stage, v_ref))
             e_model = float(np.linalg.norm(d) / ref_norm)
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),

@@ -52,6 +52,11 @@ def relative_error(reference, model) -> float:
     return float(np.linalg.norm(reference - np.asarray(model, float)) / norm)
 
 
+def stage_output(stage: str, comps: dict) -> np.ndarray:
+    """The output a stage's metric compares: y1 (linear) or y2 + y3 (nonlinear)."""
+    return comps[1] if stage == "linear" else comps[2] + comps[3]
+
+
 def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
     """(f_min, f_max) [Hz] where the force PSD exceeds ``level`` x its peak:
     the band in which an FRF estimate of the record is meaningful."""
@@ -186,11 +191,8 @@ class UpdatingProblem:
     # ------------------------------------------------------------- metrics
     def metric(self, stage: str, velocity) -> float:
         """e_lin (stage 'linear') or e_nlin (stage 'nonlinear') of a model velocity."""
-        ref = self.reference_components(stage)
-        mod = self.components(stage, velocity)
-        if stage == "linear":
-            return relative_error(ref[1], mod[1])
-        return relative_error(ref[2] + ref[3], mod[2] + mod[3])
+        return relative_error(stage_output(stage, self.reference_components(stage)),
+                              stage_output(stage, self.components(stage, velocity)))
 
     def evaluate(self, params: fe.Parameters, stages=STAGES) -> dict:
         """Metrics at one parameter point.

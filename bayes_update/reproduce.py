@@ -27,7 +27,7 @@ import fe
 from .calibrate import CalibrationSettings, calibrate, format_tables, write_result
 from .likelihood import ParameterSpace
 from .posterior import PosteriorSettings, format_summary, sample, write_posterior
-from .virtual_rig import load_default_dataset
+from .virtual_rig import load_default_dataset, truth_paper_units
 
 #: The locking-free beam needs about 43 N for the data's 37 Hz, below the
 #: DESIGN.md box (F 60-95 N, set for the paper's physics): its posterior
@@ -87,7 +87,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print) -
     stated = data.rig.bending_stiffness_factor
     cal_settings = CalibrationSettings.quick() if quick else CalibrationSettings()
     post_settings = PosteriorSettings.quick() if quick else PosteriorSettings()
-    truth = _truth(data)
+    truth = truth_paper_units(data)
     calibrations, posteriors = {}, {}
     for factor in (stated, 1.0):
         tag = f"factor_{factor:g}"
@@ -122,15 +122,6 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print) -
     (out / "report.md").write_text(_report(out, calibrations, posteriors, stated, truth, timing, quick))
     log(f"wrote {out / 'report.md'} ({timing['total']:.0f} s)")
     return head
-
-
-def _truth(data):
-    t = (data.extra or {}).get("truth", {}).get("parameters_si")
-    if not t:
-        return None
-    kb = data.rig.axial_stiffness
-    return {"eta": t["eta"] / 1e6, "c": t["c"] / 1e3, "F": t["F"], "k_s": t["k_s"] / 1e3,
-            "P_eff": t["F"] * kb / (kb + t["k_s"])}
 
 
 def _headline(cals, posts, stated, timing) -> dict:

@@ -367,6 +367,18 @@ DEFAULT_DATASET_DIR = Path(__file__).resolve().parent / "data" / "default"
 """Folder of the embedded default data set (inside the package)."""
 
 
+def truth_paper_units(dataset) -> dict | None:
+    """The true parameters a virtual-rig data set states (paper units, with
+    P_eff), or None: for marking figures and checking results, never read by
+    the updating."""
+    t = (dataset.extra or {}).get("truth", {}).get("parameters_si")
+    if not t:
+        return None
+    kb = dataset.rig.axial_stiffness
+    return {"eta": t["eta"] / 1e6, "c": t["c"] / 1e3, "F": t["F"], "k_s": t["k_s"] / 1e3,
+            "P_eff": t["F"] * kb / (kb + t["k_s"])}
+
+
 def default_dataset_path() -> Path:
     """Path of the embedded default data set folder."""
     res = importlib.resources.files("bayes_update").joinpath("data", "default")

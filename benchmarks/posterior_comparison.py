@@ -28,7 +28,7 @@ sys.path.insert(0, str(ROOT))
 import fe  # noqa: E402
 from bayes_update.posterior import PosteriorSettings, sample  # noqa: E402
 from bayes_update.posterior_plots import LABELS, ORDER, paper_draws  # noqa: E402
-from bayes_update.virtual_rig import load_default_dataset  # noqa: E402
+from bayes_update.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
 
 from _machine import machine  # noqa: E402
 
@@ -98,10 +98,7 @@ def main(argv=None):
     direct = sample(data, model, settings, direct=True, start=start, likelihood=sur.likelihood, progress=True)
     t_dir = time.perf_counter() - t0
     a, b = paper_draws(sur.space, sur.draws), paper_draws(direct.space, direct.draws)
-    truth_si = data.extra["truth"]["parameters_si"]
-    kb = data.rig.axial_stiffness
-    truth = {"eta": truth_si["eta"] / 1e6, "c": truth_si["c"] / 1e3, "F": truth_si["F"],
-             "k_s": truth_si["k_s"] / 1e3, "P_eff": truth_si["F"] * kb / (kb + truth_si["k_s"])}
+    truth = truth_paper_units(data)
     res = compare(a, b, np.random.default_rng(0))
     name = args.model + ("_quick" if args.quick else "")
     fig = figure(a, b, truth, f"{args.model}: surrogate ({sur.n_model_runs['total']} model runs, {t_sur:.0f} s) "

@@ -1,6 +1,4 @@
 """The effects catalogue (fe.effects) against independent results."""
-import math
-
 import numpy as np
 import pytest
 

@@ -1,6 +1,5 @@
 """fe: the generalized-alpha transient against closed forms and rates."""
 
-import math
 
 import numpy as np
 import pytest

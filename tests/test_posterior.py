@@ -236,6 +236,8 @@ def test_cli_sample_writes_posterior_files(tmp_path):
     summary = json.loads((out / "posterior_summary.json").read_text())
     assert summary["parameters"]["P_eff"]["units"] == "N"
     assert main(["sample", "--modes", "4", "--quick", "--out", str(out)]) == 2   # --modes needs --model rom
+    assert main(["sample", "--prior", "G=1:2", "--quick", "--out", str(out)]) == 2
+    assert main(["sample", "--prior", "F=95:20", "--quick", "--out", str(out)]) == 2
 
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
