@@ -162,7 +162,8 @@ def diagnostics_figure(diag: dict):
     a3.set_xticks(range(3), [f"{k}x" for k in HARMONICS])
     a3.set_ylabel("model - data [dB]")
     a3.set_title("by frequency (sine harmonics)")
-    a3.legend(fontsize=7)
+    if sines:
+        a3.legend(fontsize=7)
     for i, (n, d) in enumerate(diag["by_amplitude"].items()):
         a4.semilogx(d["data"]["amplitude"], 100 * np.array(d["data"]["zeta"]), "o-", color=f"C{i}", label=f"{n} data")
         a4.semilogx(d["model"]["amplitude"], 100 * np.array(d["model"]["zeta"]), "x--", color=f"C{i}",

@@ -173,9 +173,16 @@ class StageScale:
     n_regressors: int
     n_replicates: int
     noise_levels: dict = field(default_factory=dict)   # sigma of force [N] and velocity [m/s]
+    span_variance: float | None = None   # noise variance per direction in the span of the parameters' sensitivities
+    span_rank: int | None = None
+    model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up
 
     @property
     def noise_sd(self) -> float:
+        """s_n: the noise's sd per direction in the span of the parameter
+        sensitivities when measured (``span_variance``), else mean(e^2) / nu."""
+        if self.span_variance is not None:
+            return math.sqrt(self.span_variance)
         return math.sqrt(self.noise_mean_square / self.noise_dof)
 
     @property
@@ -210,6 +217,15 @@ class Likelihood:
 
     def restricted(self, stages) -> "Likelihood":
         return Likelihood({s: self.scales[s] for s in stages})
+
+    def unabsorbed(self) -> "Likelihood":
+        """The same noise with only the unabsorbed part of the model error
+        (orthogonal to the parameters' sensitivities): the misfit a model
+        comparison should count as explained.  The posterior keeps the whole
+        model error, so that its bias moves a parameter by at most one sd."""
+        import dataclasses
+        return Likelihood({st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
+                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()})
 
     def log_likelihood(self, metrics: dict) -> float:
         """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""
@@ -298,7 +314,7 @@ def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
 
 def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refined=None,
                         model_error: bool = True, n_replicates: int = 32, seed=0,
-                        stages=None) -> Likelihood:
+                        stages=None, space: ParameterSpace | None = None) -> Likelihood:
     """Measure the likelihood scales at the estimate ``params`` (module docstring).
 
     n_replicates : noise replicates per stage (K model runs each); the relative
@@ -324,28 +340,59 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         v0 = problem.simulate(params, stage)
         ref_norm = np.linalg.norm(stage_output(stage, problem.reference_components(stage)))
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
-        e2 = []
+        D = []
         for _ in range(int(n_replicates)):
             u = test.force + sig_f * rng.standard_normal(test.force.size)
             y_meas = v0 + sig_y * rng.standard_normal(v0.size)
             v = fe.simulate(problem.model, params, u, fs=fs, positions=[problem.rig.sensor_position_m]).sensor_velocity
             proj = volterra.VolterraProjector(u, basis)
-            d = stage_output(stage, proj.components(y_meas)) - stage_output(stage, proj.components(v))
-            e2.append((np.linalg.norm(d) / ref_norm) ** 2)
+            D.append((stage_output(stage, proj.components(y_meas)) - stage_output(stage, proj.components(v)))
+                     / ref_norm)
+        D = np.array(D)
+        e2 = np.sum(D ** 2, axis=1)
         n_reg = _n_regressors(basis, stage)
         mean, nu = noise_scale_from_replicates(e2, n_reg)
-        e_model = 0.0
+        Q = sensitivity_span(problem, stage, params, space or ParameterSpace(problem.rig))
+        span_var = float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / Q.shape[1])
+        e_model = e_perp = 0.0
         if ref_model is not None:
             v_ref = fe.simulate(ref_model, params, test.force, fs=fs,
                                 positions=[problem.rig.sensor_position_m]).sensor_velocity
             d = stage_output(stage, problem.components(stage, v0)) - \
                 stage_output(stage, problem.components(stage, v_ref))
             e_model = float(np.linalg.norm(d) / ref_norm)
+            e_perp = float(np.linalg.norm(d - Q @ (Q.T @ d)) / ref_norm)
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),
                                    noise_levels={"force_N": sig_f, "velocity_m_s": sig_y,
-                                                 "band_hz": list(band)})
+                                                 "band_hz": list(band)},
+                                   span_variance=span_var, span_rank=int(Q.shape[1]),
+                                   model_error_unabsorbed=e_perp)
     return Likelihood(scales)
+
+
+def sensitivity_span(problem: UpdatingProblem, stage: str, params: fe.Parameters,
+                     space: ParameterSpace, rel_step: float = 1e-4, tol: float = 1e-6) -> np.ndarray:
+    """Orthonormal basis (n, r) of the span of d(stage output)/dx at ``params``
+    (central differences in the internal coordinates, steps ``rel_step`` of
+    the prior box; inwards at a bound), r = its numerical rank."""
+    x = space.to_internal(params)
+    box = space.box()
+    h = rel_step * (box[:, 1] - box[:, 0])
+    cols = []
+    for i in range(len(x)):
+        lo, hi = x.copy(), x.copy()
+        a = min(h[i], x[i] - box[i, 0]) if x[i] - h[i] < box[i, 0] else h[i]
+        lo[i] -= a
+        hi[i] += h[i]
+        out = [stage_output(stage, problem.components(stage, problem.simulate(space.to_parameters(p), stage)))
+               for p in (hi, lo)]
+        cols.append((out[0] - out[1]) / (h[i] + a))
+    U, S, _ = np.linalg.svd(np.array(cols).T, full_matrices=False)
+    r = int(np.sum(S > tol * S[0])) if S[0] > 0 else 0
+    if r == 0:
+        raise RuntimeError(f"stage {stage}: the model output does not move with the parameters")
+    return U[:, :r]
 
 
 def _n_regressors(basis: volterra.KautzBasis, stage: str) -> int:

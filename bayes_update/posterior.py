@@ -7,9 +7,10 @@ Pipeline of :func:`sample` (each step's numbers go to the result):
    point is given;
 2. likelihood scales at the start (:func:`bayes_update.likelihood.estimate_likelihood`:
    noise replicates and the model error against a refined model);
-3. MAP by Nelder-Mead on direct model runs, in coordinates scaled by the
-   conditional posterior sd (probed first), and a Laplace approximation
-   (finite-difference Hessian at +-1 sd);
+3. MAP by least squares on the metrics' residual vectors (trust-region
+   Gauss-Newton on direct model runs, :mod:`bayes_update.mode`; from the
+   start and from the best points of a grid on the c-k_s band) and the
+   Laplace covariance from the residuals' Jacobian there;
 4. surrogate path: coordinates whitened by the Laplace covariance, a Sobol'
    design in the box of +-``box_sd`` in them (points inside the prior), Gaussian processes of
    z = log(1 + e^2 / s^2) per stage, refined in rounds where the surrogate
@@ -36,7 +37,6 @@ from dataclasses import asdict, dataclass, field
 from functools import partial
 
 import numpy as np
-from scipy.optimize import minimize
 
 import fe
 import surrogates
@@ -223,73 +223,6 @@ class WhitenedLogPosterior:
 
 
 # ------------------------------------------------------------------ MAP, box
-def _objective(evaluate: Evaluate, lik: Likelihood, x) -> float:
-    lp = float(evaluate.space.log_prior(x)[0])
-    if not np.isfinite(lp):
-        return np.inf
-    ll = lik.log_likelihood(evaluate(x))
-    return -(lp + ll) if np.isfinite(ll) else np.inf
-
-
-def _neg_log_likelihood(evaluate: Evaluate, lik: Likelihood, x) -> float:
-    ll = lik.log_likelihood(evaluate(x))
-    return -ll if np.isfinite(ll) else np.inf
-
-
-def conditional_steps(f, x0, h0, iterations: int = 3, target: float = 0.5) -> np.ndarray:
-    """Per coordinate, the step h at which ``f`` (a negative log density) rises
-    by about ``target`` (0.5: one conditional sd), by a few secant updates."""
-    f0 = f(x0)
-    h = np.array(h0, float)
-    for i in range(len(x0)):
-        for _ in range(iterations):
-            for sign in (1.0, -1.0):
-                x = x0.copy()
-                x[i] += sign * h[i]
-                d = f(x) - f0
-                if np.isfinite(d):
-                    break
-            if not np.isfinite(d):
-                h[i] *= 0.5
-                continue
-            ratio = math.sqrt(target / d) if d > 1e-12 else 10.0
-            h[i] *= float(np.clip(ratio, 0.1, 10.0))
-            if 0.7 < ratio < 1.4:
-                break
-    return h
-
-
-def laplace(f, x_map, h, executor=None, progress=False) -> np.ndarray:
-    """Covariance from the central finite-difference Hessian of ``f`` at
-    ``x_map`` with steps ``h`` (about one conditional sd each)."""
-    d = len(x_map)
-    E = np.eye(d)
-    pts, keys = [x_map], [()]
-    for i in range(d):
-        for s in (1, -1):
-            pts.append(x_map + s * h[i] * E[i])
-            keys.append((i, s))
-    for i in range(d):
-        for j in range(i + 1, d):
-            for si in (1, -1):
-                for sj in (1, -1):
-                    pts.append(x_map + si * h[i] * E[i] + sj * h[j] * E[j])
-                    keys.append((i, si, j, sj))
-    vals = dict(zip(keys, evaluate_many(f, pts, executor, progress=progress, desc="Laplace")))
-    H = np.empty((d, d))
-    for i in range(d):
-        H[i, i] = (vals[(i, 1)] - 2 * vals[()] + vals[(i, -1)])
-        for j in range(i + 1, d):
-            H[i, j] = H[j, i] = (vals[(i, 1, j, 1)] - vals[(i, 1, j, -1)] - vals[(i, -1, j, 1)]
-                                 + vals[(i, -1, j, -1)]) / 4.0
-    if not np.all(np.isfinite(H)):
-        raise RuntimeError("the Laplace Hessian hit a failed model run or the prior's edge")
-    w, V = np.linalg.eigh(H)
-    w = np.maximum(w, 1e-3 * max(w.max(), 1e-12))      # a flat direction: wide, not negative
-    cov_z = (V / w) @ V.T
-    return cov_z * np.outer(h, h)
-
-
 @dataclass
 class MapResult:
     x: np.ndarray
@@ -297,57 +230,73 @@ class MapResult:
     steps: np.ndarray
     covariance: np.ndarray
     n_evaluations: int
+    mode: object = field(default=None, repr=False)
 
 
-def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 400,
+@dataclass
+class _BaseMap:
+    """Picklable ``x -> (model, parameters)`` of the baseline model."""
+
+    space: ParameterSpace
+    model: object
+
+    def __call__(self, x):
+        return self.model, self.space.to_parameters(x)
+
+
+def band_starts(space: ParameterSpace, x, n: int = 3) -> list:
+    """Points on the (c, k_s) band at the (eta, P_eff) of ``x``: an n x n grid
+    over the prior's c and k_s ranges, kept where F stays inside its range."""
+    out = []
+    for c in space.c[0] + (space.c[1] - space.c[0]) * (np.arange(n) + 0.5) / n:
+        for ks in space.k_s[0] + (space.k_s[1] - space.k_s[0]) * (np.arange(n) + 0.5) / n:
+            p = np.array([x[0], c, x[2], ks])
+            if np.isfinite(space.log_prior(p)[0]):
+                out.append(p)
+    return out
+
+
+def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
              progress: bool = False) -> MapResult:
-    """MAP (Nelder-Mead in sd-scaled coordinates) and its Laplace covariance."""
-    count = [0]
+    """MAP by least squares on the residual vectors (:mod:`bayes_update.mode`)
+    and its Gauss-Newton Laplace covariance.
 
-    def f(x):
-        count[0] += 1
-        return _objective(evaluate, lik, np.asarray(x, float))
+    Starts: ``x0`` and the two best of a 3 x 3 grid on the (c, k_s) band at
+    x0's (eta, P_eff) (the low level pins eta and P_eff; along the band the
+    nonlinear misfit can have more than one valley).  The uniform prior's
+    density (K_b + k_s) / K_b in these coordinates varies by < 1 % over the
+    posterior and is left out of the mode, kept in ``value``."""
+    from .mode import ResidualFunction, find_mode
 
-    x0 = np.asarray(x0, float)
-    box = evaluate.space.box()
-    h = conditional_steps(f, x0, 0.002 * (box[:, 1] - box[:, 0]) + np.array([0.0, 0.1, 0.0, 0.0]))
-    best, f_best = x0, f(x0)
-    budget = max_evaluations
-    for _ in range(6):
-        f_start = f_best
-        # (eta, P_eff) first: the low level pins them to a valley 1e-4 wide in
-        # P_eff, which a 4-D simplex started off its floor creeps along slowly
-        for idx in ((0, 2), (0, 1, 2, 3)):
-            idx = list(idx)
+    space = evaluate.space
+    stages = tuple(evaluate.stages)
+    fun = ResidualFunction(evaluate.problem, stages, tuple(lik.scales[s].sd for s in stages),
+                           _BaseMap(space, evaluate.problem.model))
+    box = space.box()
+    x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
+    steps = 1e-4 * (box[:, 1] - box[:, 0])
+    starts = [x0]
+    grid = band_starts(space, x0)
+    if grid and len(stages) > 1:
+        cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
+        starts += [grid[i] for i in np.argsort(cost)[:2]]
+    iterations = max(5, int(max_evaluations) // (len(starts) * (len(x0) + 1)))
+    mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations)
+    cov = mode.covariance(scale=box[:, 1] - box[:, 0])
+    value = mode.cost - float(space.log_prior(mode.x)[0])
+    return MapResult(x=mode.x, value=value, steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)),
+                     covariance=cov, n_evaluations=mode.n_evaluations + len(grid), mode=mode)
 
-            def g(z, idx=idx, base=best):
-                x = base.copy()
-                x[idx] += z * h[idx]
-                return f(x)
 
-            k = len(idx)
-            opt = minimize(g, np.zeros(k), method="Nelder-Mead",
-                           options={"maxfev": max(20, budget // 6), "xatol": 0.02, "fatol": 0.01,
-                                    "initial_simplex": np.vstack([np.zeros(k), np.eye(k)])})
-            if opt.fun < f_best:          # the model is deterministic: opt.fun is f(best)
-                best = best.copy()
-                best[idx] += opt.x * h[idx]
-                f_best = opt.fun
-        h = conditional_steps(f, best, h, iterations=2)
-        improvement = f_start - f_best
-        # a simplex can stall on a valley's wall (seen in the SBC benchmark 4 sd
-        # from the mode): restart from the best point until a round gains < 0.01
-        if improvement < 0.01 or count[0] > budget:
-            break
-    n = count[0]
-    # the Hessian of the likelihood alone (the prior box only truncates), on a
-    # stencil kept where the parameters are physical (c, k_s >= 0; eta, P_eff > 0)
-    # near a bound (c or k_s close to 0) the step shrinks to fit, down to a
-    # tenth of the conditional sd; only then does the stencil's centre move in
-    h_fd = np.maximum(np.minimum(h, best / 1.01), 0.1 * h)
-    centre = np.maximum(best, 1.01 * h_fd)
-    cov = laplace(partial(_neg_log_likelihood, evaluate, lik), centre, h_fd, executor, progress)
-    return MapResult(x=best, value=f_best, steps=h, covariance=cov, n_evaluations=n + 4 * len(x0) ** 2)
+def capped_covariance(cov, space: ParameterSpace, box_sd: float) -> np.ndarray:
+    """``cov`` with the prior's width added as information: precision
+    cov^-1 + diag((2 box_sd / width)^2), so that +-box_sd sd spans at most
+    about the prior's bounding box in any coordinate.  A direction the data
+    hardly constrain (k_s along the band when the nonlinear level says
+    little) would otherwise give a whitened box mostly outside the prior."""
+    width = np.diff(space.box(), axis=1)[:, 0]
+    P = np.linalg.inv(cov) + np.diag((2.0 * box_sd / width) ** 2)
+    return np.linalg.inv(P)
 
 
 def local_box(space: ParameterSpace, x_map, cov, box_sd: float, free=()) -> np.ndarray:
@@ -566,8 +515,9 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     t0 = time.perf_counter()
     if likelihood is None:
         lik = estimate_likelihood(problem, start, model_error=settings.model_error,
-                                  n_replicates=settings.n_replicates, seed=seed_of[0])
-        runs["likelihood_scales"] = len(stages) * (settings.n_replicates + 1 + int(settings.model_error))
+                                  n_replicates=settings.n_replicates, seed=seed_of[0], space=space)
+        # replicates, the estimate, the refined model, 8 runs for the sensitivity span
+        runs["likelihood_scales"] = len(stages) * (settings.n_replicates + 9 + int(settings.model_error))
     else:
         if set(likelihood.stages) != set(stages):
             raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
@@ -575,7 +525,8 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         runs["likelihood_scales"] = 0
     timing["likelihood_scales"] = time.perf_counter() - t0
     for st, sc in lik.scales.items():
-        log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % ({sc.noise_dof:.1f} dof), model error "
+        log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % per direction of the parameters' span "
+            f"({sc.span_rank}), model error "
             f"{100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
     # 3. MAP and local box --------------------------------------------------------
     t0 = time.perf_counter()
@@ -601,7 +552,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         gps = {}
     else:
         t0 = time.perf_counter()
-        whitening = Whitening.from_covariance(mp.x, mp.covariance)
+        whitening = Whitening.from_covariance(mp.x, capped_covariance(mp.covariance, space, settings.box_sd))
         ubox = np.array([[-settings.box_sd, settings.box_sd]] * len(NAMES), float)
         timing["gp_fit"], timing["mcmc"], runs["design"] = 0.0, 0.0, 0
         for attempt in range(settings.box_attempts):
@@ -630,7 +581,9 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
             x_draws = whitening.to_x(u_draws)
             log(f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 3x wider "
                 f"(attempt {attempt + 2} of {settings.box_attempts})")
-            whitening = Whitening.from_covariance(x_draws.mean(axis=0), 9.0 * np.cov(x_draws.T))
+            whitening = Whitening.from_covariance(x_draws.mean(axis=0),
+                                                  capped_covariance(9.0 * np.cov(x_draws.T), space,
+                                                                    settings.box_sd))
         diag_attempts = attempt + 1
         sampler = _XSampler(sampler, whitening)
     burn = settings.direct_burn if direct else settings.burn
@@ -693,9 +646,13 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
 
     ss = np.random.SeedSequence(seed).spawn(3)
     # a Sobol' design of the u box, keeping the points inside the prior
-    cand = surrogates.design(box, 8 * settings.n_initial, "sobol", seed=int(ss[0].generate_state(1)[0]))
-    inside = np.isfinite(space.log_prior(whitening.to_x(cand)))
-    if inside.sum() < settings.n_initial:
+    # (near a corner of the prior most of the box is outside: draw more)
+    for factor in (8, 64, 512):
+        cand = surrogates.design(box, factor * settings.n_initial, "sobol", seed=int(ss[0].generate_state(1)[0]))
+        inside = np.isfinite(space.log_prior(whitening.to_x(cand)))
+        if inside.sum() >= settings.n_initial:
+            break
+    else:
         raise RuntimeError(f"only {inside.sum()} of {len(cand)} design candidates fall inside the prior box")
     U0 = cand[inside][:settings.n_initial]
     cache = _cache(cache_dir, ev.evaluate, "design", whitening)

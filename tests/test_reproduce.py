@@ -9,7 +9,7 @@ from bayes_update.cli import main
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce")
-    assert main(["reproduce", "--quick", "--out", str(out), "--workers", "2"]) == 0
+    assert main(["reproduce", "--quick", "--no-discrepancy", "--out", str(out), "--workers", "2"]) == 0
     return out
 
 

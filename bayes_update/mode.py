@@ -1,0 +1,196 @@
+"""The posterior mode by nonlinear least squares on the metrics' residual vectors.
+
+Both metrics are lengths of residual vectors, ``e = ||r||`` with
+``r = (y_ref - y_mod(x)) / ||y_ref||`` (the stage's Volterra components, see
+:mod:`bayes_update.metrics`), so ``-log L = 1/2 sum_stage ||r_stage / s_stage||^2``
+is a sum of squares and the mode is a least-squares problem.  A
+Gauss-Newton method (scipy's trust-region-reflective ``least_squares``, with
+the prior box as bounds) uses the residuals' Jacobian, which a simplex on
+the scalar ``-log L`` never sees: on a valley 1e-4 wide in P_eff and a
+c-k_s band 100 times longer than wide, Nelder-Mead stopped hundreds of log
+units short of the mode in 5 of 50 SBC truths; least squares from the same
+starts reaches it.  The Jacobian's d columns are independent model runs,
+computed in parallel through the executor, and ``J^T J`` at the mode is the
+Laplace (Gauss-Newton) precision without another model run.
+
+Each evaluation is a picklable :class:`ResidualFunction`; what a point means
+(which model, which parameters) is a ``point_map``, so the same code finds
+the mode of the baseline model and of a model extended by an effect
+(:mod:`bayes_update.missing_effect`).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+import fe
+
+from .evaluation import evaluate_many
+from .metrics import UpdatingProblem, stage_output
+
+#: residual value (per entry, scaled) standing in for a failed model run
+FAILED_RESIDUAL = 1e3
+
+
+@dataclass
+class ResidualFunction:
+    """Picklable ``x -> r(x)``: the stages' scaled residual vectors, concatenated.
+
+    ``point_map(x) -> (model, fe.Parameters)``; ``scales[i]`` is the
+    likelihood scale s of ``stages[i]``, so ``-log L = 1/2 ||r||^2``.  A
+    failed run (buckling, divergence) gives a vector of
+    :data:`FAILED_RESIDUAL` entries: a least-squares step into it is rejected.
+    """
+
+    problem: UpdatingProblem
+    stages: tuple
+    scales: tuple
+    point_map: object
+
+    def __call__(self, x) -> np.ndarray:
+        model, params = self.point_map(np.asarray(x, float))
+        out = []
+        for stage, s in zip(self.stages, self.scales):
+            test = self.problem.tests[stage]
+            ref = stage_output(stage, self.problem.reference_components(stage))
+            n = ref.size
+            try:
+                v = fe.simulate(model, params, test.force, fs=self.problem.fs,
+                                positions=[self.problem.rig.sensor_position_m]).sensor_velocity
+            except (fe.BucklingError, fe.ConvergenceError):
+                out.append(np.full(n, FAILED_RESIDUAL))
+                continue
+            mod = stage_output(stage, self.problem.components(stage, v))
+            out.append((ref - mod) / (np.linalg.norm(ref) * s))
+        return np.concatenate(out)
+
+
+@dataclass
+class ModeResult:
+    x: np.ndarray            # the mode
+    cost: float              # -log L at the mode (1/2 ||r||^2)
+    jacobian: np.ndarray     # dr/dx at the mode (central differences)
+    residual: np.ndarray     # r at the mode
+    n_evaluations: int
+    starts: list             # [(x0, x_end, cost)] of every start
+
+    @property
+    def precision(self) -> np.ndarray:
+        """Gauss-Newton precision J^T J of -log L at the mode."""
+        return self.jacobian.T @ self.jacobian
+
+    def covariance(self, scale=None, floor: float = 1e-10) -> np.ndarray:
+        """Laplace covariance (J^T J)^-1.  The inverse is taken in coordinates
+        divided by ``scale`` (e.g. the prior widths; default the Jacobian's
+        column norms), where an eigenvalue below ``floor`` times the largest
+        (a direction the data do not constrain) is raised to it: that
+        direction comes out very wide, not infinite or negative."""
+        J = self.jacobian
+        if scale is None:
+            scale = np.linalg.norm(J, axis=0)
+            scale = np.where(scale > 0, 1.0 / np.maximum(scale, 1e-300), 1.0)
+        scale = np.asarray(scale, float)
+        Js = J * scale
+        w, V = np.linalg.eigh(Js.T @ Js)
+        w = np.maximum(w, floor * max(w.max(), 1e-300))
+        return ((V / w) @ V.T) * np.outer(scale, scale)
+
+
+def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.ndarray, int]:
+    """Finite-difference Jacobian with steps ``h`` kept inside [lower, upper];
+    its 2d (central) or d (forward) runs go through the executor."""
+    d = len(x)
+    pts, signs = [], []
+    for i in range(d):
+        for s in ((1.0, -1.0) if central else (1.0,)):
+            step = s * h[i]
+            if not lower[i] <= x[i] + step <= upper[i]:
+                step = -step                         # at a bound: step inwards
+            p = x.copy()
+            p[i] += step
+            pts.append(p)
+            signs.append((i, step))
+    vals = evaluate_many(fun, pts, executor, progress=False)
+    J = np.zeros((len(r0), d))
+    if central:
+        for i in range(d):
+            (_, a), (_, b) = signs[2 * i], signs[2 * i + 1]
+            if a == -b:
+                J[:, i] = (vals[2 * i] - vals[2 * i + 1]) / (a - b)
+            else:                                     # both steps went inwards: forward difference
+                J[:, i] = (vals[2 * i] - r0) / a
+    else:
+        for i, (_, step) in enumerate(signs):
+            J[:, i] = (vals[i] - r0) / step
+    return J, len(pts)
+
+
+def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
+              max_iterations: int = 40) -> ModeResult:
+    """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
+
+    steps : finite-difference step per coordinate (same units as x), about a
+        thousandth of the prior width (smaller for a coordinate pinned
+        tightly, such as P_eff).
+    max_iterations : least-squares iterations per start.
+
+    Returns the best end point with its central-difference Jacobian.
+    """
+    lower, upper, steps = (np.asarray(a, float) for a in (lower, upper, steps))
+    if not np.all(steps > 0):
+        raise ValueError("finite-difference steps must be positive")
+    count = [0]
+    cache = {}
+
+    def f(x):
+        key = x.tobytes()
+        if key not in cache:
+            count[0] += 1
+            cache.clear()
+            cache[key] = fun(np.array(x))
+        return cache[key]
+
+    def jac(x):
+        J, n = _jacobian(fun, np.array(x), f(x), steps, lower, upper, executor, central=False)
+        count[0] += n
+        return J
+
+    runs = []
+    best = None
+    scale = upper - lower
+    for x0 in starts:
+        x0 = np.clip(np.asarray(x0, float), lower, upper)
+        opt = least_squares(f, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale=scale,
+                            max_nfev=max_iterations, xtol=1e-6, ftol=1e-6, gtol=1e-8)
+        runs.append((x0, opt.x.copy(), float(opt.cost)))
+        if best is None or opt.cost < best.cost:
+            best = opt
+    x = best.x.copy()
+    r = fun(x)
+    count[0] += 1
+    J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=True)
+    count[0] += n
+    return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
+                      starts=runs)
+
+
+def laplace_log_evidence(mode: ModeResult, log_prior_density: float, widths) -> float:
+    """log p(data) by Laplace for a uniform prior box of ``widths``.
+
+    log Z = -cost + log prior + 1/2 log det(2 pi (H + D)^-1), H = J^T J and
+    D = diag(2 pi / width^2).  D makes the Gaussian integral of a direction
+    the data do not constrain equal to its prior width (the Occam factor of
+    such a parameter is 1, not the ratio of an infinite posterior width to
+    the prior's); where the data constrain a parameter, H >> D and this is
+    the textbook Laplace evidence.  ``log_prior_density`` is the prior's log
+    density at the mode (minus the log of the box's volume)."""
+    widths = np.asarray(widths, float)
+    P = mode.precision + np.diag(2.0 * math.pi / widths ** 2)
+    sign, logdet = np.linalg.slogdet(P)
+    if sign <= 0:
+        return -math.inf
+    d = len(widths)
+    return -mode.cost + log_prior_density + 0.5 * d * math.log(2 * math.pi) - 0.5 * logdet
