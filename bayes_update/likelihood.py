@@ -32,8 +32,11 @@ So ``s_n`` and ``nu`` come from a parametric bootstrap at the estimate
 read from their spectra above the excited band, the model at the estimate is
 taken as truth, K replicates of the measurement (the recorded force plus
 force noise drives the model and builds the regressors; the model's response
-to the clean force plus velocity noise is the "measurement") give K metric
-values; ``mean(e^2) = nu s_n^2`` and ``var(e^2) = 2 nu s_n^4`` give both.
+to the clean force plus velocity noise is the "measurement") give K residual
+vectors; their mean square per direction of the span of the parameter
+sensitivities (:func:`sensitivity_span`) is ``s_n^2``.  ``nu`` (from
+``mean(e^2) = nu s_n^2``, ``var(e^2) = 2 nu s_n^4``) is reported only: its
+estimate from K values wanders by 2x between seeds.
 
 Model error: the updating model is a discretisation (or a reduction); its
 error at the estimate, ``e_model``, is measured against a refined model
