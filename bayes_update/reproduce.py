@@ -224,7 +224,7 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
                                                                   "gp_diagnostics", "traces")
                     if (out / f"posterior_{tag}" / f"{n}.png").exists()), ""]
     if disc is not None:
-        from .missing_effect import evidence_table
+        from .missing_effect import CANDIDATES, evidence_table
 
         hidden = json.loads((out / "discrepancy" / "discrepancy.json").read_text()).get("truth", {}).get("effects")
         b, a = disc.gap_before, disc.gap_after
@@ -238,6 +238,16 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
         for k in ("e_lin", "e_nlin", "validation"):
             if b.get(k) is not None:
                 L.append(f"| {k} | {100 * b[k]:.3f} % | {100 * a[k]:.3f} % |")
+        final = disc.to_json()["final_mode"]["effects"]
+        for h in hidden:
+            if h["name"] in final:
+                cand = CANDIDATES[h["name"]]
+                truth = cand.values_of(fe.EFFECTS[h["name"]](**{k: v for k, v in h.items() if k != "name"}))
+                L.append(f"\nRe-updated {h['name']} (Laplace at the extended mode, likelihood with the extended "
+                         "model's own error): " + ", ".join(
+                             f"{p.name} = {final[h['name']][p.name]['mode']:.3g} +- "
+                             f"{final[h['name']][p.name]['sd']:.2g} {p.unit} (truth {t:.3g})"
+                             for p, t in zip(cand.parameters, truth)) + ".")
         for name, sig in disc.signature.items():
             L.append(f"\nSignature check of {name}: {sig['meaning']}: {sig['before']:.3g} -> {sig['after']:.3g} "
                      f"({'shrank' if sig['shrank'] else 'did not shrink'}).")
