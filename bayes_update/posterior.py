@@ -43,7 +43,8 @@ import surrogates
 
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
-from .likelihood import NAMES, SI_UNITS, UNITS, Likelihood, ParameterSpace, estimate_likelihood
+from .likelihood import (NAMES, SI_UNITS, UNITS, CurvatureAdjustment, Likelihood, ParameterSpace,
+                         curvature_adjustment, estimate_likelihood)
 from .metrics import UpdatingProblem, stage_output
 
 
@@ -68,6 +69,7 @@ class PosteriorSettings:
     sobol_n: int = 1024         # SALib base sample size
     n_predictive: int = 32      # FE runs at posterior draws (bands and surrogate check)
     model_error: bool = True    # add the measured model error to the likelihood
+    curvature_adjustment: bool = True   # sandwich-adjust the likelihood's curvature (likelihood.curvature_adjustment)
     map_max_evaluations: int = 600
     seed: int = 0
 
@@ -116,11 +118,16 @@ class DirectLogPosterior:
 
     evaluate: Evaluate
     likelihood: Likelihood
+    adjustment: CurvatureAdjustment | None = None
 
     def __call__(self, x):
         lp = float(self.evaluate.space.log_prior(x)[0])
         if not np.isfinite(lp):
             return -np.inf
+        if self.adjustment is not None:
+            x = self.adjustment(x)[0]
+            if not np.isfinite(self.evaluate.space.log_prior(x)[0]):
+                return -np.inf      # the likelihood's argument left the box the model is defined on
         return lp + self.likelihood.log_likelihood(self.evaluate(x))
 
 
@@ -210,14 +217,26 @@ class WhitenedLogPosterior:
     space: ParameterSpace
     box: np.ndarray
     whitening: Whitening
+    adjustment: CurvatureAdjustment | None = None
+
+    def gp_points(self, U) -> np.ndarray:
+        """Where the GPs are read for the parameters U: U itself, or the
+        adjusted likelihood's argument."""
+        U = np.atleast_2d(U)
+        if self.adjustment is None:
+            return U
+        return self.whitening.to_u(self.adjustment(self.whitening.to_x(U)))
 
     def __call__(self, U):
         U = np.atleast_2d(U)
         lp = self.space.log_prior(self.whitening.to_x(U))
-        inside = np.all((U >= self.box[:, 0]) & (U <= self.box[:, 1]), axis=1) & np.isfinite(lp)
+        G = self.gp_points(U)
+        inside = np.all((G >= self.box[:, 0]) & (G <= self.box[:, 1]), axis=1) & np.isfinite(lp)
+        if self.adjustment is not None:
+            inside &= np.isfinite(self.space.log_prior(self.whitening.to_x(G)))
         out = np.full(len(U), -np.inf)
         if inside.any():
-            z = {st: gp.predict_transformed(U[inside])[0] for st, gp in self.gps.items()}
+            z = {st: gp.predict_transformed(G[inside])[0] for st, gp in self.gps.items()}
             out[inside] = lp[inside] + Likelihood.log_likelihood_from_z(z)
         return out
 
@@ -541,11 +560,18 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     timing["map_laplace"] = time.perf_counter() - t0
     log("MAP: " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in zip(NAMES, mp.x))
         + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
+    adj = None
+    if settings.curvature_adjustment and mp.mode is not None:
+        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0], stages)
+        if adj is not None:
+            log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
+                + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
+                + ", ".join(f"{n} {v:.2f}" for n, v in zip(NAMES, adj.sd_ratios)))
     result = dict(design={}, surrogates={})
     # 4-5. sampling -----------------------------------------------------------------
     if direct:
         t0 = time.perf_counter()
-        logp = DirectLogPosterior(ev, lik)
+        logp = DirectLogPosterior(ev, lik, adj)
         x_init = initial_walkers(lambda X: np.array([logp(x) for x in X]), mp.x, mp.covariance,
                                  settings.n_walkers, seed_of[1])
         sampler = run_emcee(logp, x_init, settings.n_walkers, settings.direct_steps, seed_of[2],
@@ -569,14 +595,14 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
             timing["gp_fit"] += fit_time
             result["design"] = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
             t0 = time.perf_counter()
-            logp_u = WhitenedLogPosterior(gps, space, ubox, whitening)
+            logp_u = WhitenedLogPosterior(gps, space, ubox, whitening, adj)
             u_init = initial_walkers(logp_u, np.zeros(len(NAMES)), np.eye(len(NAMES)), settings.n_walkers,
                                      seed_of[1])
             sampler = run_emcee(logp_u, u_init, settings.n_walkers, settings.n_steps, seed_of[2],
                                 vectorize=True, progress=progress)
             timing["mcmc"] += time.perf_counter() - t0
             u_draws = sampler.get_chain(discard=settings.burn, flat=True)
-            cut = _box_cut_fraction(u_draws, settings.box_sd, whitening, space)
+            cut = _box_cut_fraction(logp_u.gp_points(u_draws), settings.box_sd, whitening, space)
             if cut <= 0.01 or attempt == settings.box_attempts - 1:
                 break
             # the Laplace box cut the posterior (a non-Gaussian posterior, or a
@@ -594,9 +620,11 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     thin = 1 if direct else settings.thin
     diag = _chain_diagnostics(sampler, burn)
     if isinstance(sampler, _XSampler):
-        diag["box_cut_fraction"] = _box_cut_fraction(sampler.sampler.get_chain(discard=burn, flat=True),
-                                                     settings.box_sd, sampler.whitening, space)
+        diag["box_cut_fraction"] = _box_cut_fraction(
+            logp_u.gp_points(sampler.sampler.get_chain(discard=burn, flat=True)), settings.box_sd,
+            sampler.whitening, space)
     diag["thin"] = thin
+    diag["curvature_adjustment"] = adj.to_dict() if adj is not None else None
     if not direct:
         diag["box_attempts"] = diag_attempts
     chain = sampler.get_chain(discard=burn, thin=thin)
