@@ -125,9 +125,10 @@ class DirectLogPosterior:
         if not np.isfinite(lp):
             return -np.inf
         if self.adjustment is not None:
-            x = self.adjustment(x)[0]
-            if not np.isfinite(self.evaluate.space.log_prior(x)[0]):
-                return -np.inf      # the likelihood's argument left the box the model is defined on
+            # the likelihood's argument, kept in the bounding box the model is run in (near a
+            # bound it may step outside; a -inf there would cut the posterior at the bound)
+            box = self.evaluate.space.box()
+            x = np.clip(self.adjustment(x)[0], box[:, 0], box[:, 1])
         return lp + self.likelihood.log_likelihood(self.evaluate(x))
 
 
@@ -231,9 +232,9 @@ class WhitenedLogPosterior:
         U = np.atleast_2d(U)
         lp = self.space.log_prior(self.whitening.to_x(U))
         G = self.gp_points(U)
+        # the GPs are read where they were trained (the u box); the adjusted argument G
+        # may lie a little outside the prior near a bound, where the GP is still smooth
         inside = np.all((G >= self.box[:, 0]) & (G <= self.box[:, 1]), axis=1) & np.isfinite(lp)
-        if self.adjustment is not None:
-            inside &= np.isfinite(self.space.log_prior(self.whitening.to_x(G)))
         out = np.full(len(U), -np.inf)
         if inside.any():
             z = {st: gp.predict_transformed(G[inside])[0] for st, gp in self.gps.items()}
