@@ -79,6 +79,7 @@ def test_no_hidden_effect_names_none(tmp_path):
     assert (tmp_path / "gap_before_after.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow   # 95 s: outside the default run (15-minute budget); benchmarks/discrepancy_cases.py runs it at full settings
 def test_combined_case_is_reported_honestly():
     effects, data, res = run_case("combined")
     # both named, or the stronger with the remaining gap stated (gap_after)

@@ -123,8 +123,8 @@ def test_simulation_based_calibration_on_a_surrogate_level_simulator():
             e = np.linalg.norm(c_ref - _toy_coefficients(X), axis=1) / norm
             return np.where(inside, -0.5 * (e / lik.scales["linear"].sd) ** 2, -np.inf)
 
-        smp = run_emcee(log_prob, rng.random((16, 2)), 16, 1200, seed=k, vectorize=True, progress=False)
-        draws = smp.get_chain(discard=400, flat=True)
+        smp = run_emcee(log_prob, rng.random((16, 2)), 16, 700, seed=k, vectorize=True, progress=False)
+        draws = smp.get_chain(discard=200, flat=True)
         lo, hi = np.percentile(draws, [5, 95], axis=0)
         covered += (truth >= lo) & (truth <= hi)
         thin = draws[rng.choice(len(draws), n_rank, replace=False)]
