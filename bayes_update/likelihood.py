@@ -436,7 +436,8 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     stages = likelihood.stages if stages is None else tuple(stages)
     if not res or any(st not in res for st in stages):
         return None
-    J = np.asarray(jacobian, float) * np.asarray(widths, float)       # coordinates x / width
+    widths = np.asarray(widths, float)
+    J = np.asarray(jacobian, float) * widths                            # coordinates x / width
     n_rows = sum(res[st].shape[1] for st in stages)
     if J.ndim != 2 or J.shape[0] != n_rows:
         raise ValueError(f"the Jacobian has {J.shape[0] if J.ndim else 0} rows, the stages' residuals {n_rows}")
@@ -456,7 +457,6 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     omega, U = np.linalg.eigh(h_ihalf @ M @ h_ihalf)
     omega = np.clip(omega, 1.0 / clip, clip)
     A_s = h_ihalf @ ((U / np.sqrt(omega)) @ U.T) @ h_half
-    widths = np.asarray(widths, float)
     A = A_s * np.outer(widths, 1.0 / widths)
     A_s_inv = np.linalg.inv(A_s)
     cov0 = np.linalg.inv(H)
