@@ -93,7 +93,9 @@ def main(argv=None):
         for name in ORDER:
             lo, hi = np.percentile(d[name], [5, 95])
             row[name] = {"covered": bool(lo <= tr[name][0] <= hi),
-                         "rank": int(np.sum(d[name][thin] < tr[name][0]))}
+                         "rank": int(np.sum(d[name][thin] < tr[name][0])),
+                         "truth": float(tr[name][0]), "mean": float(np.mean(d[name])),
+                         "sd": float(np.std(d[name])), "q05": float(lo), "q95": float(hi)}
         rows.append(row)
         print(f"{k}: {row['time_s']:.0f} s, r_hat {row['max_r_hat']:.3f}, covered "
               f"{[row[n]['covered'] for n in ORDER]}", flush=True)
