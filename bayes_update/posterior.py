@@ -52,7 +52,10 @@ from .metrics import UpdatingProblem, stage_output
 class PosteriorSettings:
     """Sizes of every step (model runs are counted per test)."""
 
-    n_replicates: int = 32      # noise replicates for the likelihood scales
+    # noise replicates for the likelihood scales and the curvature adjustment's noise covariance:
+    # at 24 the sandwich from the replicates was itself too noisy (50 SBC truths: the truth beyond
+    # the 90 % chi^2_4 point in 14 %, at 96 in 8 %; benchmarks/sbc_linearised.py)
+    n_replicates: int = 96
     n_initial: int = 96         # Sobol' points in the local box
     n_rounds: int = 5           # refinement rounds
     batch: int = 32             # points per round

@@ -73,7 +73,7 @@ def main(argv=None):
     truths = space.sample_prior(args.truths, seed=args.seed)
     settings = PosteriorSettings(n_initial=64, n_rounds=3, batch=24, n_walkers=24, n_steps=5000, burn=1000,
                                  thin=5, n_linear=0, n_global=0, n_predictive=0, model_error=False,
-                                 n_replicates=24)
+                                 n_replicates=96)
     rows = []
     t_all = time.perf_counter()
     for k, x in enumerate(truths):
