@@ -13,9 +13,10 @@ posterior's spread has to cover; its squared Mahalanobis distance under
   from the first 24 and from all K replicates,
 
 is chi^2_4 when that covariance is right: 10 % of truths beyond 7.78, 5 %
-beyond 9.49, mean 4.  No surrogate, no MCMC: this isolates the likelihood
+beyond 9.49, mean 4; and each parameter's marginal 90 % interval (F by the
+delta method) should cover its truth in 90 % of them.  No surrogate, no MCMC: this isolates the likelihood
 and its adjustment from the sampler (a few seconds per truth on the ROM).
-Writes benchmarks/results/sbc_linearised.md.
+Writes benchmarks/results/sbc_linearised_seed<seed>.md.
 """
 from __future__ import annotations
 
@@ -43,24 +44,33 @@ from sbc import N_RANK, synthetic_dataset  # noqa: E402
 #: rank thinning from the same generator, replayed here to meet the same noise
 SBC_DRAWS = 19200
 CHI2_4_90, CHI2_4_95 = 7.779, 9.488
+Z90 = 1.6449
+PARAMS = ("eta", "c", "F", "k_s", "P_eff")
 
 
-def mahalanobis(J, r, residuals=None, stages=(), scales=None, k_max=None) -> float:
-    """dx^T C^-1 dx for dx the least-squares error; C = (J^T J)^-1, or the
-    sandwich from the replicates when ``residuals`` is given."""
+def covariances(J, residuals, stages, scales, k_small=24) -> list:
+    """[(J^T J)^-1, sandwich from the first ``k_small`` replicates, sandwich
+    from all of them]."""
     H = J.T @ J
-    dx = np.linalg.solve(H, J.T @ r)
-    if residuals is None:
-        return float(dx @ H @ dx)
-    M, row = np.zeros_like(H), 0
-    for st in stages:
-        D = residuals[st][:k_max] / scales[st]
-        Js = J[row:row + D.shape[1]]
-        row += D.shape[1]
-        DJ = D @ Js
-        M += DJ.T @ DJ / len(D)
-    C = np.linalg.solve(H, np.linalg.solve(H, M).T)
-    return float(dx @ np.linalg.solve(C, dx))
+    out = [np.linalg.inv(H)]
+    for k_max in (k_small, None):
+        M, row = np.zeros_like(H), 0
+        for st in stages:
+            D = residuals[st][:k_max] / scales[st]
+            DJ = D @ J[row:row + D.shape[1]]
+            row += D.shape[1]
+            M += DJ.T @ DJ / len(D)
+        out.append(np.linalg.solve(H, np.linalg.solve(H, M).T))
+    return out
+
+
+def statistics(dx, C, grad_F) -> tuple:
+    """Squared Mahalanobis distance of dx under C and the marginal z of eta,
+    c, F, k_s, P_eff (F by the delta method)."""
+    sd = np.sqrt(np.diag(C))
+    z_F = grad_F @ dx / np.sqrt(grad_F @ C @ grad_F)
+    z = [dx[0] / sd[0], dx[1] / sd[1], z_F, dx[3] / sd[3], dx[2] / sd[2]]
+    return float(dx @ np.linalg.solve(C, dx)), z
 
 
 def main(argv=None):
@@ -95,25 +105,30 @@ def main(argv=None):
             h[i] = 1e-4 * widths[i]
             cols.append((fun(x + h) - fun(x - h)) / (2 * h[i]))
         J = np.array(cols).T
-        row = (mahalanobis(J, r),
-               mahalanobis(J, r, lik.noise_residuals, stages, scales, 24),
-               mahalanobis(J, r, lik.noise_residuals, stages, scales))
+        dx = np.linalg.solve(J.T @ J, J.T @ r)
+        grad_F = np.array([0.0, 0.0, (space.kb + x[3]) / space.kb, x[2] / space.kb])
+        row = [statistics(dx, C, grad_F) for C in covariances(J, lik.noise_residuals, stages, scales)]
         rows.append(row)
-        print(f"{k}: plain {row[0]:.2f}, sandwich(24) {row[1]:.2f}, sandwich({args.replicates}) {row[2]:.2f}",
-              flush=True)
-    S = np.array(rows)
+        print(f"{k}: chi^2 plain {row[0][0]:.2f}, sandwich(24) {row[1][0]:.2f}, "
+              f"sandwich({args.replicates}) {row[2][0]:.2f}", flush=True)
+    S = np.array([[c[0] for c in r] for r in rows])           # (n, 3)
+    Z = np.array([[c[1] for c in r] for r in rows])           # (n, 3, 5)
     names = ["plain likelihood, (J^T J)^-1", "sandwich from 24 replicates",
              f"sandwich from {args.replicates} replicates"]
     lines = ["# Linearised calibration of the likelihood at the SBC truths", "",
-             f"`python benchmarks/sbc_linearised.py --truths {args.truths} --replicates {args.replicates}`; "
-             f"{machine()}; {time.perf_counter() - t0:.0f} s", "",
+             f"`python benchmarks/sbc_linearised.py --truths {args.truths} --replicates {args.replicates} "
+             f"--seed {args.seed}`; {machine()}; {time.perf_counter() - t0:.0f} s", "",
              "Squared Mahalanobis distance of the least-squares error at the truth (chi^2_4 if the covariance "
-             "is right: mean 4, 10 % beyond 7.78, 5 % beyond 9.49).", "",
-             "| covariance | mean | beyond 7.78 | beyond 9.49 |", "|---|---|---|---|"]
+             "is right: mean 4, 10 % beyond 7.78, 5 % beyond 9.49) and the coverage of the marginal 90 % "
+             f"intervals (binomial sd over {args.truths} truths: {100 * np.sqrt(0.09 / args.truths):.1f} %).", "",
+             "| covariance | mean | beyond 7.78 | beyond 9.49 | " + " | ".join(f"{n} 90 % cover" for n in PARAMS)
+             + " |", "|---" * (4 + len(PARAMS)) + "|"]
     for j, name in enumerate(names):
+        cover = np.mean(np.abs(Z[:, j]) < Z90, axis=0)
         lines.append(f"| {name} | {S[:, j].mean():.2f} | {100 * np.mean(S[:, j] > CHI2_4_90):.0f} % | "
-                     f"{100 * np.mean(S[:, j] > CHI2_4_95):.0f} % |")
-    (ROOT / "benchmarks" / "results" / "sbc_linearised.md").write_text("\n".join(lines) + "\n")
+                     f"{100 * np.mean(S[:, j] > CHI2_4_95):.0f} % | "
+                     + " | ".join(f"{100 * c:.0f} %" for c in cover) + " |")
+    (ROOT / "benchmarks" / "results" / f"sbc_linearised_seed{args.seed}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
