@@ -279,7 +279,7 @@ def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states
         return d[np.ix_(idx, idx)]
 
     M = dense(a["m_band"])
-    args = (a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"], a["beta"], a["shallow"],
+    args = (a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"], a["shallow"],
             a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"])
     fint = np.empty(n)
     band = np.zeros((n, 2 * KD + 1))
@@ -296,7 +296,7 @@ def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states
     p0 = fe.Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
     a0 = model._arrays(model.describe(p0), p0)
     band[:] = 0.0
-    K.assemble(a0["X"], a0["Y"], a0["L0"], a0["c0"], a0["s0"], a0["EA"], a0["EI"], 0.0, a0["shallow"],
+    K.assemble(a0["X"], a0["Y"], a0["L0"], a0["c0"], a0["s0"], a0["t0"], a0["EA"], a0["EI"], 0.0, a0["shallow"],
                a0["d_dof"], a0["d_law"], a0["d_p1"], a0["d_p2"], np.zeros(n), np.zeros(n), fint,
                True, 1.0, 0.0, band, KD)
     beta = a["beta"]

@@ -17,6 +17,17 @@ consistent geometric stiffness N L/30 [[4, -1], [-1, 4]] in the local frame and
 converges far faster than the "string" form eps = u_l / L_0 (``shallow`` off,
 the classic element of OpenSees' corotational transformation).
 
+Initially curved elements (a bow): ``t0[e]`` holds the reference end rotations
+relative to the reference chord; the end rotations t1, t2 of the code are
+measured from them (the reference is stress free in bending), and the shallow strain is
+that of the total rotations T = t0 + t minus its reference value,
+
+    eps = u_l / L_0 + (A(T1, T2) - A(t0_1, t0_2)) / 30,   A = 2 a^2 - a b + 2 b^2,
+
+the element average of (w0 + w)'^2 / 2 - w0'^2 / 2 with cubic w0 and w.  A bow
+given by nodal offsets and slopes is then cubic inside each element, O(h^4),
+where straight elements between bowed nodes were O(h^2).
+
 Kelvin-Voigt viscosity: the stress sigma_v = eta_b * d(eps)/dt acts on the
 true local deformation rates, so the local viscous force is
 beta (E A L a a^T + K_bend) q_dot with beta = eta_b / E and a = d eps / d q:
@@ -40,8 +51,15 @@ LAW_COULOMB = 3  # f = p1 tanh(v / p2)
 
 
 
+@njit(cache=True, inline="always")
+def _arch(t1, t2):
+    """30 x the element average of w'^2 / 2 for a cubic w with end rotations
+    t1, t2 relative to the chord."""
+    return 2.0 * t1 * t1 - t1 * t2 + 2.0 * t2 * t2
+
+
 @njit(cache=True, error_model="numpy")
-def internal_force(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint):
+def internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint):
     """Internal force only (the hot path of the transient: no allocation)."""
     ne = L0.shape[0]
     fint[:] = 0.0
@@ -64,9 +82,12 @@ def internal_force(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, 
         qd1 = v[i0 + 2] + zd
         qd2 = v[i0 + 5] + zd
         if shallow:
-            a1 = (4.0 * t1 - t2) / 30.0
-            a2 = (-t1 + 4.0 * t2) / 30.0
-            eps = ul / L + (2.0 * t1 * t1 - t1 * t2 + 2.0 * t2 * t2) / 30.0
+            # total end rotations (reference curvature + deformation): stress-free bow
+            T1 = t0[e, 0] + t1
+            T2 = t0[e, 1] + t2
+            a1 = (4.0 * T1 - T2) / 30.0
+            a2 = (-T1 + 4.0 * T2) / 30.0
+            eps = ul / L + (_arch(T1, T2) - _arch(t0[e, 0], t0[e, 1])) / 30.0
         else:
             a1 = 0.0
             a2 = 0.0
@@ -97,7 +118,7 @@ def internal_force(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, 
 
 
 @njit(cache=True)
-def assemble(X, Y, L0, c0, s0, EA, EI, beta, shallow,
+def assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow,
              d_dof, d_law, d_p1, d_p2, u, v, fint, want_k, kfac, cfac, band, kd):
     """Internal force (elastic + viscous + discrete elements) into ``fint``;
     if ``want_k``, adds kfac * (K + cfac * C) into ``band``.
@@ -139,9 +160,12 @@ def assemble(X, Y, L0, c0, s0, EA, EI, beta, shallow,
         qd2 = v[i0 + 5] - zd
         a0 = 1.0 / L
         if shallow:
-            a1 = (4.0 * t1 - t2) / 30.0
-            a2 = (-t1 + 4.0 * t2) / 30.0
-            eps = ul / L + (2.0 * t1 * t1 - t1 * t2 + 2.0 * t2 * t2) / 30.0
+            # total end rotations (reference curvature + deformation): stress-free bow
+            T1 = t0[e, 0] + t1
+            T2 = t0[e, 1] + t2
+            a1 = (4.0 * T1 - T2) / 30.0
+            a2 = (-T1 + 4.0 * T2) / 30.0
+            eps = ul / L + (_arch(T1, T2) - _arch(t0[e, 0], t0[e, 1])) / 30.0
         else:
             a1 = 0.0
             a2 = 0.0
@@ -247,7 +271,7 @@ def assemble(X, Y, L0, c0, s0, EA, EI, beta, shallow,
 
 
 @njit(cache=True)
-def strain_energy(X, Y, L0, c0, s0, EA, EI, shallow, d_dof, d_law, d_p1, u):
+def strain_energy(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, u):
     """Elastic energy of the beam elements and the discrete springs [J]."""
     ne = L0.shape[0]
     energy = 0.0
@@ -265,7 +289,7 @@ def strain_energy(X, Y, L0, c0, s0, EA, EI, shallow, d_dof, d_law, d_p1, u):
         t2 = u[i0 + 5] - alpha
         eps = ul / L
         if shallow:
-            eps += (2.0 * t1 * t1 - t1 * t2 + 2.0 * t2 * t2) / 30.0
+            eps += (_arch(t0[e, 0] + t1, t0[e, 1] + t2) - _arch(t0[e, 0], t0[e, 1])) / 30.0
         energy += 0.5 * EA * L * eps * eps + EI / L * (2.0 * t1 * t1 + 2.0 * t1 * t2 + 2.0 * t2 * t2)
     for j in range(d_dof.shape[0]):
         if d_law[j] == LAW_SPRING:
@@ -286,7 +310,7 @@ def apply_dirichlet(band, kd, fixed):
 
 
 @njit(cache=True)
-def static_newton(X, Y, L0, c0, s0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2,
+def static_newton(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2,
                   fixed, f_ext, u, kd, n_increments, tol, max_iter):
     """Static equilibrium f_int(u) = f_ext by Newton with load increments.
 
@@ -304,7 +328,7 @@ def static_newton(X, Y, L0, c0, s0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2,
         converged = False
         for it in range(max_iter):
             band[:, :] = 0.0
-            assemble(X, Y, L0, c0, s0, EA, EI, 0.0, shallow, d_dof, d_law, d_p1, d_p2,
+            assemble(X, Y, L0, c0, s0, t0, EA, EI, 0.0, shallow, d_dof, d_law, d_p1, d_p2,
                      u, v, fint, True, 1.0, 0.0, band, kd)
             rmax = 0.0
             for i in range(n):
@@ -326,7 +350,7 @@ def static_newton(X, Y, L0, c0, s0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2,
 
 
 @njit(cache=True, error_model="numpy")
-def transient(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
+def transient(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
               fixed, m_band, f_const, b_load, force, substeps, dt,
               alpha_m, alpha_f, gamma, beta_n, u, v, tol, max_iter,
               W, axial_dof, out_disp, out_vel, out_axial):
@@ -362,7 +386,7 @@ def transient(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
     atmp = np.empty(n)
     band = np.empty((n, 2 * kd + 1))
     # initial acceleration: M a0 = f_ext(0) - f_int(u0, v0)
-    internal_force(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
+    internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
                    u, v, fint_old)
     for i in range(n):
         a[i] = 0.0 if fixed[i] else f_const[i] + b_load[i] * force[0] - fint_old[i]
@@ -397,7 +421,7 @@ def transient(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
                     a_new[i] = (u_new[i] - u[i] - dt * v[i] - dt * dt * (0.5 - beta_n) * a[i]) / (beta_n * dt * dt)
                     v_new[i] = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * a_new[i])
                     atmp[i] = (1.0 - alpha_m) * a_new[i] + alpha_m * a[i]
-                internal_force(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
+                internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
                                u_new, v_new, fint)
                 band_matvec(m_band, kd, atmp, ma)
                 rmax = 0.0
@@ -421,7 +445,7 @@ def transient(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
                     for i in range(n):
                         for j in range(2 * kd + 1):
                             band[i, j] = mfac * m_band[i, j]
-                    assemble(X, Y, L0, c0, s0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
+                    assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
                              u_new, v_new, fint, True, kfac, cfac, band, kd)
                     apply_dirichlet(band, kd, fixed)
                     if band_lu(band, kd) >= 0:

@@ -57,8 +57,17 @@ class InitialImperfection(Effect):
         """Initial transverse offset w0(x) [m] at axial positions x [m]."""
         return self.amplitude * 0.5 * (1.0 - np.cos(2.0 * np.pi * np.asarray(x) / length))
 
+    def slope(self, x: np.ndarray, length: float) -> np.ndarray:
+        """dw0/dx [-] at axial positions x [m]."""
+        return self.amplitude * np.pi / length * np.sin(2.0 * np.pi * np.asarray(x) / length)
+
     def apply(self, system, rig, params) -> None:
-        system.node_y = system.node_y + self.shape(system.node_x, rig.length_m)
+        # offsets and slopes at the nodes: the elements follow the bow as cubics
+        # (O(h^4)), not as chords between bowed nodes (O(h^2))
+        x = system.node_x
+        theta = np.zeros_like(x) if system.node_theta is None else system.node_theta  # straight beam along x
+        system.node_y = system.node_y + self.shape(x, rig.length_m)
+        system.node_theta = theta + np.arctan(self.slope(x, rig.length_m))
 
 
 def _shaker_dof(system) -> int:

@@ -101,7 +101,9 @@ class SystemDescription:
     """Everything the kernels need, in editable form (effects edit this).
 
     node_x, node_y: reference node coordinates [m] (x along the beam from the
-    clamp, y transverse); fixed: boolean mask of held dofs; point_masses: list
+    clamp, y transverse); node_theta: reference rotation of the cross-section
+    [rad] (the slope angle of a bowed axis; None: that of the straight chords,
+    i.e. straight elements); fixed: boolean mask of held dofs; point_masses: list
     of (dof, mass [kg]); discrete: list of DiscreteElement; f_const: constant
     external load [N]; b_load: load pattern of the shaker force (per N).
     """
@@ -113,6 +115,7 @@ class SystemDescription:
     discrete: list = field(default_factory=list)
     f_const: np.ndarray | None = None
     b_load: np.ndarray | None = None
+    node_theta: np.ndarray | None = None
 
     @property
     def n_dof(self) -> int:
@@ -326,6 +329,12 @@ class BeamModel:
         dx, dy = np.diff(X), np.diff(Y)
         L0 = np.hypot(dx, dy)
         c0, s0 = dx / L0, dy / L0
+        # reference end rotations relative to the chord (zero: straight elements)
+        t0 = np.zeros((L0.size, 2))
+        if system.node_theta is not None:
+            chord = np.arctan2(dy, dx)
+            t0[:, 0] = system.node_theta[:-1] - chord
+            t0[:, 1] = system.node_theta[1:] - chord
         n = system.n_dof
         mband = np.zeros((n, 2 * KD + 1))
         rho_a = rig.mass_per_length
@@ -340,7 +349,7 @@ class BeamModel:
         laws = DiscreteElement._LAWS
         d = system.discrete
         return dict(
-            X=X, Y=Y, L0=L0, c0=c0, s0=s0, EA=rig.EA, EI=rig.EI,
+            X=X, Y=Y, L0=L0, c0=c0, s0=s0, t0=t0, EA=rig.EA, EI=rig.EI,
             beta=rig.beam_viscosity(params.eta) / rig.youngs_modulus_pa,
             shallow=self.formulation == "shallow_arch",
             d_dof=np.array([e.dof for e in d], dtype=np.int64),
@@ -365,7 +374,7 @@ class BeamModel:
 
         def tangent(cfac):
             band = np.zeros((n, 2 * KD + 1))
-            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"], a["beta"],
+            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"],
                        a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
                        u, v, fint, True, 1.0, cfac, band, KD)
             return band_to_dense(band, KD)
@@ -395,6 +404,7 @@ class BeamModel:
         params = Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
         system = self.describe(params)
         system.node_y = np.zeros_like(system.node_y)  # perfect geometry
+        system.node_theta = None
         a = self._arrays(system, params)
         n = system.n_dof
         free = ~a["fixed"]
@@ -404,7 +414,7 @@ class BeamModel:
             u[0::3] = -p * self.node_x / self.rig.EA  # uniform compression by p
             band = np.zeros((n, 2 * KD + 1))
             fint = np.empty(n)
-            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"], 0.0,
+            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], 0.0,
                        a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
                        u, np.zeros(n), fint, True, 1.0, 0.0, band, KD)
             return band_to_dense(band, KD)[np.ix_(free, free)]
@@ -430,7 +440,7 @@ class BeamModel:
         u = np.zeros(n)
         tol = self.newton_rtol * params.F + self._roundoff_force
         n_inc = 1 if not self.effects else 10
-        status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"],
+        status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
                                     a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
                                     a["fixed"], a["f_const"], u, KD, n_inc, tol, 50)
         if status != 0:
@@ -552,7 +562,7 @@ class BeamModel:
         out_v = np.empty((fine.size, positions.size))
         out_a = np.empty(fine.size)
         status, failed, iters = K.transient(
-            a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"], a["beta"], a["shallow"],
+            a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"], a["shallow"],
             a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"], a["fixed"], a["m_band"], a["f_const"],
             a["b_load"], fine, self.substeps // m, dt, am, af, gam, bet, u, v, tol,
             self.max_newton_iterations, W, self.top_axial_dof, out_d, out_v, out_a)
@@ -574,7 +584,7 @@ class BeamModel:
         system = self.describe(params)
         a = self._arrays(system, params)
         mv = band_to_dense(a["m_band"], KD) @ v
-        strain = K.strain_energy(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"],
+        strain = K.strain_energy(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
                                  a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], u)
         return float(0.5 * v @ mv + strain - a["f_const"] @ u)
 

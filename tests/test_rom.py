@@ -109,11 +109,10 @@ def test_linear_frf_converges_to_full_fe():
 
 def test_linear_frf_with_bow_and_top_dynamics():
     """With a bow the top's dynamics (k_s, c, beta K_b) enter the linearisation
-    at first order; the ROM's linear FRF still meets the FE's (at 80 elements:
-    the FE's bow is straight elements between bowed nodes, 0.6 % off at 30).
-    Measured 0.08 % and 0.06 % with 7 modes."""
-    assert frf_error(7, effects=(BOW,), n_elements=80, n_freqs=140) < 0.005
-    assert frf_error(7, params=NO_TOP_DAMPER, effects=(BOW,), n_elements=80, n_freqs=140) < 0.005
+    at first order; the ROM's linear FRF still meets the FE's (same mesh).
+    Measured 0.010 % and 0.041 % with 7 modes."""
+    assert frf_error(7, effects=(BOW,), n_freqs=140) < 0.005
+    assert frf_error(7, params=NO_TOP_DAMPER, effects=(BOW,), n_freqs=140) < 0.005
 
 
 # --------------------------------------------------------------- 2. statics
@@ -123,7 +122,7 @@ def fe_static(model, params, shaker_force):
     a = model._arrays(system, params)
     u = np.zeros(model.n_dof)
     f_ext = a["f_const"] + shaker_force * a["b_load"]
-    status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["EA"], a["EI"],
+    status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
                                 a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
                                 a["fixed"], f_ext, u, KD, 10, 1e-10 * params.F, 50)
     assert status == 0
@@ -175,7 +174,7 @@ def test_static_shortening_and_axial_force(static_reference, n_modes):
 def test_static_bow_against_full_fe():
     """With a bow the static state is bent: deflection and top displacement
     as the FE's static equilibrium."""
-    model = fe.BeamModel(rig=RIG, n_elements=80, effects=(BOW,))  # the FE's bow needs a fine mesh
+    model = fe.BeamModel(rig=RIG, n_elements=N_REF, effects=(BOW,))
     rom = ModalROM(rig=RIG, n_elements=N_REF, effects=(BOW,))
     st_fe = model.static_equilibrium(PAPER)
     st = rom.static_equilibrium(PAPER)
@@ -190,9 +189,9 @@ def test_static_bow_against_full_fe():
 
 # -------------------------------------------------------------- 3. transient
 FE_REFERENCE = dict(n_elements=24, substeps=16)  # 0.05 % from 40 elements / 32 substeps
-# the FE's bow (straight elements between bowed nodes) converges slowly: with a
-# 0.3 mm bow 24 elements are 0.77 % from 80, 80 elements 0.06 % from 160
-FE_REFERENCE_BOW = dict(n_elements=80, substeps=16)
+# the FE's elements carry a bow as cubics: with a 0.3 mm bow 20 elements are
+# 0.007 % from 160 (10 elements 0.12 %)
+FE_REFERENCE_BOW = FE_REFERENCE
 TOLERANCE = {"low": 0.01, "medium": 0.01, "high": 0.015}
 CASES = [  # (label, params, effects, test); the full table: benchmarks/rom_validation.py
     ("paper", PAPER, (), "chirp_low"),
