@@ -19,8 +19,8 @@ the classic element of OpenSees' corotational transformation).
 
 Initially curved elements (a bow): ``t0[e]`` holds the reference end rotations
 relative to the reference chord; the end rotations t1, t2 of the code are
-measured from them (the reference is stress free in bending), and the shallow strain is
-that of the total rotations T = t0 + t minus its reference value,
+measured from them (the reference is stress free in bending), and the shallow
+strain is that of the total rotations T = t0 + t minus its reference value,
 
     eps = u_l / L_0 + (A(T1, T2) - A(t0_1, t0_2)) / 30,   A = 2 a^2 - a b + 2 b^2,
 

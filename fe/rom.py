@@ -55,8 +55,8 @@ to (100 / 2500)^2 ~ 0.2 %.
 Effects: an effect fits the reduced form if it only moves the reference
 geometry transversally (``node_y``, ``node_theta``: a bow,
 :class:`fe.InitialImperfection`) independently of the parameters; the bow is
-integrated on a 16x finer grid (mesh-converged: see ``_bow_vector``).  Any other effect raises ``ValueError``
-naming it.
+integrated on a 16x finer grid (mesh-converged: see ``_bow_vector``).  Any
+other effect raises ``ValueError`` naming it.
 
 Time integration
 ----------------
