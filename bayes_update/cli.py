@@ -265,7 +265,7 @@ def cmd_simulate(args) -> int:
                "f1_hz": float(modes.frequencies_hz[0]), "zeta1": float(modes.damping_ratios[0])}
     (Path(args.out) / "simulate.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"simulated {len(out.tests)} test(s) in {elapsed:.2f} s; P_eff = {summary['P_eff_N']:.2f} N, "
-          f"f1 = {summary['f1_hz']:.2f} Hz; wrote {args.out}")
+          f"f1 = {summary['f1_hz']:.2f} Hz; wrote {args.final_out}")
     return 0
 
 
@@ -285,7 +285,7 @@ def cmd_calibrate(args) -> int:
     result = calibrate(data, model, settings, workers=args.workers)
     write_result(result, data, args.out)
     print(format_tables(result))
-    print(f"wrote {args.out}")
+    print(f"wrote {args.final_out}")
     return 0
 
 
@@ -324,14 +324,15 @@ def cmd_sample(args) -> int:
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
     space = _prior_space(rig, args.prior)
     res = sample(data, model, settings, workers=args.workers, direct=args.direct, space=space,
-                 cache_dir=None if args.no_cache else Path(args.out) / "cache")
+                 cache_dir=None if args.no_cache else args.cache_dir)
     from .virtual_rig import truth_paper_units
     truth = truth_paper_units(data)
     write_posterior(res, args.out, truth=truth)
     print(format_summary(res))
     t = res.timing
     print(f"time: {t['total']:.0f} s ({', '.join(f'{k} {v:.0f} s' for k, v in t.items() if k != 'total')}); "
-          f"{res.n_model_runs['total']} model runs; wrote {args.out}")
+          f"{res.n_model_runs['total']} model runs ({sum(res.n_model_runs_reused.values())} of them found in "
+          f"{args.cache_dir}); wrote {args.final_out}")
     return 0
 
 
@@ -353,7 +354,7 @@ def cmd_discrepancy(args) -> int:
     hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
     write_discrepancy(res, data, args.out, truth={"parameters": truth, "effects": hidden} if truth else None)
     print(format_result(res))
-    print(f"time: {res.timing['total']:.0f} s; wrote {args.out}")
+    print(f"time: {res.timing['total']:.0f} s; wrote {args.final_out}")
     return 0
 
 
@@ -362,17 +363,16 @@ def cmd_reproduce(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
-    reproduce(args.out, quick=args.quick, workers=args.workers, discrepancy=not args.no_discrepancy)
+    reproduce(args.out, quick=args.quick, workers=args.workers, discrepancy=not args.no_discrepancy,
+              cache_dir=args.cache_dir)
     return 0
 
 
 def cmd_make_dataset(args) -> int:
     from .virtual_rig import DEFAULT_DATASET_DIR, DEFAULT_SEED, DEFAULT_SNR_DB, make_dataset
 
-    out = args.out if args.out is not None else DEFAULT_DATASET_DIR
+    out = args.out
     start = time.perf_counter()
-    if args.out is None and args.hidden:
-        raise ValueError("--hidden needs --out: the embedded default data set has no hidden effect")
     rig = None
     if args.hidden:
         from .virtual_rig import VirtualRig, hidden_effects
@@ -386,7 +386,7 @@ def cmd_make_dataset(args) -> int:
     elapsed = time.perf_counter() - start
     lin = ds.extra["truth"]["linearised"]
     size = sum(f.stat().st_size for f in Path(out).iterdir() if f.is_file())
-    print(f"wrote {len(ds.tests)} tests to {out} ({size / 1e6:.2f} MB) in {elapsed:.1f} s; "
+    print(f"wrote {len(ds.tests)} tests to {args.final_out} ({size / 1e6:.2f} MB) in {elapsed:.1f} s; "
           f"f1 = {lin['f1_hz']:.2f} Hz, 35 Hz / f1 = {lin['sine_frequency_over_f1']:.3f}")
     return 0
 
@@ -430,7 +430,7 @@ def cmd_plot_data(args) -> int:
         freqs = {t.meta.get("frequency_hz") for t in data.tests if t.signal == "sine"}
         save(plot_psd(merged, harmonics_of=freqs.pop() if len(freqs) == 1 else None,
                       title="sine tests: velocity PSD by level"), "sine_psd.png")
-    print(f"wrote {len(written)} figure(s) to {out}")
+    print(f"wrote {len(written)} figure(s) to {args.final_out}")
     return 0
 
 
@@ -441,10 +441,47 @@ def main(argv=None) -> int:
         parser.print_help()
         return 0
     try:
-        return args.func(args)
+        if getattr(args, "out", None) is None and args.command != "make-dataset":
+            return args.func(args)
+        return _run_staged(args)
     except (ValueError, DatasetError, fe.ConvergenceError) as exc:
         print(f"bayes-update {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        print(f"bayes-update {args.command}: interrupted; {_resume_hint(args)}", file=sys.stderr)
+        return 130
+
+
+# commands whose model runs are kept in OUT/cache, so that a rerun resumes
+_RESUMABLE = ("sample", "reproduce")
+
+
+def _run_staged(args) -> int:
+    """Run a command that writes OUT: results go to a staging folder and reach
+    OUT only when the command finishes (:mod:`bayes_update.outputs`); the cache
+    of model runs is OUT/cache."""
+    from .outputs import staged_output
+
+    if args.command == "make-dataset" and args.out is None:
+        if args.hidden:
+            raise ValueError("--hidden needs --out: the embedded default data set has no hidden effect")
+        from .virtual_rig import DEFAULT_DATASET_DIR
+        args.out = DEFAULT_DATASET_DIR
+    args.final_out = Path(args.out)
+    args.cache_dir = args.final_out / "cache"
+    with staged_output(args.final_out) as staging:
+        args.out = staging
+        return args.func(args)
+
+
+def _resume_hint(args) -> str:
+    out = getattr(args, "final_out", None)
+    if out is None:
+        return "nothing was written"
+    if args.command in _RESUMABLE and not getattr(args, "no_cache", False):
+        return (f"nothing in {out} was changed except {out / 'cache'}, which keeps the model runs "
+                "finished so far: rerun the same command to resume")
+    return f"nothing in {out} was changed; rerun the same command to start again"
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -64,6 +64,7 @@ the format are refused with one of these errors.
 from __future__ import annotations
 
 import copy
+import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -298,6 +299,18 @@ class Dataset:
     @property
     def names(self) -> list:
         return [t.name for t in self.tests]
+
+    def fingerprint(self) -> str:
+        """sha256 (hex) of what the updating reads: the sampling rate and each
+        test's file name, role and channels (exact float64 bytes).  Caches key
+        on this, never on the folder's path: new data at the same path must
+        not reuse old results."""
+        h = hashlib.sha256(repr(float(self.sampling_rate_hz)).encode())
+        for t in self.tests:
+            h.update(f"|{t.file}|{t.role}|".encode())
+            for channel in (t.time, t.force, t.velocity):
+                h.update(np.ascontiguousarray(channel, dtype=np.float64).tobytes())
+        return h.hexdigest()
 
     def validate(self) -> None:
         """Check every record (channels, role, time column against the sampling rate)."""

@@ -9,6 +9,7 @@ back in the order of ``points``, with a progress bar.
 from __future__ import annotations
 
 import os
+import signal
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 
 from tqdm.auto import tqdm
@@ -16,20 +17,32 @@ from tqdm.auto import tqdm
 __all__ = ["default_executor", "evaluate_many"]
 
 
-def _limit_blas_threads() -> None:
+def _init_worker() -> None:
+    # Ctrl-C in a terminal reaches the whole process group: the parent handles
+    # it (cancels what is queued, says how to resume); a worker finishes its
+    # batch quietly instead of printing a traceback of its own
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     # one BLAS thread per worker process: the workers already use every core
     from threadpoolctl import threadpool_limits
 
     threadpool_limits(1)
 
 
+class _ProcessPool(ProcessPoolExecutor):
+    """A process pool whose shutdown drops the tasks not yet started, so an
+    interrupted run stops after the running batches instead of after all."""
+
+    def shutdown(self, wait: bool = True, *, cancel_futures: bool = True) -> None:
+        super().shutdown(wait=wait, cancel_futures=cancel_futures)
+
+
 def default_executor(max_workers: int | None = None) -> ProcessPoolExecutor:
     """A local process pool over all cores (``max_workers`` to override),
-    one BLAS thread per worker."""
+    one BLAS thread per worker; workers ignore SIGINT (the parent handles it)."""
     n = max_workers or os.cpu_count() or 1
     if n < 1:
         raise ValueError(f"max_workers must be positive, got {max_workers}")
-    return ProcessPoolExecutor(max_workers=n, initializer=_limit_blas_threads)
+    return _ProcessPool(max_workers=n, initializer=_init_worker)
 
 
 def _run_batch(func, batch):
@@ -63,9 +76,15 @@ def evaluate_many(func, points, executor: Executor | None = None, batch_size: in
     batches = [points[i:i + batch_size] for i in range(0, len(points), batch_size)]
     futures = {executor.submit(_run_batch, func, b): i for i, b in enumerate(batches)}
     results = [None] * len(batches)
-    with tqdm(total=len(points), desc=desc, unit="run", disable=not progress) as bar:
-        for fut in as_completed(futures):
-            i = futures[fut]
-            results[i] = fut.result()
-            bar.update(len(batches[i]))
+    try:
+        with tqdm(total=len(points), desc=desc, unit="run", disable=not progress) as bar:
+            for fut in as_completed(futures):
+                i = futures[fut]
+                results[i] = fut.result()
+                bar.update(len(batches[i]))
+    except BaseException:
+        # an error or Ctrl-C: do not leave the rest queued on the caller's executor
+        for fut in futures:
+            fut.cancel()
+        raise
     return [r for batch in results for r in batch]

@@ -125,6 +125,7 @@ class UpdatingProblem:
         self.rig = dataset.rig
         self.model = model
         self.source = dataset.source or dataset.name
+        self.data_fingerprint = dataset.fingerprint()
         self.tests = {}
         for role in STAGES:
             found = dataset.by_role(role)

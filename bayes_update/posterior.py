@@ -422,18 +422,25 @@ class PosteriorResult:
     linear_only: dict = field(repr=False, default_factory=dict)
     predictive: dict = field(repr=False, default_factory=dict)
     sensitivity: dict = field(repr=False, default_factory=dict)
+    n_model_runs_reused: dict = field(default_factory=dict)  # found in the cache instead of run
 
     def summary_json(self) -> dict:
         return {"parameters": self.summary, "map": dict(zip(NAMES, map(float, self.map.x))),
                 "map_units": dict(UNITS), "likelihood": self.likelihood.to_dict(),
                 "prior": self.space.to_dict(),
                 "laplace_box": dict(zip(NAMES, self.box.tolist())),
-                "start": self.start, "diagnostics": self.diagnostics, "timing_s": self.timing,
-                "n_model_runs": self.n_model_runs, "direct": self.direct,
+                "start": self.start, "diagnostics": self.diagnostics, "direct": self.direct,
                 "settings": asdict(self.settings),
                 "linear_only": {k: v for k, v in self.linear_only.items() if not k.startswith("_")},
                 "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
                 "sensitivity": self.sensitivity}
+
+    def run_json(self) -> dict:
+        """How the run went (not what it found): wall time per step [s] and model
+        runs per step, which a resumed run or another machine changes while the
+        posterior stays the same."""
+        return {"timing_s": self.timing, "n_model_runs": self.n_model_runs,
+                "n_model_runs_reused": self.n_model_runs_reused}
 
 
 class _XSampler:
@@ -504,20 +511,20 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
         raise ValueError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
                          "(the high-level chirp) as well as the 'linear' one")
     stages = problem.stages
-    timing, runs = {}, {}
+    timing, runs, reused = {}, {}, {}
     t_all = time.perf_counter()
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
         return _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress,
-                       log, stages, timing, runs, t_all)
+                       log, stages, timing, runs, reused, t_all)
     finally:
         if own_pool:
             pool.shutdown()
 
 
 def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress, log,
-            stages, timing, runs, t_all):
+            stages, timing, runs, reused, t_all):
     from .calibrate import CalibrationSettings, calibrate, paper_units
 
     rig = problem.rig
@@ -593,7 +600,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
             t0 = time.perf_counter()
             gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
                                                     settings, pool, cache_dir, stages, seed_of[3] + attempt,
-                                                    progress, log)
+                                                    progress, log, reused)
             runs["design"] += len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1)))
             timing["design_and_gp"] = timing.get("design_and_gp", 0.0) + time.perf_counter() - t0
             timing["gp_fit"] += fit_time
@@ -645,6 +652,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     flat = chain.reshape(-1, chain.shape[-1])
     res = PosteriorResult(idata=idata, summary=summary, likelihood=lik, space=space, map=mp, box=box,
                           start=start_info, diagnostics=diag, timing=timing, n_model_runs=runs,
+                          n_model_runs_reused=reused,
                           settings=settings, direct=direct, problem=problem, surrogates=gps,
                           design=result["design"], draws=flat)
     # extras: linear-only posterior, predictive check, sensitivity ----------------------------
@@ -655,7 +663,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         timing["predictive"] = time.perf_counter() - t0
     if settings.n_linear and not direct:
         t0 = time.perf_counter()
-        res.linear_only = linear_only_posterior(res, pool, seed_of[5], cache_dir, progress, log)
+        res.linear_only = linear_only_posterior(res, pool, seed_of[5], cache_dir, progress, log, reused)
         runs["linear_only"] = res.linear_only["n_model_runs"]
         timing["linear_only"] = time.perf_counter() - t0
     if settings.n_global:
@@ -675,7 +683,7 @@ def _gp_factory(box, seed):
 
 
 def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings, pool, cache_dir, stages, seed,
-                      progress, log):
+                      progress, log, reused=None):
     """Design in the whitened box (inside the prior), GPs of z per stage,
     refinement rounds; all in u coordinates."""
     from threadpoolctl import threadpool_limits
@@ -691,7 +699,7 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     else:
         raise RuntimeError(f"only {inside.sum()} of {len(cand)} design candidates fall inside the prior box")
     U0 = cand[inside][:settings.n_initial]
-    cache = _cache(cache_dir, ev.evaluate, "design", whitening)
+    cache = _cache(cache_dir, ev.evaluate, "design", whitening, reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
     res = evaluate(ev, list(U0), executor=pool, progress=progress)
 
@@ -727,20 +735,25 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     return gps, ref.X, ref.y, t_fit
 
 
-def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = None):
+def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = None, reused: dict | None = None):
+    """The evaluation cache of ``name`` under ``cache_dir`` (None: no cache); ``reused``
+    counts the model runs its entries on disk save, per name."""
     if cache_dir is None:
         return None
     from pathlib import Path
 
     from .metrics import describe_basis
     config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
-              "basis": describe_basis(ev.problem.basis), "source": str(ev.problem.source),
+              "basis": describe_basis(ev.problem.basis), "data": ev.problem.data_fingerprint,
               "rig": ev.problem.rig.to_dict(), "coordinates": list(NAMES)}
     if whitening is not None:     # points are stored in the whitened coordinates
         config["whitening"] = {"center": whitening.center.tolist(), "L": whitening.L.tolist()}
     path = Path(cache_dir)
     path.mkdir(parents=True, exist_ok=True)
-    return surrogates.EvaluationCache(path / name, config)
+    cache = surrogates.EvaluationCache(path / name, config)
+    if reused is not None:
+        reused[name] = reused.get(name, 0) + cache.n_loaded * len(ev.stages)
+    return cache
 
 
 # ---------------------------------------------------------------- extras
@@ -791,7 +804,7 @@ def posterior_predictive(res: PosteriorResult, n: int, pool, seed, progress) -> 
     return pred
 
 
-def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress, log) -> dict:
+def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress, log, reused=None) -> dict:
     """The posterior from the low-level test alone: (F, k_s) on a ridge of
     constant P_eff, c unidentified.  Its own design (c and k_s over the
     prior), GP of z_lin and emcee."""
@@ -806,7 +819,7 @@ def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress,
                   min(res.map.x[i] + 3 * s.box_sd * sd[i], res.space.box()[i, 1])]
     ss = np.random.SeedSequence(seed).spawn(3)
     X = surrogates.design(box, s.n_linear, "sobol", seed=int(ss[0].generate_state(1)[0]))
-    cache = _cache(cache_dir, ev, "linear_only")
+    cache = _cache(cache_dir, ev, "linear_only", reused=reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
     r = evaluate(ev, list(X), executor=pool, progress=progress)
     y = np.array([float(lik.to_z("linear", q["e_lin"])) for q in r])
@@ -846,8 +859,10 @@ def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress,
 
 
 def write_posterior(res: PosteriorResult, out, truth: dict | None = None, figures: bool = True):
-    """``posterior.nc`` (ArviZ), ``posterior_summary.json`` and the figures
-    (PNG) in folder ``out``; ``truth`` (paper units) only marks the plots."""
+    """``posterior.nc`` (ArviZ), ``posterior_summary.json`` (what was found: the
+    same seed and data give the same bytes), ``run.json`` (wall times and model
+    runs) and the figures (PNG) in folder ``out``; ``truth`` (paper units) only
+    marks the plots."""
     import json
     from pathlib import Path
 
@@ -857,6 +872,7 @@ def write_posterior(res: PosteriorResult, out, truth: dict | None = None, figure
     out.mkdir(parents=True, exist_ok=True)
     res.idata.to_netcdf(str(out / "posterior.nc"))
     (out / "posterior_summary.json").write_text(json.dumps(res.summary_json(), indent=1, default=float))
+    (out / "run.json").write_text(json.dumps(res.run_json(), indent=1, default=float))
     if figures:
         for name, fig in posterior_figures(res, truth).items():
             fig.savefig(out / f"{name}.png", dpi=110)

@@ -94,13 +94,17 @@ def discrepancy_dataset():
     return make_dataset(rig=rig, tests=tests, name="buckled-beam-hidden-effect")
 
 
-def reproduce(out, quick: bool = False, workers: int | None = None, log=print, discrepancy: bool = True) -> dict:
+def reproduce(out, quick: bool = False, workers: int | None = None, log=print, discrepancy: bool = True,
+              cache_dir=None) -> dict:
     """Run the study and write ``out/report.md``; returns the headline numbers.
 
     discrepancy : run the discrepancy workflow on the hidden-effect variant
-        (:func:`discrepancy_dataset`; always the full FE, which carries effects)."""
+        (:func:`discrepancy_dataset`; always the full FE, which carries effects).
+    cache_dir : folder of the posteriors' evaluation caches (default
+        ``out/cache``); a rerun resumes from it."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
+    cache_dir = out / "cache" if cache_dir is None else Path(cache_dir)
     data = load_default_dataset()
     timing, head = {}, {}
     t_all = time.perf_counter()
@@ -126,7 +130,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
         t0 = time.perf_counter()
         space = ParameterSpace(rig) if factor == stated else ParameterSpace(rig, F=LOCKING_FREE_F_RANGE)
         post = sample(d, model, post_settings, workers=workers, start=cal.final_params, space=space,
-                      cache_dir=out / "cache" / tag, log=log)
+                      cache_dir=cache_dir / tag, log=log)
         write_posterior(post, out / f"posterior_{tag}", truth=truth if factor == stated else None)
         timing[f"posterior_{tag}"] = time.perf_counter() - t0
         posteriors[factor] = post

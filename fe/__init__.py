@@ -8,6 +8,7 @@
 >>> simulate(rom, Parameters(), force, fs=1024.0).sensor_velocity
 """
 
+from . import _numba_cache  # noqa: F401  (first: numba fixes the cache folder at decoration)
 from .effects import (EFFECTS, AmplitudeDependentDamping, ClampCompliance, Effect, InitialImperfection,
                       ShakerAttachment)
 from .model import (

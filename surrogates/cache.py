@@ -116,6 +116,7 @@ class EvaluationCache:
         self.has_error: bool = False
         self.n_inputs: int | None = None
         self._read()
+        self.n_loaded = len(self._entries)  # evaluations found on disk: runs a resumed job saves
 
     def __repr__(self) -> str:
         return f"EvaluationCache({str(self.dir)!r}, config hash {self.hash[:16]}, {len(self)} entries)"
