@@ -1,4 +1,11 @@
-"""bayes_update: probabilistic updating of the nonlinear FE model of the
-preloaded-beam rig with Volterra series (after Bussetta, Shiki and da Silva, 2017)."""
+"""bayes_update: probabilistic updating of nonlinear structural models with Volterra
+series (after Bussetta, Shiki and da Silva, 2017).
 
+A model is any object with declared ``parameters`` (:class:`Parameter`) and
+``simulate(theta, force, fs)``; see :mod:`bayes_update.core` and docs/models.md.
+"""
+
+from .core import Model, ModelSpecError, Parameter, ParameterSet, check_model, load_model
+
+__all__ = ["Model", "ModelSpecError", "Parameter", "ParameterSet", "check_model", "load_model"]
 __version__ = "0.1.0"

@@ -4,7 +4,7 @@ point in a box.
 
 The package knows nothing about beams, finite elements or Volterra series: a
 model is a picklable callable of one point (a 1-D array), evaluated through
-:func:`bayes_update.evaluation.evaluate_many` and so through any
+:func:`surrogates.evaluation.evaluate_many` and so through any
 ``concurrent.futures.Executor`` (a local process pool, or a Dask
 ``Client.get_executor()`` for a cluster).
 
@@ -21,12 +21,14 @@ model is a picklable callable of one point (a 1-D array), evaluated through
 """
 from .cache import EvaluationCache, cached_evaluate, config_hash
 from .design import DESIGN_METHODS, check_bounds, design, from_unit, to_unit
+from .evaluation import default_executor, evaluate_many
 from .gp import TRANSFORMS, GPSurrogate, holdout_validation, validation_metrics
 from .refine import RefinementResult, propose_points, refine
 from .synthetic import CurvedValley
 
 __all__ = [
     "DESIGN_METHODS", "TRANSFORMS", "CurvedValley", "EvaluationCache", "GPSurrogate",
-    "RefinementResult", "cached_evaluate", "check_bounds", "config_hash", "design", "from_unit",
+    "RefinementResult", "cached_evaluate", "check_bounds", "config_hash", "default_executor", "design",
+    "evaluate_many", "from_unit",
     "holdout_validation", "propose_points", "refine", "to_unit", "validation_metrics",
 ]

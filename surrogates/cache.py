@@ -9,7 +9,7 @@ different configuration can never see another's results, and the files are
 self-describing (``xarray.open_dataset`` reads them).
 
 Results are dicts of floats, plus optionally an ``"error"`` string (None when
-the run succeeded): what :meth:`bayes_update.metrics.UpdatingProblem.evaluate`
+the run succeeded): what a model evaluation (e.g. the metrics of ``bayes_update``)
 returns.  A failed run that *returned* (NaN metrics and a message) is cached
 like any other, as it fails again the same way; a run that *raised* is not
 cached, and stops :func:`cached_evaluate` after saving the chunks before it.
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from bayes_update.evaluation import evaluate_many
+from .evaluation import evaluate_many
 
 __all__ = ["EvaluationCache", "cached_evaluate", "config_hash"]
 
@@ -286,7 +286,7 @@ def cached_evaluate(func, points, cache: EvaluationCache, executor=None, *, batc
     points : (n, d) points.
     cache : :class:`EvaluationCache` of the configuration ``func`` computes.
     executor : any ``concurrent.futures.Executor`` (None: serial), used
-        through :func:`bayes_update.evaluation.evaluate_many`.
+        through :func:`surrogates.evaluation.evaluate_many`.
     batch_size : points per task, passed to ``evaluate_many``.
     chunk_size : points evaluated between two writes of the cache (default
         8 per worker: the pool stays busy, and a crash loses at most one

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from bayes_update.evaluation import evaluate_many
+from .evaluation import evaluate_many
 
 from .design import design
 
@@ -211,7 +211,7 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     ``weight = weight_from_surrogate(surrogate)``; propose ``batch`` points
     with :func:`propose_points`; run ``func`` on them through
     ``evaluate(func, points, executor=executor, progress=progress)``
-    (default :func:`bayes_update.evaluation.evaluate_many`; pass e.g.
+    (default :func:`surrogates.evaluation.evaluate_many`; pass e.g.
     ``functools.partial(cached_evaluate, cache=cache)`` to cache them); append.
 
     Parameters

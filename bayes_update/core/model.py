@@ -1,0 +1,147 @@
+"""The model contract, the loader of ``--model SPEC``, and the check run before any heavy work.
+
+A model is any picklable object with
+
+* ``parameters``: a sequence of :class:`bayes_update.Parameter`;
+* ``simulate(theta, force, fs) -> response``: ``theta`` maps every parameter
+  name to a value in its unit, ``force`` is the sampled input (n,) at ``fs``
+  [Hz], the response has shape (n,) or (n, n_sensors).  Outside what it can
+  run, it raises an exception (never returns NaN).
+
+Optional members, each used when present (docs/models.md says what happens
+when absent): ``refined()``, ``candidate_effects()``, ``to_internal`` /
+``from_internal`` / ``log_jacobian``, ``linear_pole(theta)``.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import inspect
+import pickle
+import sys
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from .parameters import Parameter, ParameterSet
+
+__all__ = ["BUILTIN_MODELS", "Model", "ModelSpecError", "check_model", "load_model"]
+
+
+@runtime_checkable
+class Model(Protocol):
+    """What the framework needs of a model (see the module docstring)."""
+
+    parameters: Sequence[Parameter]
+
+    def simulate(self, theta: Mapping[str, float], force: np.ndarray, fs: float) -> np.ndarray: ...
+
+
+class ModelSpecError(ValueError):
+    """A ``--model`` spec or a model object that the framework cannot use; the
+    message says what to fix."""
+
+
+# built-in names of --model: "module:NAME" specs, filled in as models ship
+BUILTIN_MODELS: dict[str, str] = {}
+
+
+def load_model(spec):
+    """A model from ``spec``: a model object (returned as is), a built-in name
+    (:data:`BUILTIN_MODELS`), ``path/to/file.py:NAME`` or ``package.module:NAME``,
+    where NAME is a class or a zero-argument factory."""
+    if not isinstance(spec, str):
+        return spec
+    if spec in BUILTIN_MODELS:
+        spec = BUILTIN_MODELS[spec]
+    where, sep, name = spec.rpartition(":")
+    if not sep or not where or not name:
+        raise ModelSpecError(f"--model {spec!r}: expected path/to/file.py:NAME or package.module:NAME"
+                             + (f", or one of {sorted(BUILTIN_MODELS)}" if BUILTIN_MODELS else ""))
+    module = _import(where, spec)
+    if not hasattr(module, name):
+        public = sorted(n for n in vars(module) if not n.startswith("_"))
+        raise ModelSpecError(f"--model {spec!r}: {where} has no {name!r}; it defines {public[:20]}")
+    obj = getattr(module, name)
+    if inspect.isclass(obj) or (callable(obj) and not hasattr(obj, "simulate")):
+        try:
+            inspect.signature(obj).bind()
+        except TypeError:
+            raise ModelSpecError(f"--model {spec!r}: {name} needs arguments; give a class or factory that "
+                                 "takes none (wrap yours in a function)") from None
+        except ValueError:
+            pass  # no signature to inspect (a builtin): just call it
+        obj = obj()
+    return obj
+
+
+def _import(where: str, spec: str):
+    if where.endswith(".py") or "/" in where or "\\" in where:
+        path = Path(where).expanduser()
+        if not path.is_file():
+            raise ModelSpecError(f"--model {spec!r}: no such file {path}")
+        # a stable module name, so that worker processes can unpickle the model
+        mod_name = f"_bayes_update_user_model_{path.resolve().stem}"
+        if mod_name in sys.modules and getattr(sys.modules[mod_name], "__file__", None) == str(path.resolve()):
+            return sys.modules[mod_name]
+        mod_spec = importlib.util.spec_from_file_location(mod_name, path.resolve())
+        module = importlib.util.module_from_spec(mod_spec)
+        sys.modules[mod_name] = module
+        try:
+            mod_spec.loader.exec_module(module)
+        except Exception as exc:
+            del sys.modules[mod_name]
+            raise ModelSpecError(f"--model {spec!r}: importing {path} failed: "
+                                 f"{type(exc).__name__}: {exc}") from exc
+        return module
+    try:
+        return importlib.import_module(where)
+    except ImportError as exc:
+        raise ModelSpecError(f"--model {spec!r}: cannot import module {where!r} ({exc}); "
+                             "is it installed, or on PYTHONPATH?") from exc
+
+
+def check_model(model, force: np.ndarray, fs: float, n_sensors: int = 1, theta: Mapping | None = None
+                ) -> ParameterSet:
+    """Check ``model`` against the contract with one run, before any heavy work.
+
+    Runs ``simulate`` once at ``theta`` (default: the middle of the prior) on
+    ``force`` and checks the response's shape (n,) or (n, n_sensors) and that it
+    is finite.  Returns the model's :class:`ParameterSet`.  Raises
+    :class:`ModelSpecError` saying what is wrong and how to fix it.
+    """
+    kind = type(model).__name__
+    if not hasattr(model, "parameters"):
+        raise ModelSpecError(f"{kind} has no 'parameters': declare them, e.g. "
+                             "parameters = [bayes_update.Parameter('k', 1e3, 1e5, unit='N/m')]")
+    if not callable(getattr(model, "simulate", None)):
+        raise ModelSpecError(f"{kind} has no simulate(theta, force, fs) method")
+    try:
+        space = ParameterSet(model.parameters, model)
+    except (TypeError, ValueError) as exc:
+        raise ModelSpecError(f"{kind}.parameters: {exc}") from exc
+    try:
+        pickle.dumps(model)
+    except Exception as exc:
+        raise ModelSpecError(f"{kind} cannot be pickled ({type(exc).__name__}: {exc}); model runs go to "
+                             "worker processes: keep lambdas, open files and locks out of the model's "
+                             "attributes, or define it at a module's top level") from exc
+    force = np.asarray(force, float)
+    theta = dict(theta) if theta is not None else space.center()
+    try:
+        y = np.asarray(model.simulate(theta, force, fs), float)
+    except Exception as exc:
+        raise ModelSpecError(f"{kind}.simulate failed at theta = {theta}: {type(exc).__name__}: {exc}") from exc
+    shapes = [(len(force), n_sensors)] if n_sensors > 1 else [(len(force),), (len(force), 1)]
+    if y.shape not in shapes:
+        want = " or ".join(map(str, shapes))
+        raise ModelSpecError(f"{kind}.simulate returned shape {y.shape} for a force of {len(force)} samples "
+                             f"and {n_sensors} sensor(s); it must return {want}: one value per input sample"
+                             + (", one column per sensor" if n_sensors > 1 else ""))
+    if not np.all(np.isfinite(y)):
+        raise ModelSpecError(f"{kind}.simulate returned {int(np.sum(~np.isfinite(y)))} non-finite value(s) at "
+                             f"theta = {theta}; raise an exception where the model cannot run instead")
+    return space
