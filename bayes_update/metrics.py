@@ -60,12 +60,11 @@ def stage_output(stage: str, comps: dict) -> np.ndarray:
 
 def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
     """(f_min, f_max) [Hz] where the force PSD exceeds ``level`` x its peak:
-    the band in which an FRF estimate of the record is meaningful."""
-    from .spectral import psd
-
-    f, p = psd(np.asarray(force, float), fs, nperseg=min(len(force), int(4 * fs)))
-    band = f[p >= level * p.max()]
-    return float(band.min()), float(band.max())
+    the band in which an FRF estimate of the record is meaningful
+    (:func:`volterra.excited_band` on 4 s Hann segments, the force's mean
+    removed)."""
+    return volterra.excited_band(np.asarray(force, float), fs, level=level,
+                                 nperseg=min(len(force), int(4 * fs)))
 
 
 def basis_from_reference(force, velocity, fs: float, n_functions=DEFAULT_N_FUNCTIONS) -> volterra.KautzBasis:

@@ -1,13 +1,15 @@
 """volterra: discrete-time Volterra series (orders 1-3) in a Kautz orthonormal basis.
 
-Turns an input/output record into kernels and into the components y1, y2, y3
-(paper eq. 11-19).  Knows nothing about beams.
+Turns an input/output record into kernels, a constant h0 and the components
+y1, y2, y3 (paper eq. 11-19).  Knows nothing about beams.
 
     basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=1024.0,
                                   n_functions=(2, 2, 6))
     model = fit_volterra(u, y, basis, ridge=0.0)   # or lists of records
-    y1, y2, y3 = model.components(u)
+    y1, y2, y3 = model.components(u)               # y = model.h0 + y1 + y2 + y3
     print(model.summary())
+
+    basis = KautzBasis.from_data(u_low, y_low, fs)  # pole from a low-level record
 
 Conventions: y_n with no 1/n! factor; symmetric kernels are averages over
 argument permutations; frequencies in Hz, lags in samples,
@@ -18,8 +20,9 @@ f1 + f2 + f3 = fn is not representable).
 from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
 from .kautz import KautzPole, kautz_filter, kautz_frequency_response, kautz_impulse_responses
 from .model import FitInfo, VolterraModel, fit_volterra
+from .frf import estimate_h1, excited_band
 from .projector import VolterraProjector
-from .poles import estimate_h1, pole_from_frf, pole_from_modal, refine_pole
+from .poles import PoleEstimationError, pole_from_frf, pole_from_modal, refine_bounds, refine_pole
 from .regressors import index_tuples, multiplicity, n_terms
 
 __all__ = [
@@ -34,7 +37,10 @@ __all__ = [
     "pole_from_modal",
     "pole_from_frf",
     "refine_pole",
+    "refine_bounds",
+    "PoleEstimationError",
     "estimate_h1",
+    "excited_band",
     "kautz_filter",
     "kautz_impulse_responses",
     "kautz_frequency_response",

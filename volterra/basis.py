@@ -167,10 +167,15 @@ class KautzBasis:
                   refine: bool = True) -> "KautzBasis":
         """Basis whose (common) pole is estimated from a low-level record.
 
-        The pole comes from the peak and half-power width of an H1 FRF estimate
-        (:func:`volterra.pole_from_frf`), then, if ``refine``, from minimising
-        the residual of a linear fit with J1 = 2 (:func:`volterra.refine_pole`).
-        Use a record whose response is essentially linear.
+        The pole comes from the peak and half-power width of an averaged H1
+        FRF estimate (:func:`volterra.pole_from_frf`; records' means removed,
+        peak searched in ``f_range``, default the band where ``u`` has energy,
+        on coherent lines), then, if ``refine``, from minimising the residual
+        of a linear fit with J1 = 2 inside a neighbourhood of that start
+        (:func:`volterra.refine_pole`).  Use a record whose response is
+        essentially linear.  Raises :class:`volterra.PoleEstimationError`
+        rather than return a pole at DC or Nyquist, at a damping bound, or one
+        whose linear fit explains too little of the record.
         """
         from .poles import pole_from_frf, refine_pole
 

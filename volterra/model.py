@@ -2,7 +2,11 @@
 
 Conventions (see ``research-notes.md``):
 
-* ``y(k) = y1(k) + y2(k) + y3(k)``, y_n with NO 1/n! factor.
+* ``y(k) = h0 + y1(k) + y2(k) + y3(k)``, y_n with NO 1/n! factor; h0 is the
+  zeroth-order term, a constant [y unit] (e.g. an offset of the output
+  sensor), fitted by default and kept out of the components.  The mean that an
+  even-order term puts in the output (``a2 E[x^2]`` for ``y = x + a2 x^2``)
+  belongs to y2, not to h0.
 * Coefficients are stored per ordered index tuple (``i1 <= i2 <= i3``,
   0-based): ``B2[i, j]`` multiplies ``l_i l_j``, ``B3[i, j, m]`` multiplies
   ``l_i l_j l_m``.
@@ -66,17 +70,19 @@ class FitInfo:
     ----------
     n_samples : int            total number of samples (rows) used
     n_records : int            number of records fitted jointly
-    n_params : int             number of coefficients P
+    n_params : int             number of kernel coefficients P (h0 not counted)
     rank : int                 numerical rank of the column-normalised regressor matrix
+                               (columns centred when h0 is fitted)
     singular_values : ndarray  of the column-normalised regressor matrix
     condition_number : float   s_max / s_min of the column-normalised regressor matrix
     ridge : float              Tikhonov parameter used (column-normalised problem)
     rss : float                residual sum of squares [y unit^2]
     residual_rms : float       sqrt(rss / n_samples) [y unit]
     relative_residual : float  ||y - y_fit|| / ||y||
-    sigma : float              residual standard deviation sqrt(rss / (N - rank)) [y unit]
+    sigma : float              residual standard deviation sqrt(rss / (N - rank - 1 with h0)) [y unit]
     stderr : ndarray           standard errors of the coefficients (white residual assumed)
-    component_shares : dict    {order: ||y_n|| / ||y||} on the fitted data
+    component_shares : dict    {order: ||y_n|| / ||y||} on the fitted data (order 0: h0)
+    h0_stderr : float          standard error of h0 [y unit] (NaN if h0 was not fitted)
     """
 
     n_samples: int
@@ -92,12 +98,20 @@ class FitInfo:
     sigma: float
     stderr: np.ndarray
     component_shares: dict
+    h0_stderr: float = float("nan")
 
     def __repr__(self):
         return (f"FitInfo(n_samples={self.n_samples}, n_records={self.n_records}, "
                 f"n_params={self.n_params}, rank={self.rank}, "
                 f"condition_number={self.condition_number:.3g}, "
                 f"relative_residual={self.relative_residual:.3g})")
+
+
+def _finite(value, name: str) -> float:
+    value = float(value)
+    if not np.isfinite(value):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
+    return value
 
 
 def _coefficient_blocks(orders, basis):
@@ -113,6 +127,7 @@ def _coefficient_blocks(orders, basis):
 class VolterraModel:
     """A discrete-time Volterra model of orders 1..3 in a Kautz basis.
 
+    ``y = h0 + y1 + y2 + y3`` with ``y_n = H_n[u - input_offset]``.
     Usually obtained from :func:`fit_volterra`; can also be built directly from
     coefficients (flat vector in the column order of
     :meth:`KautzBasis.labels`).
@@ -125,12 +140,17 @@ class VolterraModel:
         Orders the coefficients belong to (default: all orders of ``basis``).
     info : FitInfo, optional
         Fit diagnostics (set by :func:`fit_volterra`).
+    h0 : float
+        Zeroth-order term [y unit], default 0.
+    input_offset : float
+        Subtracted from every input before filtering [u unit], default 0.
 
     See the module docstring for what the kernels of this model can and cannot
     represent.
     """
 
-    def __init__(self, basis: KautzBasis, coefficients, orders=None, info: FitInfo | None = None):
+    def __init__(self, basis: KautzBasis, coefficients, orders=None, info: FitInfo | None = None,
+                 h0: float = 0.0, input_offset: float = 0.0):
         if not isinstance(basis, KautzBasis):
             raise ValueError(f"basis must be a KautzBasis, got {type(basis).__name__}")
         self.orders = basis._check_orders(orders)
@@ -143,6 +163,8 @@ class VolterraModel:
             )
         self.coefficients = coef
         self.info = info
+        self.h0 = _finite(h0, "h0")
+        self.input_offset = _finite(input_offset, "input_offset")
         self._blocks = _coefficient_blocks(self.orders, self.basis)
         self._sym_cache = {}
 
@@ -213,7 +235,7 @@ class VolterraModel:
 
     # -------------------------------------------------------------- responses
     def _components_one(self, u: np.ndarray) -> tuple:
-        rows = self.basis._filter_rows(u)
+        rows = self.basis._filter_rows(u - self.input_offset)
         out = []
         for n in (1, 2, 3):
             if n in self._blocks:
@@ -224,27 +246,33 @@ class VolterraModel:
                 out.append(np.zeros(u.shape[-1]))
         return tuple(out)
 
-    def components(self, u):
+    def components(self, u, include_h0: bool = False):
         """Components ``(y1, y2, y3)`` of the response to input ``u``.
 
         ``u``: 1-D array (N samples at ``fs`` Hz, starting at rest) -> tuple of
         three arrays of N samples (zeros for an order not in the model); a list
-        of records -> list of such tuples.
+        of records -> list of such tuples.  With ``include_h0`` the tuples are
+        ``(y0, y1, y2, y3)``, ``y0`` the constant h0 on N samples.
         """
         records, single = as_record_list(u, "u")
         comps = [self._components_one(r) for r in records]
+        if include_h0:
+            comps = [(np.full(r.size, self.h0),) + c for r, c in zip(records, comps)]
         return comps[0] if single else comps
 
+    def _predict_one(self, u: np.ndarray) -> np.ndarray:
+        return self.h0 + sum(self._components_one(u))
+
     def predict(self, u):
-        """Model output ``y1 + y2 + y3`` for input ``u`` (1-D array or list of records)."""
+        """Model output ``h0 + y1 + y2 + y3`` for input ``u`` (1-D array or list of records)."""
         records, single = as_record_list(u, "u")
-        out = [sum(self._components_one(r)) for r in records]
+        out = [self._predict_one(r) for r in records]
         return out[0] if single else out
 
     def relative_error(self, u, y) -> float:
         """``||y - predict(u)|| / ||y||`` over all records."""
         us, ys, _ = paired_records(u, y)
-        num = sum(float(np.sum((yy - sum(self._components_one(uu))) ** 2)) for uu, yy in zip(us, ys))
+        num = sum(float(np.sum((yy - self._predict_one(uu)) ** 2)) for uu, yy in zip(us, ys))
         den = sum(float(np.sum(yy ** 2)) for yy in ys)
         return math.sqrt(num / den)
 
@@ -304,18 +332,26 @@ class VolterraModel:
 
     # ----------------------------------------------------------------- report
     def summary(self, max_terms: int = 8) -> str:
-        """A readable text summary: basis, fit diagnostics, component shares,
+        """A readable text summary: basis, h0, fit diagnostics, component shares,
         H1 peak and the largest coefficients of each order."""
-        lines = ["Volterra model in a Kautz basis (y = y1 + y2 + y3, no 1/n! factor)"]
+        info = self.info
+        lines = ["Volterra model in a Kautz basis (y = h0 + y1 + y2 + y3, no 1/n! factor)"]
         lines.append(f"  sampling rate {self.fs:g} Hz, orders {self.orders}, "
                      f"{self.basis.n_params} coefficients")
+        h0 = f"  h0 = {self.h0:.6e}"
+        if info is not None and np.isfinite(info.h0_stderr):
+            h0 += f"  +- {info.h0_stderr:.2e}"
+        elif info is not None:
+            h0 += " (not fitted)"
+        lines.append(h0)
+        if self.input_offset:
+            lines.append(f"  input offset {self.input_offset:.6e} subtracted from u")
         for n in self.orders:
             p = self.basis.pole(n)
             lines.append(
                 f"  order {n}: J = {self.basis.n_functions[n]}, {n_terms(n, self.basis.n_functions[n])} "
                 f"terms, pole f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}"
             )
-        info = self.info
         if info is not None:
             lines.append(
                 f"  fit: {info.n_records} record(s), {info.n_samples} samples, rank {info.rank}/"
@@ -371,8 +407,43 @@ def _tall_qr_r(A: np.ndarray, chunk: int | None = None) -> np.ndarray:
     return _tall_qr_r(np.vstack(Rs), chunk)
 
 
+def _resolve_offset(us, input_offset) -> float:
+    """The input offset [u unit]: a number, or "mean" (mean of all input samples)."""
+    if isinstance(input_offset, str):
+        if input_offset != "mean":
+            raise ValueError(f'input_offset must be a number or "mean", got {input_offset!r}')
+        return float(sum(r.sum() for r in us) / sum(r.size for r in us))
+    return _finite(input_offset, "input_offset")
+
+
+def _stacked_rows(us, ys, sub, offset):
+    """Transposed regressor matrix of all records with y as its last row: (P+1, N)."""
+    P = sub.n_params
+    AT = np.empty((P + 1, sum(r.size for r in us)))
+    k = 0
+    for r_u, r_y in zip(us, ys):
+        sub.regressor_rows(r_u - offset, out=AT[:P, k:k + r_u.size])
+        AT[P, k:k + r_u.size] = r_y
+        k += r_u.size
+    return AT
+
+
+def _column_scale(GT, labels):
+    """Norms of the regressor rows (the ridge's column normalisation)."""
+    scale = np.sqrt(np.einsum("ij,ij->i", GT, GT))
+    if not np.all(scale > 0):
+        dead = [labels[k] for k in np.flatnonzero(~(scale > 0))]
+        raise ValueError(
+            f"regressor column(s) {dead[:4]} are identically zero: the input does not excite the "
+            "model (is u all zeros?)"
+        )
+    if not np.all(np.isfinite(scale)):
+        raise ValueError("regressors overflow: rescale the input u (e.g. to O(1) units)")
+    return scale
+
+
 def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
-                 rcond: float = 1e-12) -> VolterraModel:
+                 rcond: float = 1e-12, fit_h0: bool = True, input_offset=0.0) -> VolterraModel:
     """Identify a Kautz-basis Volterra model by linear least squares (eq. 18-19).
 
     Parameters
@@ -389,27 +460,41 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
         compared.
     ridge : float, default 0
         Tikhonov parameter on the column-normalised problem (dimensionless):
-        minimises ``||y - G b||^2 + ridge * sum_j ||G_j||^2 b_j^2`` where G_j
-        are the regressor columns.  0 gives ordinary least squares.
+        minimises ``||y - h0 - G b||^2 + ridge * sum_j ||G_j||^2 b_j^2`` where
+        G_j are the regressor columns (h0 is not penalised).  0 gives ordinary
+        least squares.
     orders : iterable of int, optional
         Fit a subset of the basis orders, e.g. (1, 3).
     rcond : float
         Singular values below ``rcond * s_max`` (column-normalised) are
         discarded (rank-deficient problems).
+    fit_h0 : bool, default True
+        Fit the zeroth-order term h0, one constant [y unit] shared by all
+        records (e.g. an offset of the output sensor).  It is not part of the
+        components y1, y2, y3 (the mean of y2 is in y2).
+    input_offset : float or "mean", default 0
+        Constant [u unit] subtracted from every input before filtering, stored
+        in the model and subtracted again by :meth:`VolterraModel.components`.
+        ``"mean"`` uses the mean of all input samples: for an input sensor
+        with an offset, a recorded mean the system did not feel (the kernels
+        are then those of the fluctuation; the true input's own sample mean,
+        ~ rms / sqrt(N) for noise, goes with it).  The default 0 keeps the
+        model a Volterra series of the input as given.
 
     Returns
     -------
     VolterraModel
-        with ``.info`` (:class:`FitInfo`: condition number, residual,
-        standard errors, ...).
+        with ``.h0`` and ``.info`` (:class:`FitInfo`: condition number,
+        residual, standard errors, ...).
 
     Notes
     -----
-    Solved by a Householder QR (blocked, TSQR) of the column-normalised
-    regressor matrix augmented with y, followed by an SVD
-    of its R factor (never by forming ``(G^T G)^-1``).  The standard errors
-    assume white residuals; with coloured (e.g. truncation) residuals they are
-    optimistic.
+    With h0 the regressor columns and y are centred (over all records), which
+    removes h0 from the problem; then ``h0 = mean(y) - mean(G) b``.  Solved by
+    a Householder QR (blocked, TSQR) of the column-normalised regressor matrix
+    augmented with y, followed by an SVD of its R factor (never by forming
+    ``(G^T G)^-1``).  The standard errors assume white residuals; with
+    coloured (e.g. truncation) residuals they are optimistic.
     """
     if not isinstance(basis, KautzBasis):
         raise ValueError(f"basis must be a KautzBasis, got {type(basis).__name__}")
@@ -417,34 +502,23 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
     if not np.isfinite(ridge) or ridge < 0:
         raise ValueError(f"ridge must be a non-negative number, got {ridge!r}")
     us, ys, _ = paired_records(u, y)
+    offset = _resolve_offset(us, input_offset)
     orders = basis._check_orders(orders)
     sub = basis.subset(orders)
     P = sub.n_params
     N = sum(r.size for r in us)
-    if N <= P:
+    if N <= P + fit_h0:
         raise ValueError(
             f"too few samples: {N} sample(s) for {P} regressors (orders {orders}, "
-            f"J = {sub.n_functions}); need more than {P} samples - give a longer record "
+            f"J = {sub.n_functions}); need more than {P + fit_h0} samples - give a longer record "
             "or fewer Kautz functions"
         )
-    # transposed, stacked regressor matrix with y as its last row: A^T (P+1, N)
-    AT = np.empty((P + 1, N))
-    k = 0
-    for r_u, r_y in zip(us, ys):
-        sub.regressor_rows(r_u, out=AT[:P, k:k + r_u.size])
-        AT[P, k:k + r_u.size] = r_y
-        k += r_u.size
-    yv = AT[P]
-
-    scale = np.sqrt(np.einsum("ij,ij->i", AT[:P], AT[:P]))
-    if not np.all(scale > 0):
-        dead = [sub.labels()[k] for k in np.flatnonzero(~(scale > 0))]
-        raise ValueError(
-            f"regressor column(s) {dead[:4]} are identically zero: the input does not excite the "
-            "model (is u all zeros?)"
-        )
-    if not np.all(np.isfinite(scale)):
-        raise ValueError("regressors overflow: rescale the input u (e.g. to O(1) units)")
+    AT = _stacked_rows(us, ys, sub, offset)
+    ynorm = float(np.linalg.norm(AT[P]))
+    scale = _column_scale(AT[:P], sub.labels())
+    means = AT.mean(axis=1) if fit_h0 else np.zeros(P + 1)
+    if fit_h0:
+        AT -= means[:, None]           # centred columns and y: h0 drops out
     AT[:P] /= scale[:, None]           # column-normalised regressors G_s (in place)
     Gs = AT[:P].T
     R_full = _tall_qr_r(AT.T)
@@ -458,18 +532,23 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
         filt = np.where(keep, s / (s * s + ridge), 0.0)
     theta_s = Vt.T @ (filt * uty)
     theta = theta_s / scale
+    mean_s = means[:P] / scale         # column means of the normalised regressors
+    h0 = float(means[P] - mean_s @ theta_s) if fit_h0 else 0.0
 
     blocks = _coefficient_blocks(orders, sub)
-    parts = {n: Gs[:, blocks[n]] @ theta_s[blocks[n]] for n in orders}
-    resid = yv - sum(parts.values())
+    parts = {n: Gs[:, blocks[n]] @ theta_s[blocks[n]] + mean_s[blocks[n]] @ theta_s[blocks[n]]
+             for n in orders}
+    resid = AT[P] - Gs @ theta_s       # = y - h0 - sum(parts)  (h0 = 0 without fit_h0)
     rss = float(resid @ resid)
-    dof = max(N - rank, 1)
+    dof = max(N - rank - fit_h0, 1)
     sigma2 = rss / dof
     cov_s = (Vt.T * filt ** 2) @ Vt * sigma2
     stderr = np.sqrt(np.clip(np.diag(cov_s), 0, None)) / scale
-    ynorm = float(np.linalg.norm(yv))
-    shares = {n: float(np.linalg.norm(yn)) / ynorm if ynorm > 0 else float("nan")
-              for n, yn in parts.items()}
+    # h0 = mean(y) - mean_s . theta_s, the two independent (centred columns)
+    h0_stderr = math.sqrt(sigma2 / N + float(mean_s @ cov_s @ mean_s)) if fit_h0 else float("nan")
+    shares = {0: abs(h0) * math.sqrt(N)} if fit_h0 else {}
+    shares.update({n: float(np.linalg.norm(yn)) for n, yn in parts.items()})
+    shares = {n: v / ynorm if ynorm > 0 else float("nan") for n, v in shares.items()}
 
     info = FitInfo(
         n_samples=N,
@@ -485,5 +564,6 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
         sigma=math.sqrt(sigma2),
         stderr=stderr,
         component_shares=shares,
+        h0_stderr=h0_stderr,
     )
-    return VolterraModel(sub, theta, orders, info)
+    return VolterraModel(sub, theta, orders, info, h0=h0, input_offset=offset)

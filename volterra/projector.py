@@ -22,8 +22,8 @@ class VolterraProjector:
 
     ``VolterraProjector(u, basis).components(y)`` equals
     ``fit_volterra(u, y, basis).components(u)`` (same least-squares problem,
-    same ridge convention), but the regressors of ``u`` are filtered and
-    factored once.
+    same ridge convention, h0 fitted by default), but the regressors of ``u``
+    are filtered and factored once.
 
     Parameters
     ----------
@@ -35,9 +35,12 @@ class VolterraProjector:
         :func:`volterra.fit_volterra`.
     rcond : float
         Relative cut-off of small singular values, as in ``fit_volterra``.
+    fit_h0 : bool
+        Fit the zeroth-order term h0, as in ``fit_volterra`` (default True).
     """
 
-    def __init__(self, u, basis: KautzBasis, ridge: float = 0.0, rcond: float = 1e-12):
+    def __init__(self, u, basis: KautzBasis, ridge: float = 0.0, rcond: float = 1e-12,
+                 fit_h0: bool = True):
         if not isinstance(basis, KautzBasis):
             raise ValueError(f"basis must be a KautzBasis, got {type(basis).__name__}")
         u = np.asarray(u, dtype=float)
@@ -49,25 +52,28 @@ class VolterraProjector:
         if not (np.isfinite(ridge) and ridge >= 0):
             raise ValueError(f"ridge must be a non-negative number, got {ridge!r}")
         P = basis.n_params
-        if u.size <= P:
+        if u.size <= P + fit_h0:
             raise ValueError(f"too few samples: {u.size} sample(s) for {P} regressors")
         GT = basis.regressor_rows(u)                     # (P, N)
         scale = np.sqrt(np.einsum("ij,ij->i", GT, GT))
         if not np.all(scale > 0):
             raise ValueError("some regressor columns are identically zero: u does not excite the basis")
         Gs = (GT / scale[:, None]).T                     # column-normalised (N, P)
-        Q, R = np.linalg.qr(Gs)
+        mean_s = Gs.mean(axis=0) if fit_h0 else np.zeros(P)
+        Q, R = np.linalg.qr(Gs - mean_s)                 # centred columns: h0 drops out
         U, s, Vt = np.linalg.svd(R)
         keep = s > rcond * s[0]
         filt = np.where(keep, s / np.where(keep, s * s + ridge, 1.0), 0.0)
-        # theta = solve @ y (unscaled coefficients); component n = Gs_n @ (theta_s)_n
-        self._solve_s = (Vt.T * filt) @ U.T @ Q.T        # (P, N): y -> scaled coefficients
+        # theta_s = solve @ (y - mean y); component n = Gs_n @ (theta_s)_n; h0 = mean y - mean_s . theta_s
+        self._solve_s = (Vt.T * filt) @ U.T @ Q.T        # (P, N): centred y -> scaled coefficients
         self._Gs = Gs
+        self._mean_s = mean_s
         self._scale = scale
         self._blocks = _coefficient_blocks(basis.orders, basis)
         self.basis = basis
         self.u = u
         self.ridge = ridge
+        self.fit_h0 = bool(fit_h0)
         self.condition_number = float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
 
     @property
@@ -82,15 +88,32 @@ class VolterraProjector:
             raise ValueError(f"y contains {int(np.sum(~np.isfinite(y)))} NaN/inf value(s)")
         return y
 
-    def coefficients(self, y) -> np.ndarray:
-        """Least-squares coefficients (column order of ``basis.labels()``)."""
-        return (self._solve_s @ self._check(y)) / self._scale
+    def _solve(self, y) -> tuple[float, np.ndarray]:
+        """(h0, scaled coefficients theta_s) of an output y."""
+        y = self._check(y)
+        if not self.fit_h0:
+            return 0.0, self._solve_s @ y
+        ybar = float(y.mean())
+        theta_s = self._solve_s @ (y - ybar)
+        return ybar - float(self._mean_s @ theta_s), theta_s
 
-    def components(self, y) -> dict:
-        """{order: y_n} of the output ``y`` (same units as y)."""
-        theta_s = self._solve_s @ self._check(y)
-        return {n: self._Gs[:, b] @ theta_s[b] for n, b in self._blocks.items()}
+    def coefficients(self, y) -> np.ndarray:
+        """Least-squares kernel coefficients (column order of ``basis.labels()``)."""
+        return self._solve(y)[1] / self._scale
+
+    def h0(self, y) -> float:
+        """Least-squares zeroth-order term h0 of ``y`` [y unit] (0 if not fitted)."""
+        return self._solve(y)[0]
+
+    def components(self, y, include_h0: bool = False) -> dict:
+        """{order: y_n} of the output ``y`` (same units as y); with
+        ``include_h0`` also {0: y0}, the constant h0 on every sample."""
+        h0, theta_s = self._solve(y)
+        out = {0: np.full(self.u.size, h0)} if include_h0 else {}
+        out.update({n: self._Gs[:, b] @ theta_s[b] for n, b in self._blocks.items()})
+        return out
 
     def model(self, y) -> VolterraModel:
         """The fitted :class:`VolterraModel` (without fit diagnostics)."""
-        return VolterraModel(self.basis, self.coefficients(y))
+        h0, theta_s = self._solve(y)
+        return VolterraModel(self.basis, theta_s / self._scale, h0=h0)
