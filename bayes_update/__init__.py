@@ -5,7 +5,8 @@ A model is any object with declared ``parameters`` (:class:`Parameter`) and
 ``simulate(theta, force, fs)``; see :mod:`bayes_update.core` and docs/models.md.
 """
 
-from .core import Model, ModelSpecError, Parameter, ParameterSet, check_model, load_model
+from .core import Model, ModelError, ModelSpecError, Parameter, ParameterSet, Problem, check_model, load_model
 
-__all__ = ["Model", "ModelSpecError", "Parameter", "ParameterSet", "check_model", "load_model"]
+__all__ = ["Model", "ModelError", "ModelSpecError", "Parameter", "ParameterSet", "Problem", "check_model",
+           "load_model"]
 __version__ = "0.1.0"

@@ -14,6 +14,7 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from . import signals
+from .core import ModelError
 from .dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
 
 # the paper's high-level chirp on the default (locking-free) rig [N]
@@ -21,9 +22,11 @@ DEFAULT_CHIRP_AMPLITUDE = 0.1
 
 
 def _add_model_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", choices=("fe", "rom"), default="fe",
-                   help="fe: the full FE model (default); rom: the modal reduced-order model "
-                        "(fe.ModalROM, ~1 ms per run)")
+    p.add_argument("--model", default="fe", metavar="SPEC",
+                   help="fe: the beam's full FE model (default); rom: its modal reduced-order model "
+                        "(fe.ModalROM, ~1 ms per run); or your own model, path/to/file.py:NAME or "
+                        "package.module:NAME (a class or zero-argument factory with `parameters` and "
+                        "`simulate(theta, force, fs)`; docs/models.md; sample only, for now)")
     p.add_argument("--modes", type=int, default=None,
                    help="modes kept by --model rom (default 3)")
     p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
@@ -53,8 +56,23 @@ def _add_factor_options(p: argparse.ArgumentParser) -> None:
                    help="allow --bending-stiffness-factor to differ from the factor the data set states")
 
 
+BEAM_MODELS = ("fe", "rom")
+
+
+def _user_model(args):
+    """The user's model of ``--model SPEC``, or None for the beam's."""
+    if args.model in BEAM_MODELS:
+        return None
+    from .core import load_model
+
+    return load_model(args.model)
+
+
 def _model_for(args, rig: fe.Rig):
     """The model the options ask for, on ``rig``."""
+    if args.model not in BEAM_MODELS:
+        raise ValueError(f"--model {args.model}: `{args.command}` runs the beam models ({', '.join(BEAM_MODELS)}) "
+                         "only so far; `bayes-update sample` takes a model of your own")
     if args.model == "rom":
         from fe.rom import DEFAULT_ROM_MODES
         return fe.ModalROM(rig=rig, n_modes=args.modes or DEFAULT_ROM_MODES)
@@ -305,6 +323,33 @@ def _prior_space(rig, items):
     return ParameterSpace(rig, **ranges)
 
 
+def _user_prior(model, items):
+    """The model's declared prior, with --prior NAME=LO:HI ranges (the parameter's unit) replaced."""
+    import dataclasses
+
+    from .core import ParameterSet
+
+    params = {p.name: p for p in model.parameters}
+    for item in items:
+        try:
+            name, rng = item.split("=", 1)
+            lo, hi = (float(v) for v in rng.split(":"))
+        except ValueError:
+            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI") from None
+        if name not in params:
+            raise ValueError(f"--prior {item!r}: the model's parameters are {sorted(params)}")
+        params[name] = dataclasses.replace(params[name], low=lo, high=hi)
+    return ParameterSet(list(params.values()), model) if items else None
+
+
+def _user_truth(data, space) -> dict | None:
+    """A synthetic data set's truth block, when it names the model's parameters (plots only)."""
+    truth = data.extra.get("truth")
+    if isinstance(truth, dict) and set(space.names) <= set(truth):
+        return {n: float(truth[n]) for n in space.names}
+    return None
+
+
 def cmd_sample(args) -> int:
     import dataclasses
 
@@ -313,20 +358,24 @@ def cmd_sample(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
-    if args.direct and args.model != "rom":
+    if args.direct and args.model == "fe":
         print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
               "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
     data = read_dataset(args.data) if args.data else load_default_dataset()
-    rig = _rig_for(data, args)
-    data = dataclasses.replace(data, rig=rig)
-    model = _model_for(args, rig)
     kw = {} if args.seed is None else {"seed": args.seed}
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
-    space = _prior_space(rig, args.prior)
+    model = _user_model(args)
+    if model is None:
+        rig = _rig_for(data, args)
+        data = dataclasses.replace(data, rig=rig)
+        model = _model_for(args, rig)
+        space = _prior_space(rig, args.prior)
+    else:
+        space = _user_prior(model, args.prior)
     res = sample(data, model, settings, workers=args.workers, direct=args.direct, space=space,
                  cache_dir=None if args.no_cache else args.cache_dir)
     from .virtual_rig import truth_paper_units
-    truth = truth_paper_units(data)
+    truth = truth_paper_units(data) if args.model in BEAM_MODELS else _user_truth(data, res.space)
     write_posterior(res, args.out, truth=truth)
     print(format_summary(res))
     t = res.timing
@@ -444,7 +493,7 @@ def main(argv=None) -> int:
         if getattr(args, "out", None) is None and args.command != "make-dataset":
             return args.func(args)
         return _run_staged(args)
-    except (ValueError, DatasetError, fe.ConvergenceError) as exc:
+    except (ValueError, DatasetError, fe.ConvergenceError, ModelError) as exc:
         print(f"bayes-update {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

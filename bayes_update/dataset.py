@@ -73,6 +73,8 @@ import numpy as np
 
 from fe import Rig
 
+from .core.problem import DataError
+
 ROLES = ("linear", "nonlinear", "validation")
 """Roles of a test: ``linear`` (low level, fits the linear kernel: e_lin),
 ``nonlinear`` (high level: e_nlin), ``validation`` (not used by the update)."""
@@ -91,7 +93,7 @@ VALUE_FORMAT = "%.9e"
 TIME_TOLERANCE = 0.01
 
 
-class DatasetError(ValueError):
+class DatasetError(DataError):
     """A data set folder or file is malformed; the message names the file."""
 
 

@@ -164,6 +164,45 @@ class ParameterSpace:
         return {"eta_MPa_s": list(self.eta), "c_N_s_per_mm": list(self.c), "F_N": list(self.F),
                 "k_s_N_per_mm": list(self.k_s)}
 
+    # -- the interface the generic pipeline uses (bayes_update.core.ParameterSet has the same) --
+    coordinate_names = NAMES                        # internal coordinates
+    units = UNITS                                   # paper units (also of F)
+    public_names = ("eta", "c", "F", "k_s")         # the declared parameters, in paper units
+    report_units = SI_UNITS                         # posterior.nc and summary values (SI) ...
+    display = {n: (UNITS[n], TO_SI[n]) for n in SI_UNITS}   # ... and their paper units, factor to SI
+    has_ridge = True                                # the linear-only posterior and the ridge plot
+
+    def report(self, X) -> dict:
+        """Variables of posterior.nc and the summary: the parameters and P_eff, SI."""
+        return self.to_si(X)
+
+    def describe(self, params: fe.Parameters) -> dict:
+        """A point in paper units, with P_eff (JSON)."""
+        return {"eta_MPa_s": params.eta / MPA_S, "c_N_s_per_mm": params.c / N_S_PER_MM,
+                "F_N": params.F, "k_s_N_per_mm": params.k_s / N_PER_MM,
+                "P_eff_N": params.effective_preload(self.rig)}
+
+    def public_box(self) -> np.ndarray:
+        """(4, 2) prior box of the declared parameters (eta, c, F, k_s), paper units."""
+        return np.array([self.eta, self.c, self.F, self.k_s], float)
+
+    def public_to_parameters(self, u) -> fe.Parameters:
+        u = np.asarray(u, float)
+        return fe.Parameters(eta=u[0] * MPA_S, c=u[1] * N_S_PER_MM, F=u[2], k_s=u[3] * N_PER_MM)
+
+    def extra_starts(self, x, n: int = 3) -> list:
+        """Points on the (c, k_s) band at the (eta, P_eff) of ``x``: an n x n grid
+        over the prior's c and k_s ranges, kept where F stays inside its range
+        (the low level pins eta and P_eff; along the band the nonlinear misfit
+        can have more than one valley)."""
+        out = []
+        for c in self.c[0] + (self.c[1] - self.c[0]) * (np.arange(n) + 0.5) / n:
+            for ks in self.k_s[0] + (self.k_s[1] - self.k_s[0]) * (np.arange(n) + 0.5) / n:
+                p = np.array([x[0], c, x[2], ks])
+                if np.isfinite(self.log_prior(p)[0]):
+                    out.append(p)
+        return out
+
 
 @dataclass(frozen=True)
 class StageScale:
@@ -179,6 +218,7 @@ class StageScale:
     span_variance: float | None = None   # noise variance per direction in the span of the parameters' sensitivities
     span_rank: int | None = None
     model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up
+    model_error_source: str | None = None   # what e_model was measured against, or why it is zero
 
     @property
     def noise_sd(self) -> float:
@@ -300,7 +340,7 @@ def refined_model(model):
 
     ``fe.BeamModel``: 3x the elements and 4x the substeps; ``fe.ModalROM``:
     the full FE at those settings (the ROM's truncation and its integration are
-    the error).  Anything else: ``model.refined()`` if it has one."""
+    the error).  Anything else: ``model.refined()`` if it has one, else None."""
     if hasattr(model, "refined"):
         return model.refined()
     if isinstance(model, fe.BeamModel):
@@ -309,8 +349,7 @@ def refined_model(model):
     if isinstance(model, fe.ModalROM):
         return fe.BeamModel(rig=model.rig, n_elements=3 * fe.model.DEFAULT_ELEMENTS,
                             substeps=4 * fe.model.DEFAULT_SUBSTEPS, effects=model.effects)
-    raise TypeError(f"no refined version of {type(model).__name__} is known: give refined= explicitly "
-                    "or model_error=False")
+    return None     # no finer model known: the model-error term is zero (the report says so)
 
 
 def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
@@ -340,9 +379,11 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
     if int(n_replicates) != n_replicates or n_replicates < 4:
         raise ValueError(f"n_replicates must be an integer >= 4, got {n_replicates!r}")
     stages = problem.stages if stages is None else tuple(stages)
-    ref_model = None
+    ref_model, error_source = None, "off (model_error=False)"
     if model_error:
         ref_model = refined if refined is not None else refined_model(problem.model)
+        error_source = (f"{type(ref_model).__name__} (refined)" if ref_model is not None else
+                        f"none: {type(problem.model).__name__} has no refined(), so the model error is taken as 0")
     scales, residuals = {}, {}
     for i, stage in enumerate(stages):
         test = problem.tests[stage]
@@ -358,7 +399,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         for _ in range(int(n_replicates)):
             u = test.force + sig_f * rng.standard_normal(test.force.size)
             y_meas = v0 + sig_y * rng.standard_normal(v0.size)
-            v = fe.simulate(problem.model, params, u, fs=fs, positions=[problem.rig.sensor_position_m]).sensor_velocity
+            v = problem.run(params, u)
             proj = volterra.VolterraProjector(u, basis)
             D.append((stage_output(stage, proj.components(y_meas)) - stage_output(stage, proj.components(v)))
                      / ref_norm)
@@ -366,12 +407,11 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         e2 = np.sum(D ** 2, axis=1)
         n_reg = _n_regressors(basis, stage)
         mean, nu = noise_scale_from_replicates(e2, n_reg)
-        Q = sensitivity_span(problem, stage, params, space or ParameterSpace(problem.rig))
+        Q = sensitivity_span(problem, stage, params, space if space is not None else ParameterSpace(problem.rig))
         span_var = float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / Q.shape[1])
         e_model = e_perp = 0.0
         if ref_model is not None:
-            v_ref = fe.simulate(ref_model, params, test.force, fs=fs,
-                                positions=[problem.rig.sensor_position_m]).sensor_velocity
+            v_ref = problem.run(params, test.force, model=ref_model)
             d = stage_output(stage, problem.components(stage, v0)) - \
                 stage_output(stage, problem.components(stage, v_ref))
             e_model = float(np.linalg.norm(d) / ref_norm)
@@ -382,7 +422,8 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
                                    noise_levels={"force_N": sig_f, "velocity_m_s": sig_y,
                                                  "band_hz": list(band)},
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
-                                   model_error_unabsorbed=e_perp)
+                                   model_error_unabsorbed=e_perp,
+                                   model_error_source=error_source)
     return Likelihood(scales, residuals)
 
 
@@ -407,6 +448,7 @@ class CurvatureAdjustment:
     A: np.ndarray
     variance_ratios: np.ndarray
     sd_ratios: np.ndarray       # per coordinate: adjusted / unadjusted Laplace sd
+    names: tuple = NAMES        # the coordinates' names
 
     def __call__(self, X) -> np.ndarray:
         """The points at which to evaluate the unadjusted likelihood."""
@@ -414,11 +456,11 @@ class CurvatureAdjustment:
 
     def to_dict(self) -> dict:
         return {"variance_ratios": self.variance_ratios.tolist(),
-                "sd_ratios": dict(zip(NAMES, self.sd_ratios.tolist()))}
+                "sd_ratios": dict(zip(self.names, self.sd_ratios.tolist()))}
 
 
 def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stages=None,
-                         clip: float = 16.0) -> CurvatureAdjustment | None:
+                         clip: float = 16.0, names=NAMES) -> CurvatureAdjustment | None:
     """The :class:`CurvatureAdjustment` at the mode ``center``.
 
     jacobian : (n, d) derivative of the stages' scaled residual vectors,
@@ -462,7 +504,7 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     cov0 = np.linalg.inv(H)
     cov1 = A_s_inv @ cov0 @ A_s_inv.T
     return CurvatureAdjustment(center=np.asarray(center, float), A=A, variance_ratios=omega,
-                               sd_ratios=np.sqrt(np.diag(cov1) / np.diag(cov0)))
+                               sd_ratios=np.sqrt(np.diag(cov1) / np.diag(cov0)), names=tuple(names))
 
 
 def sensitivity_span(problem: UpdatingProblem, stage: str, params: fe.Parameters,

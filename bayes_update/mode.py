@@ -26,10 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-import fe
-
+from .core.problem import Problem, stage_output
 from .evaluation import evaluate_many
-from .metrics import UpdatingProblem, stage_output
 
 #: residual value (per entry, scaled) standing in for a failed model run
 FAILED_RESIDUAL = 1e3
@@ -39,13 +37,13 @@ FAILED_RESIDUAL = 1e3
 class ResidualFunction:
     """Picklable ``x -> r(x)``: the stages' scaled residual vectors, concatenated.
 
-    ``point_map(x) -> (model, fe.Parameters)``; ``scales[i]`` is the
+    ``point_map(x) -> (model, params)``; ``scales[i]`` is the
     likelihood scale s of ``stages[i]``, so ``-log L = 1/2 ||r||^2``.  A
     failed run (buckling, divergence) gives a vector of
     :data:`FAILED_RESIDUAL` entries: a least-squares step into it is rejected.
     """
 
-    problem: UpdatingProblem
+    problem: Problem
     stages: tuple
     scales: tuple
     point_map: object
@@ -58,9 +56,8 @@ class ResidualFunction:
             ref = stage_output(stage, self.problem.reference_components(stage))
             n = ref.size
             try:
-                v = fe.simulate(model, params, test.force, fs=self.problem.fs,
-                                positions=[self.problem.rig.sensor_position_m]).sensor_velocity
-            except (fe.BucklingError, fe.ConvergenceError):
+                v = self.problem.run(params, test.force, model=model)
+            except self.problem.failures:
                 out.append(np.full(n, FAILED_RESIDUAL))
                 continue
             mod = stage_output(stage, self.problem.components(stage, v))

@@ -43,8 +43,9 @@ import surrogates
 
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
-from .likelihood import (NAMES, SI_UNITS, UNITS, CurvatureAdjustment, Likelihood, ParameterSpace,
-                         curvature_adjustment, estimate_likelihood)
+from .core import Problem, check_model
+from .likelihood import (UNITS, CurvatureAdjustment, Likelihood, ParameterSpace, curvature_adjustment,
+                         estimate_likelihood)
 from .metrics import UpdatingProblem, stage_output
 
 
@@ -74,12 +75,13 @@ class PosteriorSettings:
     model_error: bool = True    # add the measured model error to the likelihood
     curvature_adjustment: bool = True   # sandwich-adjust the likelihood's curvature (likelihood.curvature_adjustment)
     map_max_evaluations: int = 600
+    n_start: int = 64           # Sobol' points of the start search (models other than the beam)
     seed: int = 0
 
     def __post_init__(self):
         for name in ("n_replicates", "n_initial", "n_rounds", "batch", "n_walkers", "n_steps", "burn", "thin",
                      "direct_steps", "direct_burn", "box_attempts",
-                     "n_linear", "n_global", "sobol_n", "n_predictive", "map_max_evaluations"):
+                     "n_linear", "n_global", "sobol_n", "n_predictive", "map_max_evaluations", "n_start"):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < 0:
                 raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
@@ -268,15 +270,8 @@ class _BaseMap:
 
 
 def band_starts(space: ParameterSpace, x, n: int = 3) -> list:
-    """Points on the (c, k_s) band at the (eta, P_eff) of ``x``: an n x n grid
-    over the prior's c and k_s ranges, kept where F stays inside its range."""
-    out = []
-    for c in space.c[0] + (space.c[1] - space.c[0]) * (np.arange(n) + 0.5) / n:
-        for ks in space.k_s[0] + (space.k_s[1] - space.k_s[0]) * (np.arange(n) + 0.5) / n:
-            p = np.array([x[0], c, x[2], ks])
-            if np.isfinite(space.log_prior(p)[0]):
-                out.append(p)
-    return out
+    """The beam's extra MAP starts on the (c, k_s) band: :meth:`ParameterSpace.extra_starts`."""
+    return space.extra_starts(x, n)
 
 
 def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
@@ -299,7 +294,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])
     starts = [x0]
-    grid = band_starts(space, x0)
+    grid = space.extra_starts(x0)
     if grid and len(stages) > 1:
         cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
         starts += [grid[i] for i in np.argsort(cost)[:2]]
@@ -335,7 +330,7 @@ def local_box(space: ParameterSpace, x_map, cov, box_sd: float, free=()) -> np.n
     box[:, 0] = np.maximum(box[:, 0], prior[:, 0])
     box[:, 1] = np.minimum(box[:, 1], prior[:, 1])
     for name in free:
-        i = NAMES.index(name)
+        i = space.coordinate_names.index(name)
         box[i] = prior[i]
     return box
 
@@ -343,12 +338,19 @@ def local_box(space: ParameterSpace, x_map, cov, box_sd: float, free=()) -> np.n
 # -------------------------------------------------------------------- emcee
 def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize: bool,
               pool=None, progress: bool = True):
-    """emcee's stretch move from ``x_init`` (n_walkers, d), seeded."""
+    """emcee's stretch move from ``x_init`` (n_walkers, d), seeded.
+
+    A vectorised log probability (the GP surrogates) runs with one BLAS thread:
+    its matrices are a few hundred wide at most, where threads cost more than
+    they bring (on a loaded 2-core machine a 72-point GP's triangular solve for
+    16 walkers took 5 ms with the default threads)."""
     import emcee
+    from threadpoolctl import threadpool_limits
 
     sampler = emcee.EnsembleSampler(n_walkers, x_init.shape[1], log_prob, vectorize=vectorize, pool=pool)
     sampler.random_state = np.random.RandomState(np.random.SeedSequence(seed).generate_state(1)[0]).get_state()
-    sampler.run_mcmc(x_init, n_steps, progress=progress)
+    with threadpool_limits(1 if vectorize else None):
+        sampler.run_mcmc(x_init, n_steps, progress=progress)
     return sampler
 
 
@@ -367,36 +369,41 @@ def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.
     raise RuntimeError("could not place the MCMC walkers where the posterior is finite")
 
 
-def to_inference_data(chain, log_prob, space: ParameterSpace, attrs: dict):
-    """ArviZ InferenceData (chain = walker) in SI units, with P_eff."""
+def to_inference_data(chain, log_prob, space, attrs: dict):
+    """ArviZ InferenceData (chain = walker) of the space's reported variables
+    (``space.report``: the beam's in SI with P_eff, a model's in its parameters' units)."""
     import arviz as az
 
     X = np.swapaxes(chain, 0, 1)                    # (walker, draw, d)
-    si = space.to_si(X.reshape(-1, X.shape[-1]))
-    post = {k: v.reshape(X.shape[:2]) for k, v in si.items()}
+    values = space.report(X.reshape(-1, X.shape[-1]))
+    post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
     idata = az.from_dict(posterior=post, sample_stats={"lp": np.swapaxes(log_prob, 0, 1)},
-                         attrs={**attrs, **{f"units_{k}": u for k, u in SI_UNITS.items()}})
+                         attrs={**attrs, **{f"units_{k}": u for k, u in space.report_units.items()}})
     return idata
 
 
-def summarize(idata, hdi_prob: float = 0.94) -> dict:
-    """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail (SI)
-    and the same in paper units."""
+def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
+    """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail (in
+    ``space.report_units``) and, when ``space.display`` shows other units (the
+    beam's paper units), the same in those under ``paper_units``."""
     import arviz as az
 
     s = az.summary(idata, hdi_prob=hdi_prob, round_to="none")
     lo, hi = f"hdi_{100 * (1 - hdi_prob) / 2:g}%", f"hdi_{100 * (1 + hdi_prob) / 2:g}%"
     out = {}
-    for var in ("eta", "c", "F", "k_s", "P_eff"):
+    # a space that shows other units than it reports in (the beam: SI vs paper units) shows all of them
+    shown_apart = any(space.display[v] != (u, 1.0) for v, u in space.report_units.items())
+    for var, unit in space.report_units.items():
         row = s.loc[var]
-        factor = {"eta": 1e6, "c": 1e3, "F": 1.0, "k_s": 1e3, "P_eff": 1.0}[var]
         out[var] = {"mean": float(row["mean"]), "sd": float(row["sd"]), "hdi_3%": float(row[lo]),
                     "hdi_97%": float(row[hi]), "r_hat": float(row["r_hat"]),
                     "ess_bulk": float(row["ess_bulk"]), "ess_tail": float(row["ess_tail"]),
-                    "units": SI_UNITS[var],
-                    "paper_units": {"unit": UNITS[var], "mean": float(row["mean"]) / factor,
-                                    "sd": float(row["sd"]) / factor, "hdi_3%": float(row[lo]) / factor,
-                                    "hdi_97%": float(row[hi]) / factor}}
+                    "units": unit}
+        shown, factor = space.display[var]
+        if shown_apart:
+            out[var]["paper_units"] = {"unit": shown, "mean": float(row["mean"]) / factor,
+                                       "sd": float(row["sd"]) / factor, "hdi_3%": float(row[lo]) / factor,
+                                       "hdi_97%": float(row[hi]) / factor}
     return out
 
 
@@ -425,10 +432,10 @@ class PosteriorResult:
     n_model_runs_reused: dict = field(default_factory=dict)  # found in the cache instead of run
 
     def summary_json(self) -> dict:
-        return {"parameters": self.summary, "map": dict(zip(NAMES, map(float, self.map.x))),
-                "map_units": dict(UNITS), "likelihood": self.likelihood.to_dict(),
+        return {"parameters": self.summary, "map": dict(zip(self.space.coordinate_names, map(float, self.map.x))),
+                "map_units": dict(self.space.units), "likelihood": self.likelihood.to_dict(),
                 "prior": self.space.to_dict(),
-                "laplace_box": dict(zip(NAMES, self.box.tolist())),
+                "laplace_box": dict(zip(self.space.coordinate_names, self.box.tolist())),
                 "start": self.start, "diagnostics": self.diagnostics, "direct": self.direct,
                 "settings": asdict(self.settings),
                 "linear_only": {k: v for k, v in self.linear_only.items() if not k.startswith("_")},
@@ -479,34 +486,36 @@ def _box_cut_fraction(U, box_sd: float, whitening: Whitening, space: ParameterSp
     return float(cut.mean())
 
 
-def _chain_diagnostics(sampler, burn: int) -> dict:
+def _chain_diagnostics(sampler, burn: int, names) -> dict:
     chain = sampler.get_chain(discard=burn)
     tau = sampler.get_autocorr_time(discard=burn, quiet=True)
-    return {"autocorr_time_steps": dict(zip(NAMES, map(float, tau))),
+    return {"autocorr_time_steps": dict(zip(names, map(float, tau))),
             "acceptance_fraction": float(np.mean(sampler.acceptance_fraction)),
             "n_draws": int(chain.shape[0] * chain.shape[1])}
 
 
 def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
-           start: fe.Parameters | None = None, space: ParameterSpace | None = None,
-           likelihood: Likelihood | None = None, cache_dir=None, progress: bool = True,
-           log=print) -> PosteriorResult:
-    """Sample the posterior of (eta, c, F, k_s) given ``dataset`` (module docstring).
+           start=None, space=None, likelihood: Likelihood | None = None, cache_dir=None,
+           progress: bool = True, log=print) -> PosteriorResult:
+    """Sample the posterior of a model's parameters given ``dataset`` (module docstring).
 
-    model : the updating model (default ``fe.BeamModel(rig=dataset.rig)``).
-    direct : run emcee on the model itself (no surrogate); sensible with
-        ``fe.ModalROM`` (about 2 ms per likelihood evaluation).
-    start : skip the deterministic start and begin at these parameters.
+    model : the updating model: any model of the contract
+        (:mod:`bayes_update.core.model`: declared ``parameters`` and
+        ``simulate(theta, force, fs)``), or the beam (``fe.BeamModel``, the
+        default, or ``fe.ModalROM``; parameters eta, c, F, k_s).
+    space : the prior (default: the model's declared parameters; the beam's
+        :class:`ParameterSpace` box of DESIGN.md).
+    direct : run emcee on the model itself (no surrogate); sensible with a
+        model of a few ms per run (``fe.ModalROM``: about 2 ms per evaluation).
+    start : skip the start search and begin at these parameters (theta, or
+        ``fe.Parameters`` for the beam).
     likelihood : use these scales instead of measuring them at the start
         (e.g. to compare a direct and a surrogate posterior under one likelihood).
     cache_dir : folder of the netCDF evaluation cache (an interrupted run resumes).
     """
     settings = settings or PosteriorSettings()
-    rig = dataset.rig
-    model = model if model is not None else fe.BeamModel(rig=rig)
-    space = space or ParameterSpace(rig)
-    problem = UpdatingProblem(dataset, model)
+    problem, space = make_problem(dataset, model, space)
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
                          "(the high-level chirp) as well as the 'linear' one")
@@ -523,25 +532,57 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
             pool.shutdown()
 
 
+def make_problem(dataset: Dataset, model=None, space=None):
+    """(problem, space) for ``model`` on ``dataset``: a model of the contract
+    (declared ``parameters``; checked with one run here, before any heavy work)
+    gets a :class:`bayes_update.core.Problem` and its :class:`ParameterSet`; the
+    beam (``fe.BeamModel`` or ``fe.ModalROM``, the default) gets
+    :class:`UpdatingProblem` and the (eta, c, P_eff, k_s) :class:`ParameterSpace`."""
+    if model is not None and hasattr(model, "parameters"):
+        checked = check_model(model, dataset.by_role("linear")[0].force if dataset.by_role("linear")
+                              else dataset.tests[0].force, dataset.sampling_rate_hz)
+        return Problem(dataset, model), space if space is not None else checked
+    model = model if model is not None else fe.BeamModel(rig=dataset.rig)
+    return UpdatingProblem(dataset, model), space if space is not None else ParameterSpace(dataset.rig)
+
+
+def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):
+    """(start point, model runs): the beam's is the paper's deterministic updating
+    on coarse grids; any other model's is the best point, by the sum of the
+    stages' metrics, of a scrambled Sobol' design of ``n_points`` over the prior."""
+    if isinstance(problem, UpdatingProblem):
+        from .calibrate import CalibrationSettings, calibrate
+
+        log("start: the deterministic two-stage updating on coarse grids")
+        cal = calibrate(dataset, problem.model, CalibrationSettings.quick(), executor=pool,
+                        progress=progress, log=lambda *a: None)
+        return cal.final_params, cal.setup["n_model_runs"]
+    log(f"start: the best of {n_points} Sobol' points over the prior")
+    from scipy.stats import qmc
+
+    U = qmc.Sobol(len(space), scramble=True, seed=seed).random(n_points)
+    points = [space.theta(space.from_unit(u)) for u in U]
+    res = evaluate_many(partial(problem.evaluate, stages=problem.stages), points, pool, progress=progress,
+                        desc="start design")
+    score = [sum(r[Likelihood.key(st)] for st in problem.stages) for r in res]
+    if not np.any(np.isfinite(score)):
+        raise RuntimeError(f"the model failed at all {n_points} start points: " + str(res[0].get("error")))
+    return points[int(np.nanargmin(score))], len(points) * len(problem.stages)
+
+
 def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress, log,
             stages, timing, runs, reused, t_all):
-    from .calibrate import CalibrationSettings, calibrate, paper_units
-
-    rig = problem.rig
     seeds = np.random.SeedSequence(settings.seed).spawn(8)
     seed_of = [int(s.generate_state(1)[0]) for s in seeds]
     # 1. start ---------------------------------------------------------------
     t0 = time.perf_counter()
     if start is None:
-        log("start: the deterministic two-stage updating on coarse grids")
-        cal = calibrate(dataset, problem.model, CalibrationSettings.quick(), executor=pool,
-                        progress=progress, log=lambda *a: None)
-        start = cal.final_params
-        runs["start"] = cal.setup["n_model_runs"]
+        start, runs["start"] = default_start(dataset, problem, space, pool, settings.n_start, seed_of[7],
+                                             progress, log)
     else:
         space.check(start, "start")
         runs["start"] = 0
-    start_info = paper_units(start, rig)
+    start_info = space.describe(start)
     if not space.contains(start):
         start = space.to_parameters(np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1]))
     timing["start"] = time.perf_counter() - t0
@@ -569,15 +610,16 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     box = local_box(space, mp.x, mp.covariance, settings.box_sd)
     runs["map_laplace"] = len(stages) * mp.n_evaluations
     timing["map_laplace"] = time.perf_counter() - t0
-    log("MAP: " + ", ".join(f"{n} = {v:.4g} {UNITS[n]}" for n, v in zip(NAMES, mp.x))
+    log("MAP: " + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
         + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
     adj = None
     if settings.curvature_adjustment and mp.mode is not None:
-        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0], stages)
+        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0], stages,
+                                   names=space.coordinate_names)
         if adj is not None:
             log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
                 + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
-                + ", ".join(f"{n} {v:.2f}" for n, v in zip(NAMES, adj.sd_ratios)))
+                + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
     result = dict(design={}, surrogates={})
     # 4-5. sampling -----------------------------------------------------------------
     if direct:
@@ -594,7 +636,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     else:
         t0 = time.perf_counter()
         whitening = Whitening.from_covariance(mp.x, capped_covariance(mp.covariance, space, settings.box_sd))
-        ubox = np.array([[-settings.box_sd, settings.box_sd]] * len(NAMES), float)
+        ubox = np.array([[-settings.box_sd, settings.box_sd]] * len(space.coordinate_names), float)
         timing["gp_fit"], timing["mcmc"], runs["design"] = 0.0, 0.0, 0
         for attempt in range(settings.box_attempts):
             t0 = time.perf_counter()
@@ -607,7 +649,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
             result["design"] = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
             t0 = time.perf_counter()
             logp_u = WhitenedLogPosterior(gps, space, ubox, whitening, adj)
-            u_init = initial_walkers(logp_u, np.zeros(len(NAMES)), np.eye(len(NAMES)), settings.n_walkers,
+            u_init = initial_walkers(logp_u, np.zeros(len(space.coordinate_names)), np.eye(len(space.coordinate_names)), settings.n_walkers,
                                      seed_of[1])
             sampler = run_emcee(logp_u, u_init, settings.n_walkers, settings.n_steps, seed_of[2],
                                 vectorize=True, progress=progress)
@@ -629,7 +671,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         sampler = _XSampler(sampler, whitening)
     burn = settings.direct_burn if direct else settings.burn
     thin = 1 if direct else settings.thin
-    diag = _chain_diagnostics(sampler, burn)
+    diag = _chain_diagnostics(sampler, burn, space.coordinate_names)
     if isinstance(sampler, _XSampler):
         diag["box_cut_fraction"] = _box_cut_fraction(
             logp_u.gp_points(sampler.sampler.get_chain(discard=burn, flat=True)), settings.box_sd,
@@ -642,7 +684,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     lp = sampler.get_log_prob(discard=burn, thin=thin)
     idata = to_inference_data(chain, lp, space, {"source": str(problem.source), "direct": int(direct),
                                                   "model": type(problem.model).__name__})
-    summary = summarize(idata)
+    summary = summarize(idata, space)
     diag["max_r_hat"] = max(v["r_hat"] for v in summary.values())
     diag["min_ess_bulk"] = min(v["ess_bulk"] for v in summary.values())
     if diag.get("box_cut_fraction", 0.0) > 1e-2:
@@ -661,7 +703,7 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         res.predictive = posterior_predictive(res, settings.n_predictive, pool, seed_of[4], progress)
         runs["predictive"] = len(stages) * settings.n_predictive
         timing["predictive"] = time.perf_counter() - t0
-    if settings.n_linear and not direct:
+    if settings.n_linear and not direct and getattr(space, "has_ridge", False):
         t0 = time.perf_counter()
         res.linear_only = linear_only_posterior(res, pool, seed_of[5], cache_dir, progress, log, reused)
         runs["linear_only"] = res.linear_only["n_model_runs"]
@@ -678,8 +720,8 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
     return res
 
 
-def _gp_factory(box, seed):
-    return surrogates.GPSurrogate(box, transform="none", names=list(NAMES), n_restarts_optimizer=2, seed=seed)
+def _gp_factory(box, seed, names):
+    return surrogates.GPSurrogate(box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed)
 
 
 def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings, pool, cache_dir, stages, seed,
@@ -721,7 +763,7 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
         return np.vstack([draws, sob])
 
     def factory():
-        return _gp_factory(box, seed=0)
+        return _gp_factory(box, seed=0, names=space.coordinate_names)
 
     with threadpool_limits(2):
         t = time.perf_counter()
@@ -745,7 +787,8 @@ def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = Non
     from .metrics import describe_basis
     config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
               "basis": describe_basis(ev.problem.basis), "data": ev.problem.data_fingerprint,
-              "rig": ev.problem.rig.to_dict(), "coordinates": list(NAMES)}
+              "rig": ev.problem.rig.to_dict() if ev.problem.rig is not None else None,
+              "coordinates": list(ev.space.coordinate_names)}
     if whitening is not None:     # points are stored in the whitened coordinates
         config["whitening"] = {"center": whitening.center.tolist(), "L": whitening.L.tolist()}
     path = Path(cache_dir)
@@ -768,7 +811,7 @@ class _Predict:
         for st in self.problem.stages:
             try:
                 v = self.problem.simulate(p, st)
-            except (fe.BucklingError, fe.ConvergenceError):
+            except self.problem.failures:
                 return None
             out[st] = stage_output(st, self.problem.components(st, v))
             out[Likelihood.key(st)] = self.problem.metric(st, v)
@@ -827,7 +870,7 @@ def linear_only_posterior(res: PosteriorResult, pool, seed, cache_dir, progress,
     def weight(sur):
         return SurrogateLogPosterior({"linear": sur}, res.space, box)
 
-    ref = surrogates.refine(ev, lambda: _gp_factory(box, 0), X, y, weight, 1, max(8, s.n_linear // 4), pool,
+    ref = surrogates.refine(ev, lambda: _gp_factory(box, 0, res.space.coordinate_names), X, y, weight, 1, max(8, s.n_linear // 4), pool,
                             seed=int(ss[1].generate_state(1)[0]), candidates=2048,
                             target=lambda q: float(lik.to_z("linear", q["e_lin"])), log_weight=True,
                             evaluate=evaluate, progress=progress)
@@ -880,10 +923,10 @@ def write_posterior(res: PosteriorResult, out, truth: dict | None = None, figure
 
 
 def format_summary(res: PosteriorResult) -> str:
-    """Markdown table of the posterior in paper units."""
+    """Markdown table of the posterior (the beam's in paper units)."""
     lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
     for var, v in res.summary.items():
-        p = v["paper_units"]
+        p = v.get("paper_units", {**v, "unit": v["units"]})
         lines.append(f"| {var} [{p['unit']}] | {p['mean']:.5g} | {p['sd']:.3g} | "
                      f"{p['hdi_3%']:.5g} - {p['hdi_97%']:.5g} | {v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
     return "\n".join(lines)

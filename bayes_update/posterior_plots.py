@@ -146,25 +146,49 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     ax1.set_ylabel("metric from the GP [%]")
     ax1.set_title("surrogate honesty at posterior draws")
     ax1.legend(fontsize=8)
-    names = ("eta", "c", "F", "k_s")
+    names = [n for n in next((v["S1"] for v in sensitivity.values() if isinstance(v, dict) and "S1" in v), {})]
+    units = sensitivity.get("units", {})
     width = 0.2
     for k, (key, color) in enumerate((("e_lin", "C0"), ("e_nlin", "C3"))):
         if key not in sensitivity:
             continue
         s1 = [sensitivity[key]["S1"][n] for n in names]
         st = [sensitivity[key]["ST"][n] for n in names]
-        x = np.arange(4) + (k - 0.5) * 2 * width
+        x = np.arange(len(names)) + (k - 0.5) * 2 * width
         ax2.bar(x - width / 2, s1, width, color=color, alpha=0.5, label=f"S1, log {key}")
         ax2.bar(x + width / 2, st, width, color=color, label=f"ST, log {key}")
-    ax2.set_xticks(np.arange(4), [LABELS[n] for n in names])
+    ax2.set_xticks(np.arange(len(names)), [f"{n} [{units[n]}]" if units.get(n) else n for n in names])
     ax2.set_ylabel("Sobol' index")
     ax2.set_title("global sensitivity over the prior box")
     ax2.legend(fontsize=8)
     return fig
 
 
+def arviz_figures(res, truth: dict | None = None) -> dict:
+    """Pair plot (with the truth, if given) and traces of any model's posterior, drawn by ArviZ."""
+    import arviz as az
+
+    names = list(res.space.report_units)
+    axes = az.plot_pair(res.idata, var_names=names, kind="kde" if len(names) <= 3 else "scatter",
+                        marginals=True, reference_values=truth or None,
+                        figsize=(2.6 * len(names), 2.6 * len(names)))
+    pair = np.ravel(axes)[0].figure
+    trace = np.ravel(az.plot_trace(res.idata, var_names=names, compact=True))[0].figure
+    return {"corner": pair, "traces": trace}
+
+
 def posterior_figures(res, truth: dict | None = None) -> dict:
-    """{file stem: Figure} of a :class:`~bayes_update.posterior.PosteriorResult`."""
+    """{file stem: Figure} of a :class:`~bayes_update.posterior.PosteriorResult`:
+    the beam's own corner, traces and ridge (paper units, P_eff), ArviZ's pair
+    plot and traces for any other model; predictive bands and GP checks for both."""
+    if not getattr(res.space, "has_ridge", False):
+        figs = arviz_figures(res, truth)
+        if res.predictive.get("_bands"):
+            names = {st: t.name for st, t in res.problem.tests.items()}
+            figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names)
+        if res.surrogates or res.sensitivity:
+            figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
+        return figs
     mp = dict(zip(("eta", "c", "P_eff", "k_s"), res.map.x))
     mp["F"] = float(res.space.F_of(res.map.x)[0])
     kind = "direct" if res.direct else "surrogate"
@@ -181,4 +205,4 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
     return figs
 
 
-__all__ = ["UNITS", "corner", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge", "traces"]
+__all__ = ["UNITS", "arviz_figures", "corner", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge", "traces"]

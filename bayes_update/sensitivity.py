@@ -1,6 +1,6 @@
 """Global sensitivity of e_lin and e_nlin over the prior box (Sobol' indices).
 
-A Sobol' design over the prior box of (eta, c, F, k_s), one model run per
+A Sobol' design over the prior box of the declared parameters, one model run per
 test at each point, a Gaussian process of log e per metric, and SALib's
 Saltelli estimator of first-order (S1) and total (ST) indices of log e on the
 GP mean.  The indices are for log e: the metrics span decades over the box,
@@ -16,39 +16,34 @@ import numpy as np
 
 import surrogates
 
+from .core.problem import Problem
 from .evaluation import evaluate_many
-from .likelihood import ParameterSpace
-from .metrics import UpdatingProblem
-
-PUBLIC = ("eta", "c", "F", "k_s")
 
 
 @dataclass
 class _EvaluatePublic:
-    problem: UpdatingProblem
-    space: ParameterSpace
+    problem: Problem
+    space: object
 
     def __call__(self, u):
-        import fe
-        u = np.asarray(u, float)
-        p = fe.Parameters(eta=u[0] * 1e6, c=u[1] * 1e3, F=u[2], k_s=u[3] * 1e3)
-        return self.problem.evaluate(p)
+        return self.problem.evaluate(self.space.public_to_parameters(np.asarray(u, float)))
 
 
-def sobol_indices(problem: UpdatingProblem, space: ParameterSpace, n_design: int, n_sobol: int, pool,
-                  seed, progress: bool = True) -> dict:
-    """{metric: {"S1": {...}, "ST": {...}, "S1_conf", "ST_conf", "gp_holdout"}} (SALib)."""
+def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, seed, progress: bool = True) -> dict:
+    """{metric: {"S1": {...}, "ST": {...}, "S1_conf", "ST_conf", "gp_holdout"}} (SALib),
+    over the prior box of the declared parameters (``space.public_box()``, their units)."""
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
 
-    bounds = np.array([space.eta, space.c, space.F, space.k_s], float)
+    PUBLIC = tuple(space.public_names)
+    bounds = space.public_box()
     X = surrogates.design(bounds, n_design, "sobol", seed=seed)
     res = evaluate_many(_EvaluatePublic(problem, space), list(X), pool, progress=progress,
                         desc="global design")
-    salib_problem = {"num_vars": 4, "names": list(PUBLIC), "bounds": bounds.tolist()}
+    salib_problem = {"num_vars": len(PUBLIC), "names": list(PUBLIC), "bounds": bounds.tolist()}
     S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2 ** 31)
-    out = {"n_design": int(n_design), "n_sobol": int(n_sobol), "units": "paper units (MPa s, N s/mm, N, N/mm)",
-           "output": "log e"}
+    out = {"n_design": int(n_design), "n_sobol": int(n_sobol),
+           "units": {n: space.display[n][0] for n in PUBLIC}, "output": "log e"}
     for key in ("e_lin", "e_nlin"):
         y = np.array([r.get(key, np.nan) for r in res], float)
         ok = np.isfinite(y) & (y > 0)

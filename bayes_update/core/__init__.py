@@ -4,8 +4,9 @@ Nothing here knows the beam (or any other model): a model reaches the core
 through the contract of :mod:`bayes_update.core.model` alone.
 """
 
-from .model import BUILTIN_MODELS, Model, ModelSpecError, check_model, load_model
+from .model import BUILTIN_MODELS, Model, ModelError, ModelSpecError, check_model, load_model
+from .problem import DataError, Problem
 from .parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "Model", "ModelSpecError", "Parameter", "ParameterSet", "check_model",
-           "load_model"]
+__all__ = ["BUILTIN_MODELS", "DataError", "Model", "ModelError", "ModelSpecError", "Parameter", "ParameterSet",
+           "Problem", "check_model", "load_model"]

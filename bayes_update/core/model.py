@@ -28,7 +28,7 @@ import numpy as np
 
 from .parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "Model", "ModelSpecError", "check_model", "load_model"]
+__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "check_model", "load_model"]
 
 
 @runtime_checkable
@@ -38,6 +38,12 @@ class Model(Protocol):
     parameters: Sequence[Parameter]
 
     def simulate(self, theta: Mapping[str, float], force: np.ndarray, fs: float) -> np.ndarray: ...
+
+
+class ModelError(RuntimeError):
+    """Raised by a model's ``simulate`` where it cannot run (the parameters lie
+    where the model diverges, buckles, ...).  The framework gives such a point
+    NaN metrics and goes on; any other exception stops the run."""
 
 
 class ModelSpecError(ValueError):

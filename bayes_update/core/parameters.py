@@ -173,11 +173,12 @@ class ParameterSet:
         corners = np.array(np.meshgrid(*[[0.0, 1.0]] * d, indexing="ij")).reshape(d, -1).T
         unit = corners if self._transform is None else np.vstack(
             [corners, qmc.Sobol(d, scramble=True, seed=0).random(n_probe)])
-        X = np.array([self.to_internal(self.theta(self._from_unit(u))) for u in unit])
+        X = np.array([self.to_internal(self.theta(self.from_unit(u))) for u in unit])
         return np.column_stack([X.min(axis=0), X.max(axis=0)])
 
-    def _from_unit(self, U) -> np.ndarray:
-        """Points of the unit cube -> theta values, uniform (or log-uniform) per parameter."""
+    def from_unit(self, U) -> np.ndarray:
+        """Points of the unit cube (n, d) -> parameter values, uniform (or log-uniform)
+        per parameter: the prior's quantile transform."""
         U = np.asarray(U, float)
         lin = self.low + U * (self.high - self.low)
         with np.errstate(divide="ignore"):
@@ -189,12 +190,65 @@ class ParameterSet:
     def sample_prior(self, n: int, seed=None) -> np.ndarray:
         """(n, d) draws from the prior, in internal coordinates."""
         U = np.random.default_rng(seed).random((n, len(self)))
-        return np.array([self.to_internal(self.theta(self._from_unit(u))) for u in U])
+        return np.array([self.to_internal(self.theta(self.from_unit(u))) for u in U])
 
     def center(self) -> dict:
         """theta at the middle of each range (the geometric middle for log scale)."""
-        return self.theta(self._from_unit(np.full(len(self), 0.5)))
+        return self.theta(self.from_unit(np.full(len(self), 0.5)))
 
     def to_dict(self) -> dict:
         return {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
                          **({"null": p.null} if p.null is not None else {})} for p in self.parameters}
+
+    # -- what the inference pipeline reads (the beam's ParameterSpace has the same) --
+    has_ridge = False       # no beam-specific linear-only posterior
+
+    @property
+    def coordinate_names(self) -> tuple:
+        """Names of the internal coordinates: the parameters' (``log_<name>`` for a
+        log-scale one), or a reparameterising model's ``internal_names``."""
+        if self._transform is not None:
+            return tuple(getattr(self._transform, "internal_names", [f"x{i}" for i in range(len(self))]))
+        return tuple(f"log_{p.name}" if p.log else p.name for p in self.parameters)
+
+    @property
+    def units(self) -> dict:
+        """Unit of each internal coordinate (a log-scale one's is the log of its unit)."""
+        if self._transform is not None:
+            return dict.fromkeys(self.coordinate_names, "")
+        return {c: (f"log({p.unit})" if p.unit else "") if p.log else p.unit
+                for c, p in zip(self.coordinate_names, self.parameters)}
+
+    def to_parameters(self, x) -> dict:
+        """theta at internal point x: what the model's ``simulate`` receives."""
+        return self.from_internal(x)
+
+    def report(self, X) -> dict:
+        """{name: values} of the parameters (their units) at internal points X (n, d)."""
+        T = np.array([self.theta_array(self.from_internal(x)) for x in np.atleast_2d(X)])
+        return {n: T[:, i] for i, n in enumerate(self.names)}
+
+    @property
+    def report_units(self) -> dict:
+        return {p.name: p.unit for p in self.parameters}
+
+    @property
+    def display(self) -> dict:
+        return {p.name: (p.unit, 1.0) for p in self.parameters}
+
+    def describe(self, theta) -> dict:
+        return {k: float(v) for k, v in dict(theta).items()}
+
+    @property
+    def public_names(self) -> tuple:
+        return self.names
+
+    def public_box(self) -> np.ndarray:
+        return np.column_stack([self.low, self.high])
+
+    def public_to_parameters(self, values) -> dict:
+        return self.theta(values)
+
+    def extra_starts(self, x, n: int = 3) -> list:
+        """Other points worth starting a mode search from: none in general."""
+        return []
