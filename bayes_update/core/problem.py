@@ -116,6 +116,9 @@ class Problem:
     #: exceptions that mean "the model cannot run at this point": the point gets
     #: NaN metrics (and a message) instead of stopping a design
     failures: tuple = (ModelError,)
+    #: a record's mean is a sensor offset, not physics: it is removed from the input
+    #: (the model never sees it) and from the response (h0 would absorb it anyway)
+    remove_offsets: bool = True
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None):
         if not hasattr(model, "simulate"):
@@ -133,7 +136,11 @@ class Problem:
                                    f"({[t.name for t in found]}); the metrics need exactly one")
             if found:
                 t = found[0]
-                self.tests[role] = _Test(t.name, t.force.copy(), t.velocity.copy())
+                force, response = np.array(t.force, float), np.array(t.velocity, float)
+                if self.remove_offsets:
+                    force -= force.mean()
+                    response -= response.mean()
+                self.tests[role] = _Test(t.name, force, response)
         if "linear" not in self.tests:
             raise DataError(f"{self.source}: no test has role 'linear' (the low-level test "
                                "that e_lin and the Kautz pole come from); set it in dataset.json")
