@@ -160,7 +160,8 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     ax2.set_xticks(np.arange(len(names)), [f"{n} [{units[n]}]" if units.get(n) else n for n in names])
     ax2.set_ylabel("Sobol' index")
     ax2.set_title("global sensitivity over the prior box")
-    ax2.legend(fontsize=8)
+    if names:
+        ax2.legend(fontsize=8)
     return fig
 
 
