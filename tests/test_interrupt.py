@@ -3,7 +3,10 @@ OUT/cache, and the same command resumes from the cache to the same posterior.
 
 One uninterrupted ``sample`` (the reference), one interrupted as a terminal's
 Ctrl-C does (SIGINT to the whole process group, the worker processes
-included), and its rerun; ROM with small settings (about 25 s per run).
+included), and its rerun; ROM with small settings (about 25 s per run).  The
+rerun recomputes every step but the cached design, so its byte-identical
+posterior_summary.json is also the check that the same seed gives the same
+bytes.
 """
 
 import json
@@ -57,10 +60,3 @@ def test_interrupted_sample_resumes_to_the_same_posterior(tmp_path, reference):
     reused = json.loads((out / "run.json").read_text())["n_model_runs_reused"]
     assert reused.get("design", 0) > 0, reused
     assert not json.loads((reference / "run.json").read_text())["n_model_runs_reused"].get("design")
-
-
-def test_same_seed_same_bytes(tmp_path, reference):
-    """A second run from scratch (no cache) gives the same posterior_summary.json, byte for byte."""
-    res = _sample(tmp_path, env={**os.environ})
-    assert res.returncode == 0, res.stderr[-3000:]
-    assert (tmp_path / "posterior_summary.json").read_bytes() == (reference / "posterior_summary.json").read_bytes()
