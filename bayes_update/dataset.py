@@ -73,7 +73,7 @@ import numpy as np
 
 from fe import Rig
 
-from .core.problem import DataError
+from .core.problem import DatasetError
 
 ROLES = ("linear", "nonlinear", "validation")
 """Roles of a test: ``linear`` (low level, fits the linear kernel: e_lin),
@@ -91,10 +91,6 @@ VALUE_FORMAT = "%.9e"
 
 # Tolerance of the time-column checks, as a fraction of the sample period.
 TIME_TOLERANCE = 0.01
-
-
-class DatasetError(DataError):
-    """A data set folder or file is malformed; the message names the file."""
 
 
 class MissingColumnError(DatasetError):

@@ -4,6 +4,12 @@ Shared by ``tests/test_fe_opensees.py`` (agreement) and ``benchmarks/bench_opens
 (timing).  Everything is taken from the ``fe`` model it mirrors: the mesh
 (``model.node_x``, with nodes at the shaker and the sensor), the rig's section
 and material, the boundary conditions, the load and the integrator settings.
+Beyond the rig's section properties (EA, EI, mass per length) nothing is
+computed with fe's code: the viscosity mapping and the scheme's coefficients
+come from their formulas (:func:`kelvin_voigt_beta`, :func:`chung_hulbert`),
+and the first-order prediction of the viscosity models' difference
+(:func:`kelvin_voigt_perturbation`) from a numpy corotational element
+(:class:`_CorotationalBeam`).
 
 Correspondence (ours -> OpenSees):
 
@@ -137,8 +143,9 @@ def build_opensees_rig(model: fe.BeamModel, params: fe.Parameters,
         ops.uniaxialMaterial("Elastic", TOP_MATERIAL, params.k_s, params.c)
         ops.element("zeroLength", n_nodes, ground, top, "-mat", TOP_MATERIAL, "-dir", 1)
 
-    # Kelvin-Voigt -> betaK0 Rayleigh damping on the beam elements only
-    beta = rig.beam_viscosity(params.eta) / E
+    # Kelvin-Voigt -> betaK0 Rayleigh damping on the beam elements only (the mapping
+    # eta -> eta_b from its formula here, so that fe's rig.beam_viscosity is checked)
+    beta = kelvin_voigt_beta(rig) * params.eta
     if kelvin_voigt and beta > 0:
         ops.region(1, "-ele", *beam_tags, "-rayleigh", 0.0, 0.0, beta, 0.0)
 
@@ -193,7 +200,7 @@ def run_opensees_transient(model: fe.BeamModel, params: fe.Parameters, force, fs
     """
     force = np.ascontiguousarray(force, dtype=float)
     nodes = build_opensees_rig(model, params, kelvin_voigt=kelvin_voigt, quiet=quiet)
-    am, af, gam, bet = fe.generalized_alpha_coefficients(model.rho_inf)
+    am, af, gam, bet = chung_hulbert(model.rho_inf)      # closed forms, not fe's
     dt = 1.0 / (fs * model.substeps)
     ops.timeSeries("Path", SHAKER_SERIES, "-dt", 1.0 / fs, "-values", *force.tolist())
     ops.pattern("Plain", SHAKER_PATTERN, SHAKER_SERIES)
@@ -241,6 +248,167 @@ def run_opensees_transient(model: fe.BeamModel, params: fe.Parameters, force, fs
     return out
 
 
+def chung_hulbert(rho_inf: float) -> tuple:
+    """(alpha_m, alpha_f, gamma, beta) of Chung and Hulbert (1993), from their
+    closed forms (not from fe)."""
+    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
+    af = rho_inf / (rho_inf + 1.0)
+    return am, af, 0.5 - am + af, 0.25 * (1.0 - am + af) ** 2
+
+
+def kelvin_voigt_beta(rig) -> float:
+    """Stiffness-proportional factor beta = eta_b / E per unit paper eta [s / (Pa s)]:
+    the paper's deviatoric eta mapped to uniaxial stress by dissipation
+    equivalence, eta_b = (2/3) (1 + nu)^2 eta (DESIGN.md section 2), from the rig's
+    nu here, not from fe."""
+    return 2.0 / 3.0 * (1.0 + rig.poisson_ratio) ** 2 / rig.youngs_modulus_pa
+
+
+class _CorotationalBeam:
+    """Numpy model of the OpenSees mirror (``elasticBeamColumn`` + ``Corotational``
+    on the straight mesh of ``model``, consistent mass, top spring and damper),
+    written from the element's textbook formulas (Crisfield 1991 vol. 1 ch. 7;
+    Battini 2002; research notes), with no code of ``fe``: global dofs
+    (u_x, u_y, theta) per node, elements along x.
+
+    Local deformations of element (1, 2): stretch u_l = (Ln^2 - L^2) / (Ln + L),
+    end rotations t_i = theta_i - alpha (alpha the chord's rotation), with
+    B = d(u_l, t1, t2)/d(dofs) = [r; e3 - z/Ln; e6 - z/Ln],
+    r = (-c, -s, 0, c, s, 0), z = (s, -c, 0, -s, c, 0); local forces
+    (N, M1, M2) = K_l (u_l, t1, t2), K_l = [[EA/L, 0, 0], [0, 4EI/L, 2EI/L],
+    [0, 2EI/L, 4EI/L]]; global force B^T (N, M1, M2); tangent
+    B^T K_l B + (N/Ln) z z^T + ((M1 + M2)/Ln^2) (r z^T + z r^T).  The Kelvin-Voigt
+    force is beta B^T K_l B v (the local deformation rates); in the tangents its
+    local forces enter the geometric terms, the rates' own dependence on u is
+    left out (a 3e-5 relative term of K_t: second order in the prediction)."""
+
+    def __init__(self, model, params):
+        rig = model.rig
+        self.x = np.asarray(model.node_x, float)
+        self.L = np.diff(self.x)
+        self.ne = self.L.size
+        self.n = 3 * self.x.size
+        self.EA, self.EI = rig.EA, rig.EI
+        self.kax = self.EA / self.L
+        self.kb = self.EI / self.L
+        self.beta = kelvin_voigt_beta(rig) * params.eta
+        self.k_s, self.c_top = params.k_s, params.c
+        self.top = self.n - 3
+        fixed = np.zeros(self.n, bool)
+        fixed[:3] = True
+        fixed[self.n - 2:] = True            # top: transverse and rotation held
+        self.free = np.flatnonzero(~fixed)
+        where = np.full(self.n, -1)
+        where[self.free] = np.arange(self.free.size)
+        # scatter of the element matrices into the free-dof matrix; elements of one
+        # parity share no dof, so one fancy-indexed += per parity is safe
+        self._scatter = []
+        for parity in (0, 1):
+            rows, cols, ee, ii, jj = [], [], [], [], []
+            for e in range(parity, self.ne, 2):
+                for i in range(6):
+                    for j in range(6):
+                        gi, gj = where[3 * e + i], where[3 * e + j]
+                        if gi >= 0 and gj >= 0:
+                            rows.append(gi), cols.append(gj), ee.append(e), ii.append(i), jj.append(j)
+            self._scatter.append(tuple(np.array(a) for a in (rows, cols, ee, ii, jj)))
+        self.top_free = int(where[self.top])
+        # consistent mass (linear axial, Hermite transverse, no rotary inertia)
+        m = rig.mass_per_length
+        M = np.zeros((self.n, self.n))
+        for e, L in enumerate(self.L):
+            i = 3 * e
+            ax = m * L / 6.0 * np.array([[2.0, 1.0], [1.0, 2.0]])
+            tr = m * L / 420.0 * np.array([[156.0, 22 * L, 54.0, -13 * L], [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                                           [54.0, 13 * L, 156.0, -22 * L], [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
+            a, t = [i, i + 3], [i + 1, i + 2, i + 4, i + 5]
+            M[np.ix_(a, a)] += ax
+            M[np.ix_(t, t)] += tr
+        self.M = M[np.ix_(self.free, self.free)]
+
+    def state(self, u, v):
+        """Everything per element at (u, v): r, z (ne, 6), Ln, B's rows b1, b2
+        (ne, 6), local elastic and viscous forces (ne, 3)."""
+        U = u.reshape(-1, 3)
+        Vn = v.reshape(-1, 3)
+        d = np.concatenate([U[:-1], U[1:]], axis=1)
+        ve = np.concatenate([Vn[:-1], Vn[1:]], axis=1)
+        dx = self.L + d[:, 3] - d[:, 0]
+        dy = d[:, 4] - d[:, 1]
+        Ln = np.hypot(dx, dy)
+        c, s = dx / Ln, dy / Ln
+        alpha = np.arctan2(dy, dx)
+        zero = np.zeros_like(c)
+        r = np.stack([-c, -s, zero, c, s, zero], axis=1)
+        z = np.stack([s, -c, zero, -s, c, zero], axis=1)
+        b1 = -z / Ln[:, None]
+        b2 = b1.copy()
+        b1[:, 2] += 1.0
+        b2[:, 5] += 1.0
+        ul = (Ln * Ln - self.L**2) / (Ln + self.L)
+        t1, t2 = d[:, 2] - alpha, d[:, 5] - alpha
+        q0 = np.sum(r * ve, axis=1)
+        q1 = np.sum(b1 * ve, axis=1)
+        q2 = np.sum(b2 * ve, axis=1)
+        elastic = np.stack([self.kax * ul, self.kb * (4 * t1 + 2 * t2), self.kb * (2 * t1 + 4 * t2)], axis=1)
+        viscous = self.beta * np.stack([self.kax * q0, self.kb * (4 * q1 + 2 * q2), self.kb * (2 * q1 + 4 * q2)],
+                                       axis=1)
+        return r, z, Ln, b1, b2, elastic, viscous
+
+    def _to_global(self, r, b1, b2, loc):
+        fe_ = r * loc[:, :1] + b1 * loc[:, 1:2] + b2 * loc[:, 2:3]
+        out = np.zeros(self.n)
+        out[:-3] += fe_[:, :3].ravel()
+        out[3:] += fe_[:, 3:].ravel()
+        return out
+
+    def _material(self, r, b1, b2):
+        """B^T K_l B per element (ne, 6, 6)."""
+        o = np.einsum
+        return (self.kax[:, None, None] * o("ei,ej->eij", r, r)
+                + self.kb[:, None, None] * (4 * o("ei,ej->eij", b1, b1) + 4 * o("ei,ej->eij", b2, b2)
+                                            + 2 * o("ei,ej->eij", b1, b2) + 2 * o("ei,ej->eij", b2, b1)))
+
+    def _free_matrix(self, ke):
+        out = np.zeros((self.free.size, self.free.size))
+        for rows, cols, ee, ii, jj in self._scatter:
+            out[rows, cols] += ke[ee, ii, jj]
+        return out
+
+    def kelvin_voigt_force(self, u, v, st=None):
+        """Viscous force of the true Kelvin-Voigt law (beta K_l on the local
+        deformation rates B(u) v), all dofs."""
+        r, z, Ln, b1, b2, elastic, viscous = st if st is not None else self.state(u, v)
+        return self._to_global(r, b1, b2, viscous)
+
+    def internal_force(self, u, v):
+        """Elastic + Kelvin-Voigt force with the top spring and damper, all dofs."""
+        r, z, Ln, b1, b2, elastic, viscous = self.state(u, v)
+        f = self._to_global(r, b1, b2, elastic + viscous)
+        f[self.top] += self.k_s * u[self.top] + self.c_top * v[self.top]
+        return f
+
+    def rayleigh_matrix(self):
+        """beta K_0 on the free dofs: the material stiffness of the undeformed beam
+        (OpenSees' initial stiffness of the beam elements)."""
+        r, z, Ln, b1, b2, *_ = self.state(np.zeros(self.n), np.zeros(self.n))
+        return self.beta * self._free_matrix(self._material(r, b1, b2))
+
+    def tangents(self, u, v, st=None):
+        """(K_t, C_t) on the free dofs: d f / d u (material + geometric) and d f / d v."""
+        r, z, Ln, b1, b2, elastic, viscous = st if st is not None else self.state(u, v)
+        loc = elastic + viscous
+        material = self._material(r, b1, b2)
+        rz = np.einsum("ei,ej->eij", r, z)
+        geometric = ((loc[:, 0] / Ln)[:, None, None] * np.einsum("ei,ej->eij", z, z)
+                     + ((loc[:, 1] + loc[:, 2]) / Ln**2)[:, None, None] * (rz + rz.transpose(0, 2, 1)))
+        K = self._free_matrix(material + geometric)
+        C = self.beta * self._free_matrix(material)
+        K[self.top_free, self.top_free] += self.k_s
+        C[self.top_free, self.top_free] += self.c_top
+        return K, C
+
+
 def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states: dict,
                               fs: float = 1024.0) -> np.ndarray:
     """First-order prediction of (fe - OpenSees) in the sensor velocity [m/s] per sample,
@@ -249,83 +417,45 @@ def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states
     Along the OpenSees trajectory (``states`` from ``run_opensees_transient(...,
     record_states=True)``) the missing force is
 
-        g(u, v) = [f_fe(u, v) - f_fe(u, 0)] - (beta K_0 v + c v_top),
+        g(u, v) = f_KV(u, v) - beta K_0 v,
 
-    fe's Kelvin-Voigt force on the true local deformation rates minus OpenSees'
-    constant initial-stiffness Rayleigh force (the top damper cancels).  The
-    difference d = x_fe - x_OpenSees then obeys, to first order,
-    M d'' + C_t(t) d' + K_t(t) d = -g(t) with fe's tangents along the trajectory;
-    it is integrated here with the same generalized-alpha scheme and step.
-    Uses fe's private kernels (an independent check of the discrepancy, not of fe).
+    the true Kelvin-Voigt force on the local deformation rates minus OpenSees'
+    constant initial-stiffness Rayleigh force (the top damper is the same in both).
+    The difference d = x_fe - x_OpenSees then obeys, to first order,
+    M d'' + C_t(t) d' + K_t(t) d = -g(t) with the tangents along the trajectory;
+    it is integrated with the Chung-Hulbert scheme at the same step.
+
+    Independent of fe: the missing force, the tangents, the mass and the scheme's
+    coefficients come from :class:`_CorotationalBeam` and :func:`chung_hulbert`
+    (textbook formulas, numpy); only the mesh (``model.node_x``), the rig's
+    constants and the settings (``rho_inf``, ``substeps``) are taken from
+    ``model``.  So a wrong Kelvin-Voigt law in fe is not reproduced here.
     """
-    from fe import _kernels as K
-    from fe.model import KD, hermite_weights
-
-    system = model.describe(params)
-    a = model._arrays(system, params)
-    n = system.n_dof
-    free = ~a["fixed"]
-    idx = np.flatnonzero(free)
+    beam = _CorotationalBeam(model, params)
     U, V, dt = states["u"], states["v"], states["dt"]
-    if U.shape[1] != n:
+    if U.shape[1] != beam.n:
         raise ValueError("states do not match the model's dofs")
-    # dense helpers
-    rows, cols = np.nonzero(np.abs(np.arange(n)[:, None] - np.arange(n)[None, :]) <= KD)
-    band_pos = (rows, KD + cols - rows)
+    free = beam.free
+    c_os = beam.rayleigh_matrix()
 
-    def dense(band):
-        d = np.zeros((n, n))
-        d[rows, cols] = band[band_pos]
-        return d[np.ix_(idx, idx)]
+    def missing_and_tangents(u, v):
+        st = beam.state(u, v)
+        return (beam.kelvin_voigt_force(u, v, st)[free] - c_os @ v[free],) + beam.tangents(u, v, st)
 
-    M = dense(a["m_band"])
-    args = (a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"], a["shallow"],
-            a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"])
-    fint = np.empty(n)
-    band = np.zeros((n, 2 * KD + 1))
-
-    def tangents(u, v):
-        band[:] = 0.0
-        K.assemble(*args, u, v, fint, True, 1.0, 0.0, band, KD)
-        k = dense(band)
-        band[:] = 0.0
-        K.assemble(*args, u, v, fint, True, 1.0, 1.0, band, KD)
-        return k, dense(band) - k
-
-    # beta K_0: fe's material stiffness of the unloaded, undeformed beam (no springs)
-    p0 = fe.Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
-    a0 = model._arrays(model.describe(p0), p0)
-    band[:] = 0.0
-    K.assemble(a0["X"], a0["Y"], a0["L0"], a0["c0"], a0["s0"], a0["t0"], a0["EA"], a0["EI"], 0.0, a0["shallow"],
-               a0["d_dof"], a0["d_law"], a0["d_p1"], a0["d_p2"], np.zeros(n), np.zeros(n), fint,
-               True, 1.0, 0.0, band, KD)
-    beta = a["beta"]
-    k0 = np.zeros((n, n))
-    k0[rows, cols] = band[band_pos]
-    c_os = beta * k0
-    c_os[model.top_axial_dof, model.top_axial_dof] += params.c
-    f_v = np.empty(n)
-    f_0 = np.empty(n)
-
-    def missing(u, v):
-        K.internal_force(*args, u, v, f_v)
-        K.internal_force(*args, u, np.zeros(n), f_0)
-        return (f_v - f_0 - c_os @ v)[idx]
-
-    am, af, gam, bet = fe.generalized_alpha_coefficients(model.rho_inf)
+    am, af, gam, bet = chung_hulbert(model.rho_inf)
+    M = beam.M
     n_steps = U.shape[0] - 1
     substeps = model.substeps
-    w = hermite_weights(model.node_x, model.rig.sensor_position_m)[idx]
-    m_free = idx.size
+    sensor = int(np.flatnonzero(np.isclose(beam.x, model.rig.sensor_position_m, rtol=0.0, atol=1e-12))[0])
+    out_dof = int(np.flatnonzero(free == 3 * sensor + 1)[0])
+    m_free = free.size
     du = np.zeros(m_free)
     dv = np.zeros(m_free)
-    g_old = missing(U[0], V[0])
-    k_old, c_old = tangents(U[0], V[0])
+    g_old, k_old, c_old = missing_and_tangents(U[0], V[0])
     da = np.linalg.solve(M, -g_old)
     out = np.zeros(n_steps // substeps + 1)
     for j in range(n_steps):
-        g_new = missing(U[j + 1], V[j + 1])
-        k_new, c_new = tangents(U[j + 1], V[j + 1])
+        g_new, k_new, c_new = missing_and_tangents(U[j + 1], V[j + 1])
         pu = du + dt * dv + dt * dt * (0.5 - bet) * da
         pv = dv + dt * (1.0 - gam) * da
         S = (1.0 - am) * M + (1.0 - af) * (bet * dt * dt * k_new + gam * dt * c_new)
@@ -337,5 +467,5 @@ def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states
         da = da_new
         g_old, k_old, c_old = g_new, k_new, c_new
         if (j + 1) % substeps == 0:
-            out[(j + 1) // substeps] = w @ dv
+            out[(j + 1) // substeps] = dv[out_dof]
     return out

@@ -127,34 +127,137 @@ def test_helpers(data):
 # ---------------------------------------------------------------- acceptance
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
+    """``bayes-update calibrate --quick`` through the CLI, with the result object
+    the CLI computed (captured on its way to ``write_result``)."""
+    import bayes_update.calibrate as cal_module
+
     out = tmp_path_factory.mktemp("calibrate")
-    assert main(["calibrate", "--quick", "--workers", "2", "--out", str(out)]) == 0
-    return out
+    captured = {}
+    original = cal_module.calibrate
+
+    def capture(*args, **kwargs):
+        captured["result"] = original(*args, **kwargs)
+        return captured["result"]
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(cal_module, "calibrate", capture)    # the CLI imports it at call time
+        assert main(["calibrate", "--quick", "--workers", "2", "--out", str(out)]) == 0
+    return out, captured["result"]
 
 
-def test_calibrate_writes_the_documented_outputs(quick_run):
-    cal = json.loads((quick_run / "calibration.json").read_text())
+def read_csv(path):
+    import csv
+
+    with open(path, newline="") as fh:
+        rows = list(csv.reader(fh))
+    return rows[0], rows[1:]
+
+
+def png_size(path):
+    """(width, height) from the PNG signature and IHDR chunk."""
+    head = path.read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n", path.name
+    assert head[12:16] == b"IHDR", path.name
+    return int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+
+
+def test_calibrate_writes_the_documented_outputs(quick_run, data):
+    out, result = quick_run
+    settings = result.settings
+    kb = data.rig.axial_stiffness / 1e3                     # N/mm
+    pcols = ["c_N_s_per_mm", "F_N", "k_s_N_per_mm", "P_eff_N", "eta_MPa_s"]
+    # calibration.json: the result object, SI and paper units consistent
+    cal = json.loads((out / "calibration.json").read_text())
     for key in ("eta", "c", "F", "k_s", "P_eff", "e_lin", "e_nlin"):
         assert isinstance(cal[key], float), key
+    ref = json.loads(json.dumps(result.calibration_json()))
+    for key in ("eta", "c", "F", "k_s", "P_eff", "e_lin", "e_nlin", "paper_units", "ridge", "settings"):
+        assert cal[key] == ref[key], key
+    assert set(cal["validation"]) == {"chirp_medium", "sine_low", "sine_medium", "sine_high"}
     assert cal["setup"]["basis"]["orders"]["3"]["n_functions"] == 6
-    for name in ("table1_linear.csv", "table2_nonlinear.csv", "table3_final.csv", "grid_linear.csv",
-                 "report.txt", "fig4_e_lin_grid.png", "fig8_e_lin_eta.png", "fig12_components_high.png",
-                 "fig13_chirp_medium.png", "fig14_sine_psd.png"):
-        assert (quick_run / name).stat().st_size > 0, name
+    pu = cal["paper_units"]
+    assert (pu["eta_MPa_s"], pu["c_N_s_per_mm"], pu["F_N"], pu["k_s_N_per_mm"]) == pytest.approx(
+        (cal["eta"] / 1e6, cal["c"] / 1e3, cal["F"], cal["k_s"] / 1e3), rel=1e-12)
+    # P_eff is the statics of the two axial springs, from the JSON's own F and k_s
+    assert cal["P_eff"] == pytest.approx(cal["F"] * kb / (kb + cal["k_s"] / 1e3), rel=1e-12)
+    # tables: the documented columns, one row per c (Tables 1 and 2), the grid's size
+    p_grid_size = len(np.arange(-settings.p_eff_halfwidth, settings.p_eff_halfwidth + 1e-9,
+                                settings.p_eff_step))
+    n_grid = len(settings.c_values) * len(settings.k_s_values) * p_grid_size
+    expected = {"table1_linear.csv": (pcols + ["e_lin"], len(settings.c_values)),
+                "table2_nonlinear.csv": (pcols + ["e_lin_nlin", "e_lin", "e_nlin"], len(settings.c_values)),
+                "table3_final.csv": (list(result.table3), 1),
+                "grid_linear.csv": (pcols + ["e_lin", "error"], n_grid),
+                "grid_nonlinear.csv": (pcols + ["e_lin", "e_nlin", "e_lin_nlin", "error"], n_grid),
+                "eta_scan.csv": (["eta_MPa_s", "e_lin"], len(settings.eta_values))}
+    tables = {}
+    for name, (columns, n_rows) in expected.items():
+        header, rows = read_csv(out / name)
+        assert header == columns, name
+        assert len(rows) == n_rows, name
+        tables[name] = [dict(zip(header, r)) for r in rows]
+    # the CSVs hold the result's numbers (written with 6 significant digits)
+    for name, rows_obj in (("table1_linear.csv", result.table1), ("table2_nonlinear.csv", result.table2),
+                           ("table3_final.csv", [result.table3])):
+        for row, obj in zip(tables[name], rows_obj):
+            for col, text in row.items():
+                assert float(text) == pytest.approx(obj[col], rel=1e-5), (name, col)
+    for name in ("table1_linear.csv", "table2_nonlinear.csv"):
+        assert [float(r["c_N_s_per_mm"]) for r in tables[name]] == list(settings.c_values)
+        for r in tables[name]:      # each row on the statics of its own F and k_s
+            F, ks = float(r["F_N"]), float(r["k_s_N_per_mm"])
+            assert float(r["P_eff_N"]) == pytest.approx(F * kb / (kb + ks), rel=2e-5)
+    for r in tables["table2_nonlinear.csv"]:
+        assert float(r["e_lin_nlin"]) == pytest.approx(float(r["e_lin"]) + float(r["e_nlin"]), rel=2e-5)
+    # Table 1 is the minimum of the linear grid per c
+    for r in tables["table1_linear.csv"]:
+        same_c = [float(g["e_lin"]) for g in tables["grid_linear.csv"] if g["c_N_s_per_mm"] == r["c_N_s_per_mm"]]
+        assert float(r["e_lin"]) == min(same_c)
+    t3 = tables["table3_final.csv"][0]
+    assert float(t3["P_eff_N"]) == pytest.approx(cal["P_eff"], rel=1e-5)
+    # the report states Table 3's numbers
+    report = (out / "report.txt").read_text()
+    assert f"c = {pu['c_N_s_per_mm']:.2f} N s/mm, F = {pu['F_N']:.2f} N" in report
+    # figures: real PNGs, not blank (more than one colour)
+    import matplotlib.image as mpimg
+
+    for name in ("fig4_e_lin_grid", "fig8_e_lin_eta", "fig12_components_high", "fig13_chirp_medium",
+                 "fig14_sine_psd", "table2_e_lin_nlin_grid", "ridge_k_s_profile"):
+        w, h = png_size(out / f"{name}.png")
+        assert w >= 300 and h >= 200, name
+        img = mpimg.imread(out / f"{name}.png")
+        assert img.shape[:2] == (h, w) and float(img[..., :3].std()) > 0.02, name
 
 
-def test_calibrate_recovers_the_truth(quick_run):
+def test_calibrate_recovers_the_truth(quick_run, data):
+    out, _ = quick_run
     truth = read_dataset(default_dataset_path()).extra["truth"]   # read by the test only
     assert fe.Parameters(**truth["parameters_si"]) == TRUTH
-    cal = json.loads((quick_run / "calibration.json").read_text())
-    p_true = TRUTH.effective_preload(load_default_dataset().rig)
-    assert abs(cal["P_eff"] / p_true - 1) < 0.01
-    assert abs(cal["eta"] / TRUTH.eta - 1) < 0.10
-    assert abs(cal["c"] / TRUTH.c - 1) < 0.20
-    rows = np.genfromtxt(quick_run / "table1_linear.csv", delimiter=",", names=True)
+    cal = json.loads((out / "calibration.json").read_text())
+    p_true = TRUTH.effective_preload(data.rig)
+    # Measured with these reduced settings (--quick: 3 c, 4 k_s, 5 P_eff, 40
+    # refinement runs; deterministic): P_eff -0.03 % (the posterior sd of P_eff
+    # is 0.035 %), eta +0.8 %, c +3.3 %, k_s 145 N/mm.  Tolerances about 3x,
+    # 2.5x and 1.8x those errors.
+    assert abs(cal["P_eff"] / p_true - 1) < 1e-3
+    assert abs(cal["eta"] / TRUTH.eta - 1) < 0.02
+    assert abs(cal["c"] / TRUTH.c - 1) < 0.06
+    # F and k_s one by one are not identified to a point: e_lin sees only P_eff
+    # (the ridge, checked above through P_eff = F K_b / (K_b + k_s)), and the
+    # high level leaves a band in (c, k_s), along which the refinement slides
+    # (README: full settings c = 15.73, k_s = 122; quick: 15.49, 145).  The
+    # band's slope is an independent number: the posterior's regression of k_s
+    # on c (README posterior table, GP + emcee on the same data: corr -0.96,
+    # sd 172 and 2.1, slope -0.96 x 172 / 2.1 = -79 N/mm per N s/mm).  Across
+    # the band the estimate must sit on the truth: measured 3.4 N/mm (quick)
+    # and 0.0 (full), while the posterior sd of that combination is 48 N/mm.
+    across = cal["k_s"] / 1e3 + 79.0 * (cal["c"] / 1e3 - TRUTH.c / 1e3) - TRUTH.k_s / 1e3
+    assert abs(across) < 20.0
+    assert 0.0 <= cal["k_s"] / 1e3 <= 600.0
+    rows = np.genfromtxt(out / "table1_linear.csv", delimiter=",", names=True)
     assert np.all(np.abs(rows["P_eff_N"] / p_true - 1) < 0.01)           # the ridge, row by row
-    # validation as numbers: the medium chirp within a few times the 1 % noise
-    assert cal["validation"]["chirp_medium"]["rel_l2"] < 0.05
+    # validation as numbers: the medium chirp at its 1 % noise (measured 1.13 %)
+    assert cal["validation"]["chirp_medium"]["rel_l2"] < 0.015
 
 
 def test_factor_override_needs_to_be_explicit(tmp_path, capsys):

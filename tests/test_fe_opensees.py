@@ -15,14 +15,23 @@ each tolerance below is built from:
    the large-amplitude response fe also damps the shortening rate (the
    nonlinear part beta K_0 misses).  ``kelvin_voigt_perturbation`` predicts this
    difference to first order from the missing force along the OpenSees
-   trajectory; the tests check the difference *is* that prediction.
+   trajectory; the tests check the difference *is* that prediction.  The
+   prediction uses no code of fe: the corotational element, its Kelvin-Voigt
+   force on the local deformation rates, the tangents, the consistent mass and
+   the scheme's coefficients are written out in numpy from the textbook
+   formulas (``opensees_model._CorotationalBeam``), so a wrong viscosity law in
+   fe would show here instead of being predicted by fe itself.  The viscosity's
+   mapping eta_b = (2/3)(1 + nu)^2 eta and the OpenSees integrator's
+   coefficients are also computed from their formulas, not taken from fe.
 2. Integrator, nonlinear terms only: fe averages the internal forces
    ((1 - alpha_f) f(u_{n+1}) + alpha_f f(u_n), the paper's eq. 4), OpenSees
    evaluates them at the averaged state.  Both are second-order consistent, so
    the difference vanishes as dt^2 and is zero for a linear problem.
 3. Newton tolerances (fe: 1e-9 (F + max|p|) plus a round-off floor).
 
-Runtime: about 20 s, most of it OpenSees (about 0.15 ms per step at 20 elements).
+Runtime: 42 s with the machine shared (37 s before the prediction was
+independent of fe, back to back), most of it OpenSees (about 0.15 ms per step at
+20 elements) and the numpy prediction (about 0.3 ms per step).
 """
 
 import sys
@@ -34,13 +43,16 @@ import pytest
 import fe
 from bayes_update.signals import chirp
 
+from reference import require_reference  # noqa: E402
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import opensees_model as osm  # noqa: E402
 
-if osm.ops is None:
-    pytest.skip(f"openseespy cannot be imported ({osm.IMPORT_ERROR}); "
-                "the independent-code comparison needs it (pip install openseespy; "
-                "system libraries libblas3 and liblapack3)", allow_module_level=True)
+# The only comparison with an independent code: a missing openseespy (or its
+# system libraries) fails these tests unless BAYES_UPDATE_ALLOW_MISSING_REFERENCES=1.
+_requires_opensees = require_reference(
+    osm.IMPORT_ERROR, "openseespy (the independent code of this comparison)",
+    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3")
 
 FS = 1024.0
 N_ELEMENTS = 20
@@ -112,14 +124,43 @@ def compare(amplitude, rho_inf, substeps=SUBSTEPS, params=PAPER):
     return _RUNS[key]
 
 
+def test_independent_element_has_fe_forces():
+    """The numpy element of the prediction (textbook corotational formulas) and
+    fe's internal force agree at a random state (all dofs, viscosity included):
+    measured 9e-16 of the largest force; the tangent against central
+    differences of that force, 3e-5 (the rates' dependence on u, left out)."""
+    from fe import _kernels as K
+
+    m = model()
+    beam = osm._CorotationalBeam(m, PAPER)
+    rng = np.random.default_rng(0)
+    u, v = 1e-3 * rng.standard_normal(beam.n), 1e-2 * rng.standard_normal(beam.n)
+    u[:3] = 0.0
+    u[-2:] = 0.0
+    a = m._arrays(m.describe(PAPER), PAPER)
+    ours = np.empty(beam.n)
+    K.internal_force(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"],
+                     a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"], u, v, ours)
+    theirs = beam.internal_force(u, v)
+    assert np.max(np.abs(ours - theirs)) < 1e-12 * np.max(np.abs(theirs))
+    k_t, _ = beam.tangents(u, v)
+    h = 1e-7
+    fd = np.column_stack([(beam.internal_force(u + h * e, v) - beam.internal_force(u - h * e, v)) / (2 * h)
+                          for e in np.eye(beam.n)])[np.ix_(beam.free, beam.free)]
+    assert np.max(np.abs(k_t - fd)) < 2e-4 * np.max(np.abs(k_t))
+
+
 @pytest.mark.parametrize("rho_inf", [0.9, 0.01])
 def test_low_level_chirp_agrees(rho_inf):
     ours, theirs, predicted = compare(LOW, rho_inf)
-    # the codes agree far inside the issue's 0.5 %: 5.6e-5 (rho 0.9), 1.8e-4 (0.01)
+    # the codes agree far inside the issue's 0.5 %: measured 5.55e-5 (rho 0.9),
+    # 5.52e-5 (rho 0.01)
     assert rel_l2(ours, theirs) < 5e-4
-    # the part explained by the viscosity model is the linear one: 2 P/EA more
-    # modal damping in fe (5.6e-5 of the response through the resonance)
-    assert 4e-5 < np.linalg.norm(predicted) / np.linalg.norm(theirs) < 7e-5
+    # and the difference is the viscosity model's linear part (2 P/EA more modal
+    # damping in fe), which the independent prediction accounts for: it removes
+    # 98.8 % of it at rho 0.9 (5.55e-5 -> 6.6e-7) and 99.6 % at rho 0.01
+    # (5.52e-5 -> 2.0e-7); at least 90 % required
+    assert rel_l2(ours, theirs + predicted) < 0.1 * rel_l2(ours, theirs)
 
 
 @pytest.mark.parametrize("rho_inf", [0.9, 0.01])
@@ -128,7 +169,7 @@ def test_low_level_difference_is_the_viscosity_model(rho_inf):
     # nonlinear difference (scales as amplitude^2 and dt^2; 1.4e-5 at 0.005 N even
     # without viscosity, when the response is 1.5x larger) plus Newton tolerances.
     ours, theirs, predicted = compare(LOW, rho_inf)
-    assert rel_l2(ours, theirs + predicted) < 3e-5  # measured 1.8e-6 (rho 0.9)
+    assert rel_l2(ours, theirs + predicted) < 3e-5  # measured 6.6e-7 (rho 0.9), 2.0e-7 (rho 0.01)
 
 
 def test_high_level_without_viscosity_differs_only_by_the_time_step():
@@ -150,11 +191,12 @@ def test_high_level_without_viscosity_differs_only_by_the_time_step():
 def test_high_level_chirp_agrees_up_to_the_kelvin_voigt_nonlinearity():
     # With viscosity, fe's Kelvin-Voigt also damps the shortening rate, which
     # beta K_0 cannot: the codes differ by 0.84 % at 0.1 N (DESIGN: ~0.6 % in the
-    # planning prototype).  The first-order prediction from the missing force
-    # accounts for it: the rest (2.1e-4) is below the integrator difference
-    # measured without viscosity at this step (4.0e-4, previous test).
+    # planning prototype).  The independent first-order prediction from the
+    # missing force accounts for it: the rest (measured 2.4e-4) is below the
+    # integrator difference measured without viscosity at this step (4.0e-4,
+    # previous test), hence 1e-3 (4x); it removes 97 % of the difference, at
+    # least 90 % required.  (No band on the difference's size: it is whatever
+    # the independent prediction says.)
     ours, theirs, predicted = compare(HIGH, 0.9)
-    explained = np.linalg.norm(predicted) / np.linalg.norm(theirs)
-    assert 0.004 < explained < 0.015
-    assert rel_l2(ours, theirs) < explained + 1e-3
     assert rel_l2(ours, theirs + predicted) < 1e-3
+    assert rel_l2(ours, theirs + predicted) < 0.1 * rel_l2(ours, theirs)

@@ -51,6 +51,14 @@ def h1_error(model, osc):
     return np.max(np.abs(model.H1(F_RES) - ref) / np.abs(ref))
 
 
+def h1_gain_error(model, osc):
+    """Re(mean of H1 / reference) - 1 near resonance: the gain error, where the
+    sinc^2 factor (1 - 0.28 % at 30 Hz, flat over F_RES) shows whole, while the
+    noise's and the basis's errors vary along F_RES and partly cancel."""
+    ref = osc.H1(F_RES) * sinc2(F_RES, FS)
+    return float(np.mean(model.H1(F_RES) / ref).real - 1)
+
+
 @pytest.fixture(scope="module")
 def duffing():
     osc = Oscillator(fn=FN, zeta=ZETA, k3=nonlinear_coefficient("k3", 0.10))
@@ -84,21 +92,46 @@ def test_duffing_shares_are_as_designed(duffing):
     assert np.linalg.norm(low["x3"]) / np.linalg.norm(low["x1"]) == pytest.approx(0.003, rel=1e-6)
 
 
+def test_h1_of_a_linear_record_carries_the_sinc2_factor(duffing):
+    """The Duffing's noise-free linear part x1 (the hierarchy's first order): a
+    linear system whose H1 lies in the J1 = 2 span.  Measured max error against
+    H1 sinc^2(f T) 0.034 % (the feed-through T^2 / (6 m) and the basis); without
+    the sinc^2 factor it would be 0.30 %.  Tolerance 0.1 %, 2.9x the measured."""
+    model = fit_volterra(duffing["low_u"], duffing["low"]["x1"], default_basis((2,)))
+    assert h1_error(model, duffing["osc"]) < 1e-3
+
+
+# Measured on the seeded records below (max error near resonance / gain error):
+# low level J = (2,) 0.271 % / +0.023 %, J = (2, 2, 6) 0.141 % / +0.093 %;
+# without the sinc^2 factor in the reference the gain errors would be -0.259 %
+# and -0.190 %.  The gain tolerances (0.10 % and 0.14 %, 4.3x and 1.5x the
+# measured) are what makes a dropped sinc^2 factor fail; the max-error ones
+# (0.40 % and 0.25 %, 1.5x and 1.8x) bound the rest.  (README: "0.14-0.27 %").
+H1_LOW_TOLERANCE = {(2,): (4.0e-3, 1.0e-3), (2, 2, 6): (2.5e-3, 1.4e-3)}
+
+
 @pytest.mark.parametrize("J", [(2,), (2, 2, 6)])
 def test_duffing_h1_from_low_level_record(duffing, J):
     model = fit_volterra(duffing["low_u"], duffing["low_y"], default_basis(J))
     err = h1_error(model, duffing["osc"])
-    print(f"H1 low level, J = {J}: max error {100 * err:.2f} % near resonance")
-    assert err < 0.02
+    gain = h1_gain_error(model, duffing["osc"])
+    print(f"H1 low level, J = {J}: max error {100 * err:.3f} % near resonance, gain {100 * gain:+.3f} %")
+    max_tol, gain_tol = H1_LOW_TOLERANCE[J]
+    assert err < max_tol
+    assert abs(gain) < gain_tol
 
 
 @pytest.mark.parametrize("n_levels", [2, 3])
 def test_duffing_h1_from_stacked_levels(duffing, n_levels):
+    """Measured max error 0.233 % (2 levels) and 0.185 % (3); tolerance 0.35 %
+    (1.5x / 1.9x).  The top level's cubic share (y3/y1 = 10 %) leaves a gain
+    bias of +0.15 to +0.19 % in H1, the size of the sinc^2 factor, so this test
+    checks the stacking, not the factor (the low-level tests above do)."""
     us, ys = duffing["us"][-n_levels:], duffing["ys"][-n_levels:]   # top level y3/y1 = 10 %
     model = fit_volterra(us, ys, default_basis())
     err = h1_error(model, duffing["osc"])
-    print(f"H1 from {n_levels} stacked levels (y3/y1 up to 10 %): max error {100 * err:.2f} %")
-    assert err < 0.02
+    print(f"H1 from {n_levels} stacked levels (y3/y1 up to 10 %): max error {100 * err:.3f} %")
+    assert err < 3.5e-3
 
 
 @pytest.mark.parametrize("stacked", [False, True])
@@ -224,7 +257,8 @@ def test_pole_from_frf_and_refinement(output):
     rng = np.random.default_rng(1004)
     u = 0.05 * U0
     y = add_noise(osc.simulate(u, FS)[output], rng)
-    pole = pole_from_frf(u, y, FS, f_range=(20.0, 50.0))
+    # the whole-record estimate (leakage free on this transient record); the default averages
+    pole = pole_from_frf(u, y, FS, f_range=(20.0, 50.0), nperseg=u.size, window="boxcar")
     print(output, pole)
     assert pole.freq_hz == pytest.approx(33.3, abs=0.1 * 0.02 * 33.3)    # within 0.1 zeta fn
     assert pole.damping_ratio == pytest.approx(0.02, rel=0.1)
@@ -232,11 +266,13 @@ def test_pole_from_frf_and_refinement(output):
     print(output, "refined", refined)
     assert refined.freq_hz == pytest.approx(33.3, abs=0.05 * 0.02 * 33.3)
     assert refined.damping_ratio == pytest.approx(0.02, rel=0.05)
-    if output == "x":                            # J1 = 2 with the refined pole gives H1 to < 2 %
+    if output == "x":
+        # J1 = 2 with the refined pole: measured max error 0.086 % (0.39 % without
+        # the sinc^2 factor in the reference); tolerance 0.2 %, 2.3x the measured
         model = fit_volterra(u, y, KautzBasis(refined, (2,)))
         f = np.linspace(33.3 * (1 - 0.06), 33.3 * (1 + 0.06), 41)
         ref = osc.H1(f) * sinc2(f, FS)
-        assert np.max(np.abs(model.H1(f) - ref) / np.abs(ref)) < 0.02
+        assert np.max(np.abs(model.H1(f) - ref) / np.abs(ref)) < 2e-3
 
 
 def test_basis_from_low_level_duffing_data(duffing):
@@ -244,14 +280,15 @@ def test_basis_from_low_level_duffing_data(duffing):
                                  f_range=(20.0, 50.0))
     assert basis.pole(1).freq_hz == pytest.approx(FN, abs=0.1 * D)
     model = fit_volterra(duffing["us"], duffing["ys"], basis)
-    assert h1_error(model, duffing["osc"]) < 0.02
+    assert h1_error(model, duffing["osc"]) < 4.5e-3   # measured 0.315 % (1.4x)
 
 
 def test_pole_from_frf_bad_range():
     u = 0.05 * U0
     y = Oscillator().simulate(u, FS)["x"]
+    whole = dict(nperseg=u.size, window="boxcar")
     with pytest.raises(ValueError, match="half-power points"):
-        pole_from_frf(u, y, FS, f_range=(29.9, 30.1))
+        pole_from_frf(u, y, FS, f_range=(29.9, 30.1), **whole)
     with pytest.raises(ValueError, match="f_min < f_max"):
-        pole_from_frf(u, y, FS, f_range=(40.0, 20.0))
+        pole_from_frf(u, y, FS, f_range=(40.0, 20.0), **whole)
     assert isinstance(pole_from_frf(u, y, FS), KautzPole)

@@ -5,8 +5,8 @@ through the contract of :mod:`bayes_update.core.model` alone.
 """
 
 from .model import BUILTIN_MODELS, Model, ModelError, ModelSpecError, check_model, load_model
-from .problem import DataError, Problem
+from .problem import DatasetError, Problem
 from .parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "DataError", "Model", "ModelError", "ModelSpecError", "Parameter", "ParameterSet",
+__all__ = ["BUILTIN_MODELS", "DatasetError", "Model", "ModelError", "ModelSpecError", "Parameter", "ParameterSet",
            "Problem", "check_model", "load_model"]

@@ -27,12 +27,12 @@ import volterra
 
 from .model import ModelError
 
-__all__ = ["DEFAULT_N_FUNCTIONS", "DataError", "Problem", "STAGES", "STAGE_ORDERS", "basis_from_reference",
+__all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "Problem", "STAGES", "STAGE_ORDERS", "basis_from_reference",
            "describe_basis", "excited_band", "relative_error", "stage_output"]
 
 
-class DataError(ValueError):
-    """A data set cannot be used as given; the message names the file or the test."""
+class DatasetError(ValueError):
+    """A data set is malformed or cannot be used as given; the message names the file or the test."""
 
 
 #: Kautz functions per order (J1, J2, J3): see volterra.basis for the trade-off.
@@ -132,7 +132,7 @@ class Problem:
         for role in STAGES:
             found = dataset.by_role(role)
             if len(found) > 1:
-                raise DataError(f"{self.source}: {len(found)} tests have role {role!r} "
+                raise DatasetError(f"{self.source}: {len(found)} tests have role {role!r} "
                                    f"({[t.name for t in found]}); the metrics need exactly one")
             if found:
                 t = found[0]
@@ -142,7 +142,7 @@ class Problem:
                     response -= response.mean()
                 self.tests[role] = _Test(t.name, force, response)
         if "linear" not in self.tests:
-            raise DataError(f"{self.source}: no test has role 'linear' (the low-level test "
+            raise DatasetError(f"{self.source}: no test has role 'linear' (the low-level test "
                                "that e_lin and the Kautz pole come from); set it in dataset.json")
         lin = self.tests["linear"]
         if basis is None:
@@ -185,7 +185,7 @@ class Problem:
         if stage not in STAGES:
             raise ValueError(f"stage must be one of {STAGES}, got {stage!r}")
         if stage not in self.tests:
-            raise DataError(f"{self.source}: no test has role {stage!r}, so e_nlin cannot be "
+            raise DatasetError(f"{self.source}: no test has role {stage!r}, so e_nlin cannot be "
                                "computed; add the high-level test with role 'nonlinear'")
 
     def projector(self, stage: str) -> volterra.VolterraProjector:
