@@ -170,9 +170,12 @@ class AmplitudeDependentDamping(Effect):
 
     Signature in the data: nothing at the low level (the top hardly moves);
     at the high level the resonance peak flattens more than the axial damper c
-    alone explains, the free decay's damping ratio falls with amplitude
-    (Coulomb: the envelope decays linearly, not exponentially), and the
-    third-order kernel's share changes while the second's does not.
+    alone explains, the free decay's damping changes with amplitude, and the
+    third-order kernel's share changes while the second's does not.  (The top
+    slides by the end shortening, ~A^2 for a bending amplitude A, so Coulomb
+    friction here takes an energy ~A^2 per cycle: the decay stays about
+    exponential, unlike a Coulomb-damped oscillator's linear envelope; checked
+    against energy balance in tests/test_effects.py.)
     """
 
     kind: str = "coulomb"
