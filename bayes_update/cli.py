@@ -307,39 +307,39 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
-def _prior_space(rig, items):
-    from .likelihood import ParameterSpace
-
+def _prior_ranges(items, names) -> dict:
+    """{name: (low, high)} from the --prior NAME=LO:HI options; ``names`` are the allowed ones."""
     ranges = {}
     for item in items:
         try:
             name, rng = item.split("=", 1)
             lo, hi = (float(v) for v in rng.split(":"))
         except ValueError:
-            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI, e.g. F=20:95") from None
-        if name not in ("eta", "c", "F", "k_s"):
-            raise ValueError(f"--prior {item!r}: NAME must be one of eta, c, F, k_s")
+            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI, e.g. {names[-1]}=0:1") from None
+        if name not in names:
+            raise ValueError(f"--prior {item!r}: NAME must be one of {', '.join(names)}")
         ranges[name] = (lo, hi)
-    return ParameterSpace(rig, **ranges)
+    return ranges
+
+
+def _prior_space(rig, items):
+    from .likelihood import ParameterSpace
+
+    return ParameterSpace(rig, **_prior_ranges(items, ("eta", "c", "F", "k_s")))
 
 
 def _user_prior(model, items):
-    """The model's declared prior, with --prior NAME=LO:HI ranges (the parameter's unit) replaced."""
+    """The model's declared prior with the --prior ranges (in the parameter's unit) put in, or None."""
     import dataclasses
 
     from .core import ParameterSet
 
+    if not items:
+        return None
     params = {p.name: p for p in model.parameters}
-    for item in items:
-        try:
-            name, rng = item.split("=", 1)
-            lo, hi = (float(v) for v in rng.split(":"))
-        except ValueError:
-            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI") from None
-        if name not in params:
-            raise ValueError(f"--prior {item!r}: the model's parameters are {sorted(params)}")
+    for name, (lo, hi) in _prior_ranges(items, tuple(params)).items():
         params[name] = dataclasses.replace(params[name], low=lo, high=hi)
-    return ParameterSet(list(params.values()), model) if items else None
+    return ParameterSet(list(params.values()), model)
 
 
 def _user_truth(data, space) -> dict | None:
