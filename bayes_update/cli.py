@@ -414,6 +414,7 @@ def cmd_reproduce(args) -> int:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
     reproduce(args.out, quick=args.quick, workers=args.workers, discrepancy=not args.no_discrepancy,
               cache_dir=args.cache_dir)
+    print(f"wrote {args.final_out / 'report.md'}")
     return 0
 
 

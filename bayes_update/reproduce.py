@@ -160,7 +160,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
                                "gap_before": disc.gap_before, "gap_after": disc.gap_after}
     (out / "reproduce.json").write_text(json.dumps(head, indent=1, default=float) + "\n")
     (out / "report.md").write_text(_report(out, calibrations, posteriors, stated, truth, timing, quick, disc))
-    log(f"wrote {out / 'report.md'} ({timing['total']:.0f} s)")
+    log(f"report.md and its figures done ({timing['total']:.0f} s)")
     return head
 
 
