@@ -1,11 +1,15 @@
 """The discrepancy workflow (bayes_update.missing_effect) on virtual-rig data
-with a hidden effect: each of the four hidden in turn, none, and a bow plus
+with a hidden effect: each of the four hidden in turn, none (over three noise
+seeds), an effect outside the candidate catalogue, and a bow plus
 amplitude-dependent damping.  Magnitudes are drawn from
 HIDDEN_EFFECT_RANGES with a seed; the workflow is never told what is hidden.
 
 Reduced settings (CI): three tests per data set (the two updating chirps and
 the medium chirp for validation), fewer noise replicates and iterations; the
-full run with the sine tests is benchmarks/discrepancy_cases.py."""
+full run with the sine tests is benchmarks/discrepancy_cases.py.  Most cases
+start the baseline at the paper's Table 3 with no band starts (the saving that
+keeps the file in budget); one runs the real baseline search (start=None: the
+deterministic start on coarse grids, then band starts), as the CLI does."""
 import json
 import math
 
@@ -13,63 +17,131 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.missing_effect import (CANDIDATES, DiscrepancySettings, find_missing_effect,
-                                         write_discrepancy)
+from bayes_update.missing_effect import (CANDIDATES, DECISIVE, EXPLAINED_FACTOR, DiscrepancySettings,
+                                         find_missing_effect, write_discrepancy)
 from bayes_update.mode import laplace_log_evidence, ModeResult
 from bayes_update.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
 
 TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium")]
-SETTINGS = DiscrepancySettings.quick()
 # the paper's Table 3 as the baseline's start (prior knowledge; it saves the coarse grids)
 START = fe.Parameters.from_paper_units(3, 15, 77, 180)
-CASES = {"initial_imperfection": ["initial_imperfection"],
-         "amplitude_dependent_damping": ["amplitude_dependent_damping"],
-         "shaker_attachment": ["shaker_attachment"],
-         "clamp_compliance": ["clamp_compliance"],
-         "none": [],
-         "combined": ["initial_imperfection", "amplitude_dependent_damping"]}
+SINGLE = ("initial_imperfection", "amplitude_dependent_damping", "shaker_attachment", "clamp_compliance")
+# name -> hidden effects and how the workflow runs; magnitudes from hidden_effects(seed=1), noise seed 7
+CASES = {**{name: dict(hidden=[name]) for name in SINGLE},
+         "none": dict(hidden=[]),
+         "none_seed8": dict(hidden=[], data_seed=8),
+         "none_seed9": dict(hidden=[], data_seed=9),
+         # the real baseline search: deterministic start on coarse grids, then band starts (two
+         # candidates: the naming among all four is the bow case's above; this saves 40 s)
+         "bow_from_no_start": dict(hidden=["initial_imperfection"], start=None, band_starts=True,
+                                   candidates=["initial_imperfection", "amplitude_dependent_damping"]),
+         # an effect the catalogue does not hold
+         "clamp_outside_catalogue": dict(hidden=["clamp_compliance"],
+                                         candidates=[n for n in CANDIDATES if n != "clamp_compliance"]),
+         "combined": dict(hidden=["initial_imperfection", "amplitude_dependent_damping"], max_effects=2)}
 
 _cache = {}
 
 
 def run_case(name):
     if name not in _cache:
-        effects = hidden_effects(CASES[name], seed=1)
-        data = make_dataset(rig=VirtualRig(effects=effects), tests=TESTS, seed=7)
-        # one effect at most where one is hidden (the second round is the combined case's)
-        settings = SETTINGS if name == "combined" else DiscrepancySettings.quick(max_effects=1)
-        res = find_missing_effect(data, start=START, settings=settings, workers=2, progress=False,
-                                  log=lambda *a: None)
+        spec = CASES[name]
+        effects = hidden_effects(spec["hidden"], seed=1)
+        data = make_dataset(rig=VirtualRig(effects=effects), tests=TESTS, seed=spec.get("data_seed", 7))
+        # one effect at most where at most one is hidden (the second round is the combined case's)
+        settings = DiscrepancySettings.quick(max_effects=spec.get("max_effects", 1),
+                                             band_starts=spec.get("band_starts", False))
+        res = find_missing_effect(data, start=spec.get("start", START), candidates=spec.get("candidates"),
+                                  settings=settings, workers=2, progress=False, log=lambda *a: None)
         _cache[name] = (effects, data, res)
     return _cache[name]
 
 
-def _truth_in_interval(res, effect):
+def _check_named_effect(res, effect):
+    """What the README claims for a named effect: decisive evidence with the
+    naming fit's interval excluding "no effect", the model with it explains
+    the data within noise and model error, and every hidden parameter inside
+    the re-update's 2-sd interval with the mode within 10 % of the truth.
+
+    The 2-sd interval alone does not discriminate: the README's re-update sds
+    (damper 59 +- 69, shaker mass 14.6 +- 8.3 g) hold zero, so "no effect"
+    would pass it; the mode within 10 % of the truth does not (measured here:
+    1.1-2.6 % off for the five parameters of the four single cases, 2.3 % for
+    the bow from no start, 0.3 % for both in the combined case; the
+    full-settings benchmark 0-4.5 %)."""
     cand = CANDIDATES[effect.name]
-    truth = cand.values_of(effect)
+    row = next(r for rnd in res.rounds for r in rnd["candidates"] if r["name"] == effect.name)
+    assert row["two_ln_B"] > DECISIVE and row["excludes_null"], row
     got = res.to_json()["final_mode"]["effects"][effect.name]
-    ok = []
-    for p, t in zip(cand.parameters, truth):
+    for p, t in zip(cand.parameters, cand.values_of(effect)):
         m, sd = got[p.name]["mode"], got[p.name]["sd"]
-        ok.append(abs(m - t) <= 2.0 * sd)
-    return ok, truth, got
+        assert abs(m - t) <= 2.0 * sd, (p.name, t, got)
+        assert abs(m - t) <= 0.1 * abs(t - p.null), (p.name, t, got)
 
 
-@pytest.mark.parametrize("name", ["initial_imperfection", "amplitude_dependent_damping", "shaker_attachment",
-                                  "clamp_compliance"])
+def _check_explains(res):
+    assert res.explains_gap and res.tentative == [], (res.misfit_ratio, res.tentative)
+    assert all(r <= EXPLAINED_FACTOR for r in res.misfit_ratio.values()), res.misfit_ratio
+
+
+@pytest.mark.parametrize("name", SINGLE)
 def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     (effect,), data, res = run_case(name)
-    assert res.named_effect == name, res.rounds[0]["candidates"]
+    assert res.named == [name] and res.verdict == "named", res.rounds[0]["candidates"]
+    b, a = res.gap_before, res.gap_after
+    # the README's success criterion: e_lin + e_nlin and the validation misfit each shrink by more than 50 %
+    assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
+    assert a["validation"] <= 0.5 * b["validation"]
+    _check_named_effect(res, effect)
+    _check_explains(res)
+
+
+def test_the_real_baseline_search_from_no_start_names_the_bow():
+    """start=None: the deterministic start on coarse grids, the likelihood
+    scales there, then least squares from it and from the band starts."""
+    (effect,), data, res = run_case("bow_from_no_start")
+    assert len(res.baseline.mode.starts) > 1            # the band starts ran
+    assert res.named == ["initial_imperfection"], res.rounds[0]["candidates"]
     b, a = res.gap_before, res.gap_after
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
     assert a["validation"] <= 0.5 * b["validation"]
-    ok, truth, got = _truth_in_interval(res, effect)
-    assert all(ok), (truth, got)
+    _check_named_effect(res, effect)
+    _check_explains(res)
 
 
-def test_no_hidden_effect_names_none(tmp_path):
-    _, data, res = run_case("none")
-    assert res.named == []
+def test_an_effect_outside_the_catalogue_is_not_given_a_wrong_name(tmp_path):
+    """A clamp compliance hidden, the catalogue without clamp_compliance: a
+    damper still wins the evidence decisively (2 ln B = 35 measured), but
+    leaves e_nlin at 45x what noise and model error allow (0.4-1.06 where
+    the right effect was named; threshold 3): nothing is named and the
+    verdict says no candidate explains the gap."""
+    _, data, res = run_case("clamp_outside_catalogue")
+    assert res.named == [] and res.named_effect is None
+    assert res.verdict == "no candidate explains the gap" and not res.explains_gap
+    assert res.misfit_ratio["e_nlin"] > EXPLAINED_FACTOR
+    # the evidence rule alone would have named it: the misfit test is what refuses
+    best = res.rounds[0]["candidates"][0]
+    assert best["two_ln_B"] > DECISIVE and best["excludes_null"] and res.tentative == [best["name"]], best
+    # the gap is stated: nothing was added, so after = before; what the best candidate would have left
+    assert res.gap_after == res.gap_before
+    assert res.tentative and res.gap_with_tentative["e_nlin"] > 0.5 * res.gap_before["e_nlin"]
+    doc = write_discrepancy(res, data, tmp_path)
+    saved = json.loads((tmp_path / "discrepancy.json").read_text())
+    assert saved["named_effect"] is None and saved["verdict"] == "no candidate explains the gap"
+    assert saved["explains_gap"] is False and saved["tentative_effects"] == res.tentative
+    assert doc["verdict"] == saved["verdict"]
+    assert "no candidate explains the gap" in (tmp_path / "evidence.md").read_text()
+
+
+@pytest.mark.parametrize("name", ["none", "none_seed8", "none_seed9"])
+def test_no_hidden_effect_names_none(name, tmp_path):
+    """Three noise realisations of the rig without a hidden effect: nothing
+    named, no candidate decisive, and the baseline explains the data."""
+    _, data, res = run_case(name)
+    assert res.named == [] and res.verdict == "no missing effect"
+    assert all(c["two_ln_B"] <= DECISIVE or not c["excludes_null"] for c in res.rounds[0]["candidates"])
+    _check_explains(res)
+    assert res.gap_after == res.gap_before
     doc = write_discrepancy(res, data, tmp_path)
     saved = json.loads((tmp_path / "discrepancy.json").read_text())
     assert saved["named_effect"] is None and doc["named_effect"] is None
@@ -79,14 +151,22 @@ def test_no_hidden_effect_names_none(tmp_path):
     assert (tmp_path / "gap_before_after.png").stat().st_size > 10_000
 
 
-@pytest.mark.slow   # 95 s: outside the default run (15-minute budget); benchmarks/discrepancy_cases.py runs it at full settings
-def test_combined_case_is_reported_honestly():
+@pytest.mark.slow   # 63-95 s: outside the default run (15-minute budget); benchmarks/discrepancy_cases.py runs it at full settings
+def test_combined_case_names_both_and_closes_the_gap():
+    """README (combined case, full settings): both named, e_lin + e_nlin
+    16.13 -> 0.44 %, validation 4.20 -> 0.35 %, bow 0.146 / 0.146 +- 0.036 mm,
+    damper 32 / 31 +- 29.  Measured here (reduced settings): the damper then
+    the bow named (2 ln B 921, then 1965), e_lin + e_nlin 10.7 -> 0.38 %,
+    validation 2.58 -> 0.32 %, bow 0.127 / 0.127 +- 0.036 mm, damper 37.2 /
+    37.1 +- 38, misfit 0.65x the allowance."""
     effects, data, res = run_case("combined")
-    # both named, or the stronger with the remaining gap stated (gap_after)
-    assert res.named and set(res.named) <= {e.name for e in effects}
-    if len(res.named) == 1:
-        assert res.gap_after["e_nlin"] > 0
-    assert res.gap_after["e_lin"] + res.gap_after["e_nlin"] < res.gap_before["e_lin"] + res.gap_before["e_nlin"]
+    assert set(res.named) == {e.name for e in effects}, res.rounds
+    b, a = res.gap_before, res.gap_after
+    assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
+    assert a["validation"] <= 0.5 * b["validation"]
+    for effect in effects:
+        _check_named_effect(res, effect)
+    _check_explains(res)
 
 
 def test_laplace_evidence_of_a_linear_gaussian_model_is_exact():
@@ -132,3 +212,78 @@ def test_cli_discrepancy_refuses_the_rom(tmp_path, capsys):
 
     assert main(["discrepancy", "--model", "rom", "--out", str(tmp_path)]) == 2
     assert "modal ROM" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ the CLI
+@pytest.fixture(scope="module")
+def hidden_bow_dataset(tmp_path_factory):
+    """`bayes-update make-dataset --hidden initial_imperfection` twice with the same --hidden-seed."""
+    from bayes_update.cli import main
+
+    out = tmp_path_factory.mktemp("hidden")
+    for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
+        assert main(["make-dataset", "--hidden", "initial_imperfection", "--hidden-seed", seed,
+                     "--out", str(out / name)]) == 0
+    return out
+
+
+def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
+    from bayes_update.dataset import read_dataset
+    from bayes_update.virtual_rig import HIDDEN_EFFECT_RANGES, load_default_dataset
+
+    a, b = (json.loads((hidden_bow_dataset / n / "dataset.json").read_text()) for n in ("a", "b"))
+    (effect,) = a["truth"]["effects"]
+    assert effect["name"] == "initial_imperfection"
+    lo, hi = HIDDEN_EFFECT_RANGES["initial_imperfection"]["amplitude"]
+    assert lo <= abs(effect["amplitude"]) <= hi                  # drawn from the stated range (either sign)
+    assert b["truth"]["effects"] == a["truth"]["effects"]        # the same --hidden-seed, the same magnitude
+    for f in (hidden_bow_dataset / "a").glob("*.csv"):           # ... and the same bytes
+        assert f.read_bytes() == (hidden_bow_dataset / "b" / f.name).read_bytes(), f.name
+    other = json.loads((hidden_bow_dataset / "c" / "dataset.json").read_text())["truth"]["effects"][0]
+    assert other["amplitude"] != effect["amplitude"]              # another seed, another magnitude
+    # the data differ from the default data set (same noise seed, 1 % of RMS) by more than the noise
+    # could: measured 0.22 of the high chirp's velocity (0.35 of the low one's: the bow moves f1) for
+    # this 0.127 mm bow; 5x the noise leaves 4x margin
+    data, default = read_dataset(hidden_bow_dataset / "a"), load_default_dataset()
+    assert [t.name for t in data.tests] == [t.name for t in default.tests]
+    high = {t.name: t for t in data.tests}["chirp_high"], {t.name: t for t in default.tests}["chirp_high"]
+    assert np.array_equal(high[0].force, high[1].force)
+    rel = np.linalg.norm(high[0].velocity - high[1].velocity) / np.linalg.norm(high[1].velocity)
+    assert rel > 5 * 0.01, rel
+
+
+def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset, tmp_path):
+    """`bayes-update discrepancy --quick` on the make-dataset output (start=None: the
+    deterministic start on coarse grids, as a user runs it)."""
+    from bayes_update.cli import main
+
+    out = tmp_path / "disc"
+    assert main(["discrepancy", "--data", str(hidden_bow_dataset / "a"), "--quick", "--workers", "2",
+                 "--candidates", "initial_imperfection", "amplitude_dependent_damping", "--out", str(out)]) == 0
+    doc = json.loads((out / "discrepancy.json").read_text())
+    assert {"named_effect", "named_effects", "verdict", "explains_gap", "candidates", "gap_before",
+            "gap_after", "signature_check", "truth"} <= set(doc)
+    assert doc["named_effect"] == "initial_imperfection" and doc["verdict"] == "named" and doc["explains_gap"]
+    assert {c["name"] for c in doc["candidates"]} == {"initial_imperfection", "amplitude_dependent_damping"}
+    for c in doc["candidates"]:
+        assert {"two_ln_B", "delta_log_likelihood", "parameters", "excludes_null"} <= set(c)
+    for key in ("gap_before", "gap_after"):
+        assert {"e_lin", "e_nlin", "validation"} <= set(doc[key])
+    b, a = doc["gap_before"], doc["gap_after"]
+    assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"]) and a["validation"] <= 0.5 * b["validation"]
+    # the truth block travels to the output; the re-updated bow covers it
+    (hidden,) = doc["truth"]["effects"]
+    got = doc["final_mode"]["effects"]["initial_imperfection"]["amplitude"]
+    assert abs(got["mode"] - 1e3 * hidden["amplitude"]) <= 2 * got["sd"]
+    # evidence.md: the table with one row per candidate and the decision
+    text = (out / "evidence.md").read_text()
+    assert "| candidate | 2 ln B | gain in log L |" in text
+    rows = [line for line in text.splitlines() if line.startswith("| initial_imperfection |")
+            or line.startswith("| amplitude_dependent_damping |")]
+    assert len(rows) >= 2, text
+    row = next(line for line in rows if line.startswith("| initial_imperfection |"))
+    assert float(row.split("|")[2]) == pytest.approx(
+        next(c["two_ln_B"] for c in doc["candidates"] if c["name"] == "initial_imperfection"), abs=0.06)
+    assert "Named: **initial_imperfection**" in text
+    for name in ("gap_before_after.png", "diagnostics_before.png", "diagnostics_after.png"):
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and (out / name).stat().st_size > 10_000

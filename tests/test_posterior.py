@@ -8,6 +8,7 @@ import pytest
 from scipy import stats
 
 import fe
+import volterra
 from bayes_update.likelihood import (Likelihood, ParameterSpace, StageScale, noise_scale_from_replicates,
                                      white_noise_sd)
 from bayes_update.posterior import PosteriorSettings, run_emcee, sample
@@ -104,11 +105,22 @@ def test_simulation_based_calibration_on_a_surrogate_level_simulator():
     """SBC (Talts et al. 2018) of the likelihood as the pipeline builds it:
     a metric e = ||c_ref - c(theta)|| / ||c_ref|| of a 3-coefficient model,
     white noise on the reference, the scale s and nu estimated from 32 noise
-    replicates, emcee.  Over 100 truths drawn from the prior the 90 % central
-    intervals must cover 80-98 % and the ranks must be uniform."""
+    replicates, emcee.  Over 100 truths drawn from the prior the ranks must
+    be uniform and the 50 % and 90 % central intervals cover their share.
+
+    This checks the sampler on a likelihood of known form (model error 0, no
+    curvature adjustment); the scales the pipeline measures are calibrated
+    by the ROM SBC below.  Bands, binomial: the two parameters' indicators
+    are independent, so 200 trials per level.  Right sds: 0.50 / 0.90, sd
+    0.035 / 0.021; sds x 0.8: 0.41 / 0.81; x 1.25: 0.60 / 0.96.  With 50 % in
+    [0.43, 0.60] and 90 % in [0.855, 0.945] a right posterior passes with
+    probability 0.95, one with sds x 0.8 with 0.02, x 1.25 with 0.09 (exact
+    binomial, the two levels taken as independent; measured here: 0.55 and
+    0.905).  The previous band (90 % in 80-98 % per parameter, 100 trials)
+    passed sds from 0.8x to 1.4x."""
     rng = np.random.default_rng(2017)
     sigma, n_truths, n_rank = 0.05, 100, 99
-    covered = np.zeros(2)
+    covered, covered50 = np.zeros(2), np.zeros(2)
     ranks = np.zeros((n_truths, 2), int)
     for k in range(n_truths):
         truth = rng.random(2)
@@ -125,15 +137,189 @@ def test_simulation_based_calibration_on_a_surrogate_level_simulator():
 
         smp = run_emcee(log_prob, rng.random((16, 2)), 16, 700, seed=k, vectorize=True, progress=False)
         draws = smp.get_chain(discard=200, flat=True)
-        lo, hi = np.percentile(draws, [5, 95], axis=0)
+        lo, q25, q75, hi = np.percentile(draws, [5, 25, 75, 95], axis=0)
         covered += (truth >= lo) & (truth <= hi)
+        covered50 += (truth >= q25) & (truth <= q75)
         thin = draws[rng.choice(len(draws), n_rank, replace=False)]
         ranks[k] = np.sum(thin < truth, axis=0)
-    coverage = covered / n_truths
-    assert np.all((coverage >= 0.80) & (coverage <= 0.98)), coverage
+    cover90, cover50 = covered.sum() / (2 * n_truths), covered50.sum() / (2 * n_truths)
+    assert 0.855 <= cover90 <= 0.945, covered / n_truths
+    assert 0.43 <= cover50 <= 0.60, covered50 / n_truths
     for j in range(2):
         counts = np.histogram(ranks[:, j], bins=10, range=(0, n_rank + 1))[0]
         assert stats.chisquare(counts).pvalue > 1e-3, counts
+
+
+# ------------------------- simulation-based calibration of the likelihood on the ROM
+SBC_CHIRPS = {"chirp_low": (0.02, "linear"), "chirp_high": (0.2, "nonlinear")}
+
+
+class _RomPoint:
+    """Picklable x (internal coordinates) -> (model, parameters)."""
+
+    def __init__(self, space, model):
+        self.space, self.model = space, model
+
+    def __call__(self, x):
+        return self.model, self.space.to_parameters(x)
+
+
+def _sbc_truth(args):
+    """z = (mode - truth) / posterior sd of (eta, c, P_eff, k_s, F) at one truth.
+
+    Data: the two updating chirps (0.02 N and 0.2 N, 4 s at 1024 Hz) made by
+    ``generator`` ("rom": the modal ROM itself; "refined": the model
+    ``estimate_likelihood`` measures the ROM's error against) at the truth,
+    noise at ``snr_db`` on force and velocity.  Then what ``sample`` does
+    before the sampler: the likelihood scales by ``estimate_likelihood`` at
+    the truth (96 replicates, the default; model error on unless the data come
+    from the ROM itself), the mode by least squares from the truth, and the
+    curvature adjustment at the mode.  The posterior's covariance is the
+    adjusted Laplace one, A^-1 (J^T J)^-1 A^-T (F by the delta method): the
+    linearised form of benchmarks/sbc.py, without GP and MCMC (the toy SBC
+    above and the surrogate-against-direct test cover those).  None when the
+    data's Kautz pole cannot be identified (the data set is unusable, not the
+    likelihood wrong)."""
+    from bayes_update import signals
+    from bayes_update.dataset import Dataset, Record
+    from bayes_update.likelihood import curvature_adjustment, estimate_likelihood, refined_model
+    from bayes_update.metrics import UpdatingProblem
+    from bayes_update.mode import ResidualFunction, find_mode
+    from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG
+
+    k, x, seed, generator, snr_db = args
+    rig = PAPER_EQUIVALENT_RIG
+    rom = fe.ModalROM(rig)
+    space = ParameterSpace(rig)
+    box = space.box()
+    widths = box[:, 1] - box[:, 0]
+    params = space.to_parameters(x)
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k,)))
+    gen = rom if generator == "rom" else refined_model(rom)
+    tests = []
+    for name, (amp, role) in SBC_CHIRPS.items():
+        f = signals.chirp(amp)
+        v = gen.simulate(params, f, 1024.0).sensor_velocity
+        tests.append(Record(f"{name}.csv", "chirp", name.split("_")[1], role, np.arange(f.size) / 1024.0,
+                            signals.add_noise(f, snr_db, rng), signals.add_noise(v, snr_db, rng)))
+    try:
+        problem = UpdatingProblem(Dataset("sbc", 1024.0, rig, tests), rom)
+    except ValueError as exc:          # volterra.PoleEstimationError is one
+        if isinstance(exc, volterra.PoleEstimationError) or "Kautz pole" in str(exc):
+            return None
+        raise
+    lik = estimate_likelihood(problem, params, model_error=generator != "rom", n_replicates=96, seed=k,
+                              space=space)
+    stages = lik.stages
+    fun = ResidualFunction(problem, stages, tuple(lik.scales[st].sd for st in stages), _RomPoint(space, rom))
+    mode = find_mode(fun, [x], box[:, 0], box[:, 1], 1e-4 * widths, None, max_iterations=40)
+    adj = curvature_adjustment(lik, mode.jacobian, mode.x, widths, stages)
+    a_inv = np.linalg.inv(adj.A)
+    cov = a_inv @ mode.covariance(scale=widths) @ a_inv.T
+    z = (mode.x - x) / np.sqrt(np.diag(cov))
+    grad_F = np.array([0.0, 0.0, (space.kb + mode.x[3]) / space.kb, mode.x[2] / space.kb])
+    z_F = (space.F_of(mode.x)[0] - space.F_of(x)[0]) / math.sqrt(grad_F @ cov @ grad_F)
+    return np.append(z, z_F)
+
+
+def _sbc_z(n_truths, seed, generator, snr_db):
+    from bayes_update.evaluation import default_executor, evaluate_many
+    from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG
+
+    truths = ParameterSpace(PAPER_EQUIVALENT_RIG).sample_prior(n_truths, seed=seed)
+    pool = default_executor(2)
+    try:
+        out = evaluate_many(_sbc_truth, [(k, x, seed, generator, snr_db) for k, x in enumerate(truths)], pool,
+                            batch_size=1, progress=False)
+    finally:
+        pool.shutdown()
+    return out
+
+
+# The acceptance bands, from binomial statistics and the measured spread.  For
+# each truth and each of eta, c, P_eff, k_s: is the truth inside the central
+# 50 % and 90 % intervals (|z| < 0.674, |z| < 1.645)?  Pooled over truths and
+# parameters these are coverage fractions.  Posterior sds off by a factor f
+# move them to P(|Z| < 0.674 f), P(|Z| < 1.645 f): 0.41 / 0.81 at f = 0.8,
+# 0.60 / 0.96 at f = 1.25 (0.50 / 0.90 right).  The four indicators of a truth
+# are not independent (z of c and k_s correlate -0.90), and the pipeline's own
+# coverage is not exactly nominal: measured at 200 truths (seeds 0 and 1 of
+# this test's generator; 197 with an identifiable pole) 0.54 and 0.91 pooled,
+# and the pooled coverage's sd over N truths is 1.3x (50 %) and 1.5x (90 %)
+# the binomial sqrt(p (1 - p) / 4N), i.e. 2.4-3 effective trials per truth
+# (at N = 96: sd 0.030 and 0.018).  Bootstrap of those 197 truths (6000
+# resamples, z scaled by 1/f for sds off by f), probability that the test
+# passes:
+#                                                  as measured  sds x 0.8  sds x 1.25
+#   N = 96,  50 % in [0.45, 0.60], 90 % in [0.865, 0.95]:   0.96      0.015      0.08
+#   N = 200, 50 % in [0.47, 0.58], 90 % in [0.88, 0.94]:    0.96      0.000      0.002
+# (N = 48 could not do it: the best bands passing 0.97 of right posteriors
+# passed 0.29 / 0.35 of the wrong ones.)  The default check (96 truths, 80 s
+# on 2 quiet cores: 0.83 s per truth) fails a 0.8x posterior with probability
+# 0.985 and a 1.25x one with 0.92; the full one (200 truths) with > 0.99 and
+# runs with -m slow.  Seed 3: not one of the truths the bands came from.
+SBC_DEFAULT = dict(n_truths=96, band_50=(0.45, 0.60), band_90=(0.865, 0.95))
+SBC_FULL = dict(n_truths=200, band_50=(0.47, 0.58), band_90=(0.88, 0.94))
+SBC_SEED = 3
+
+
+def _check_sbc(n_truths, band_50, band_90):
+    z = _sbc_z(n_truths, SBC_SEED, "rom", 40.0)
+    # at a lightly damped truth (zeta1 0.5-0.7 %) the H1 pole estimate of a
+    # noisy low-level chirp can fail: 2 of 200 data sets at seeds 0-1
+    failed = sum(r is None for r in z)
+    assert failed <= 0.05 * n_truths, f"{failed} of {n_truths} data sets without an identifiable Kautz pole"
+    Z = np.array([r for r in z if r is not None])[:, :4]
+    cover50, cover90 = np.mean(np.abs(Z) < 0.6745), np.mean(np.abs(Z) < 1.6449)
+    per_parameter = {"50": np.mean(np.abs(Z) < 0.6745, axis=0).round(3),
+                     "90": np.mean(np.abs(Z) < 1.6449, axis=0).round(3)}
+    assert band_50[0] <= cover50 <= band_50[1], (cover50, per_parameter)
+    assert band_90[0] <= cover90 <= band_90[1], (cover90, per_parameter)
+
+
+def test_simulation_based_calibration_of_the_likelihood_on_the_rom():
+    """SBC of the likelihood the pipeline builds (estimate_likelihood's noise
+    scales from 96 replicates and the curvature adjustment), linearised at
+    the mode: truths from the prior, data from the ROM plus 40 dB noise on
+    both channels, the ROM updating them.  The model error is off here as in
+    benchmarks/sbc.py, because the data come from the updating model itself
+    (with it on, the ROM's 0.7-3.2 % error against the refined FE in e_nlin
+    would widen c and k_s several-fold and no coverage could tell 1.25x from
+    right); its budget is checked by the test after the next.  F's z is
+    k_s's (correlation 1.00 measured), so it is left out of the pooling.
+    Bands and power: the comment above SBC_DEFAULT."""
+    _check_sbc(**SBC_DEFAULT)
+
+
+@pytest.mark.slow   # 170 s on 2 quiet cores: the test above with 200 truths
+def test_simulation_based_calibration_of_the_likelihood_on_the_rom_full():
+    _check_sbc(**SBC_FULL)
+
+
+def test_the_model_error_budget_moves_no_parameter_by_more_than_one_sd():
+    """docs/likelihood.md: the model error "is budgeted as one standard
+    deviation in any direction ... a bias of that size then moves any
+    parameter by at most one posterior sd".  Data from the refined model
+    (the full FE at 3x the elements and 4x the substeps, what
+    estimate_likelihood measures the ROM's error against) without noise
+    (120 dB), the ROM updating them with the model error on: the mode's
+    offset from the truth is that bias.  In linear theory |z| <=
+    e_model / s <= 1 for every parameter (Cauchy-Schwarz); and since the
+    error is "mostly in one direction (a frequency error moves P_eff)", the
+    budget is nearly used up along P_eff: |z_P_eff| near 1, not 0.1
+    (an e_model measured 2x too large would halve it)."""
+    z = _sbc_z(8, 2, "refined", 120.0)
+    assert all(r is not None for r in z)
+    Z = np.abs(np.array(z))
+    # measured at 16 truths of this seed: max |z| 1.02 (P_eff; 0.47, 0.88, 0.78
+    # for eta, c, k_s), 0.96 over these 8; 1.2 leaves 18 % for the
+    # linearisation, and an e_model measured 0.8x too small would push 3 of
+    # the 16 beyond it
+    assert Z.max() <= 1.2, Z.max(axis=0)
+    # |z_P_eff| measured 0.67-1.02, median 0.87 (0.84 over these 8): the
+    # budget is nearly used up where the bias is; 0.5 fails an e_model
+    # measured 1.7x too large
+    assert np.median(Z[:, 2]) >= 0.5, Z[:, 2]
 
 
 def test_emcee_is_reproducible_with_a_seed():
@@ -166,10 +352,17 @@ def test_posterior_covers_the_truth_on_the_default_data(rom_posterior, data):
     si = {"eta": 1e6, "c": 1e3, "F": 1.0, "k_s": 1e3, "P_eff": 1.0}
     for name, value in truth.items():
         assert s[name]["hdi_3%"] <= value * si[name] <= s[name]["hdi_97%"], (name, s[name])
-    assert s["P_eff"]["mean"] == pytest.approx(truth["P_eff"], rel=0.01)
-    # the likelihood scales: nu <= the regressors behind each metric
-    for sc in rom_posterior.likelihood.scales.values():
-        assert 1.0 <= sc.noise_dof <= sc.n_regressors
+        # in posterior sds (1 % of P_eff would be 200 of them): measured |mean - truth| / sd
+        # 0.39 (eta), 0.86 (c, F, k_s), 0.90 (P_eff: 74.0596 +- 0.0038 N against 74.0630); 3 sd
+        # leaves 3.3x that
+        assert abs(s[name]["mean"] - value * si[name]) <= 3.0 * s[name]["sd"], (name, s[name])
+    # (No check of noise_dof here: nu = 2 mean^2 / var of the replicates' e^2 is
+    # clipped by the code to [1, n_regressors], so that range cannot fail; it does
+    # not enter the likelihood (the scale is the variance per direction of the
+    # parameters' span); and with these 12 replicates its only independent
+    # expectation, (tr S)^2 / tr S^2 of the replicates' covariance S, is itself
+    # a factor 2-3 uncertain.  The estimator is checked on chi-square draws with
+    # a known nu in test_noise_dof_from_replicates_recovers_chi_square.)
     # the linear-only posterior is the ridge: F and k_s move together
     assert rom_posterior.linear_only["corr_F_k_s"] > 0.99
     assert rom_posterior.linear_only["narrowing"]["c"] > 1.5
@@ -203,41 +396,81 @@ def test_settings_are_validated():
 
 
 def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior, data):
-    """Reduced version of benchmarks/posterior_comparison.py: the same start,
-    likelihood and prior, emcee on the ROM itself.  With short direct chains
-    the thresholds are looser than the benchmark's (0.3 sd, overlap 0.8)."""
+    """Reduced version of benchmarks/posterior_comparison.py at the README's
+    thresholds, every parameter: the same start, likelihood (the surrogate
+    run's, passed on) and prior, emcee on the ROM itself; posterior means
+    within 0.3 direct sd, 94 % HDIs overlapping > 0.8, two-sample KS D < 0.1.
+
+    The direct chain must be long enough to resolve the thresholds: at 16
+    walkers x 700 steps (the previous setting; R-hat 1.17, bulk ESS 71) the
+    KS distance of c, F and k_s was 0.107-0.111 from Monte Carlo noise alone.
+    At 24 x 1500 (burn 500; R-hat 1.07, bulk ESS 265) measured: means within
+    0.049-0.079 sd, overlap 0.941-0.979, KS 0.028-0.042, against Monte Carlo
+    sds of about 0.07 (mean) and 0.03 (KS) at that ESS."""
     import arviz as az
+    from scipy import stats
 
     from bayes_update.posterior_plots import paper_draws
 
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
-    settings = PosteriorSettings.quick(n_walkers=16, direct_steps=700, direct_burn=250, n_linear=0,
+    settings = PosteriorSettings.quick(n_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
                                        n_global=0, n_predictive=0)
     direct = sample(data, fe.ModalROM(data.rig), settings, workers=2, start=start, direct=True,
-                    progress=False, log=lambda *a: None)
+                    likelihood=rom_posterior.likelihood, progress=False, log=lambda *a: None)
     a = paper_draws(rom_posterior.space, rom_posterior.draws)
     b = paper_draws(direct.space, direct.draws)
     for name in ("eta", "c", "F", "k_s", "P_eff"):
-        (la, ha), (lb, hb) = az.hdi(a[name], hdi_prob=0.94), az.hdi(b[name], hdi_prob=0.94)
+        x, y = a[name], b[name]
+        (la, ha), (lb, hb) = az.hdi(x, hdi_prob=0.94), az.hdi(y, hdi_prob=0.94)
         overlap = max(0.0, min(ha, hb) - max(la, lb)) / (max(ha, hb) - min(la, lb))
-        assert overlap > 0.5, (name, (la, ha), (lb, hb))
-        if name in ("eta", "P_eff"):
-            assert abs(np.mean(a[name]) - np.mean(b[name])) < 0.5 * np.std(b[name]), name
+        assert overlap > 0.8, (name, (la, ha), (lb, hb))
+        assert abs(np.mean(x) - np.mean(y)) < 0.3 * np.std(y), (name, np.mean(x), np.mean(y), np.std(y))
+        assert stats.ks_2samp(x, y).statistic < 0.1, name
 
 
-def test_cli_sample_writes_posterior_files(tmp_path):
+@pytest.fixture(scope="module")
+def cli_sample(tmp_path_factory):
     from bayes_update.cli import main
 
-    out = tmp_path / "post"
+    out = tmp_path_factory.mktemp("cli_sample") / "post"
     assert main(["sample", "--model", "rom", "--quick", "--out", str(out), "--workers", "2", "--no-cache"]) == 0
-    for name in ("posterior.nc", "posterior_summary.json", "corner.png", "traces.png", "predictive.png",
-                 "ridge.png", "gp_diagnostics.png"):
-        assert (out / name).exists(), name
+    return out
+
+
+def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
+    """posterior_summary.json: parameters -> name -> mean, sd, hdi_3%, hdi_97%,
+    r_hat, ess_bulk, each the statistic of the draws in posterior.nc
+    (recomputed here: numpy for the mean and sd, arviz for HDI, R-hat and
+    ESS; the JSON round trip is exact to 1e-12); the truth within 3 sd; the
+    figures are PNG images."""
+    import arviz as az
+
+    from bayes_update.cli import main
+
+    out = cli_sample
     summary = json.loads((out / "posterior_summary.json").read_text())
+    idata = az.from_netcdf(str(out / "posterior.nc"))
+    kb = load_default_dataset().rig.axial_stiffness / 1e3
+    truth_si = {"eta": 3e6, "c": 15e3, "F": 77.0, "k_s": 180e3, "P_eff": 77.0 * kb / (kb + 180.0)}
+    for name in ("eta", "c", "F", "k_s", "P_eff"):
+        got = summary["parameters"][name]
+        assert {"mean", "sd", "hdi_3%", "hdi_97%", "r_hat", "ess_bulk"} <= set(got), (name, got)
+        draws = idata.posterior[name].values                 # (walker, draw), SI
+        lo, hi = az.hdi(draws.ravel(), hdi_prob=0.94)
+        for key, ref in (("mean", draws.mean()), ("sd", draws.std(ddof=1)), ("hdi_3%", lo), ("hdi_97%", hi),
+                         ("r_hat", float(az.rhat(idata, var_names=[name])[name])),
+                         ("ess_bulk", float(az.ess(idata, var_names=[name], method="bulk")[name]))):
+            assert got[key] == pytest.approx(float(ref), rel=1e-9, abs=1e-12 * abs(got["mean"])), (name, key)
+        assert got["hdi_3%"] < got["mean"] < got["hdi_97%"]
+        # |mean - truth| / sd measured 0.43 (eta), 0.86-0.87 (c, F, k_s), 0.90 (P_eff); 3 sd
+        assert abs(got["mean"] - truth_si[name]) <= 3.0 * got["sd"], (name, got)
     assert summary["parameters"]["P_eff"]["units"] == "N"
-    assert main(["sample", "--modes", "4", "--quick", "--out", str(out)]) == 2   # --modes needs --model rom
-    assert main(["sample", "--prior", "G=1:2", "--quick", "--out", str(out)]) == 2
-    assert main(["sample", "--prior", "F=95:20", "--quick", "--out", str(out)]) == 2
+    for name in ("corner.png", "traces.png", "predictive.png", "ridge.png", "gp_diagnostics.png"):
+        head = (out / name).read_bytes()[:8]
+        assert head == b"\x89PNG\r\n\x1a\n" and (out / name).stat().st_size > 10_000, name
+    assert main(["sample", "--modes", "4", "--quick", "--out", str(tmp_path)]) == 2   # --modes needs --model rom
+    assert main(["sample", "--prior", "G=1:2", "--quick", "--out", str(tmp_path)]) == 2
+    assert main(["sample", "--prior", "F=95:20", "--quick", "--out", str(tmp_path)]) == 2
 
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
