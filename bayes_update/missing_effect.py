@@ -422,8 +422,7 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
         x0 = np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1])
         lik = estimate_likelihood(problem, space.to_parameters(x0), n_replicates=settings.n_replicates,
                                   seed=settings.seed, space=space).unabsorbed()
-        from .posterior import band_starts
-        base_starts = [x0] + (band_starts(space, x0, n=2) if settings.band_starts else [])
+        base_starts = [x0] + (space.extra_starts(x0, n=2) if settings.band_starts else [])
         base = fit_model(problem, space, lik, (), base_starts, settings, pool)
         if settings.reestimate_likelihood:
             # the likelihood at the baseline's mode, not at the coarse start

@@ -269,11 +269,6 @@ class _BaseMap:
         return self.model, self.space.to_parameters(x)
 
 
-def band_starts(space: ParameterSpace, x, n: int = 3) -> list:
-    """The beam's extra MAP starts on the (c, k_s) band: :meth:`ParameterSpace.extra_starts`."""
-    return space.extra_starts(x, n)
-
-
 def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
              progress: bool = False) -> MapResult:
     """MAP by least squares on the residual vectors (:mod:`bayes_update.mode`)
