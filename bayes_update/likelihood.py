@@ -63,7 +63,7 @@ import numpy as np
 import fe
 import volterra
 
-from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band, stage_output
+from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band
 from .spectral import psd
 
 MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
@@ -393,7 +393,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         sig_y = white_noise_sd(test.velocity, fs, band)
         basis = problem.projector(stage).basis
         v0 = problem.simulate(params, stage)
-        ref_norm = np.linalg.norm(stage_output(stage, problem.reference_components(stage)))
+        ref_norm = np.linalg.norm(problem.output(stage, problem.reference_components(stage)))
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
         D = []
         for _ in range(int(n_replicates)):
@@ -401,19 +401,19 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
             y_meas = v0 + sig_y * rng.standard_normal(v0.size)
             v = problem.run(params, u)
             proj = volterra.VolterraProjector(u, basis)
-            D.append((stage_output(stage, proj.components(y_meas)) - stage_output(stage, proj.components(v)))
+            D.append((problem.output(stage, proj.components(y_meas)) - problem.output(stage, proj.components(v)))
                      / ref_norm)
         D = np.array(D)
         e2 = np.sum(D ** 2, axis=1)
-        n_reg = _n_regressors(basis, stage)
+        n_reg = problem.n_regressors(stage)
         mean, nu = noise_scale_from_replicates(e2, n_reg)
         Q = sensitivity_span(problem, stage, params, space if space is not None else ParameterSpace(problem.rig))
         span_var = float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / Q.shape[1])
         e_model = e_perp = 0.0
         if ref_model is not None:
             v_ref = problem.run(params, test.force, model=ref_model)
-            d = stage_output(stage, problem.components(stage, v0)) - \
-                stage_output(stage, problem.components(stage, v_ref))
+            d = problem.output(stage, problem.components(stage, v0)) - \
+                problem.output(stage, problem.components(stage, v_ref))
             e_model = float(np.linalg.norm(d) / ref_norm)
             e_perp = float(np.linalg.norm(d - Q @ (Q.T @ d)) / ref_norm)
         residuals[stage] = D
@@ -521,7 +521,7 @@ def sensitivity_span(problem: UpdatingProblem, stage: str, params: fe.Parameters
         a = min(h[i], x[i] - box[i, 0]) if x[i] - h[i] < box[i, 0] else h[i]
         lo[i] -= a
         hi[i] += h[i]
-        out = [stage_output(stage, problem.components(stage, problem.simulate(space.to_parameters(p), stage)))
+        out = [problem.output(stage, problem.components(stage, problem.simulate(space.to_parameters(p), stage)))
                for p in (hi, lo)]
         cols.append((out[0] - out[1]) / (h[i] + a))
     U, S, _ = np.linalg.svd(np.array(cols).T, full_matrices=False)
@@ -529,13 +529,3 @@ def sensitivity_span(problem: UpdatingProblem, stage: str, params: fe.Parameters
     if r == 0:
         raise RuntimeError(f"stage {stage}: the model output does not move with the parameters")
     return U[:, :r]
-
-
-def _n_regressors(basis: volterra.KautzBasis, stage: str) -> int:
-    """Regressors behind the stage's metric: order 1 for e_lin, orders 2 and 3 for e_nlin."""
-    orders = (1,) if stage == "linear" else (2, 3)
-    n = 0
-    for k in orders:
-        J = basis.n_functions[k]
-        n += math.comb(J + k - 1, k)
-    return n

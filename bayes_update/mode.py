@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .core.problem import Problem, stage_output
+from .core.problem import Problem
 from .evaluation import evaluate_many
 
 #: residual value (per entry, scaled) standing in for a failed model run
@@ -53,14 +53,14 @@ class ResidualFunction:
         out = []
         for stage, s in zip(self.stages, self.scales):
             test = self.problem.tests[stage]
-            ref = stage_output(stage, self.problem.reference_components(stage))
+            ref = self.problem.output(stage, self.problem.reference_components(stage))
             n = ref.size
             try:
                 v = self.problem.run(params, test.force, model=model)
             except self.problem.failures:
                 out.append(np.full(n, FAILED_RESIDUAL))
                 continue
-            mod = stage_output(stage, self.problem.components(stage, v))
+            mod = self.problem.output(stage, self.problem.components(stage, v))
             out.append((ref - mod) / (np.linalg.norm(ref) * s))
         return np.concatenate(out)
 

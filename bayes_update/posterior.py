@@ -46,7 +46,7 @@ from .evaluation import default_executor, evaluate_many
 from .core import Problem, check_model
 from .likelihood import (UNITS, CurvatureAdjustment, Likelihood, ParameterSpace, curvature_adjustment,
                          estimate_likelihood)
-from .metrics import UpdatingProblem, stage_output
+from .metrics import UpdatingProblem
 
 
 @dataclass(frozen=True)
@@ -492,7 +492,7 @@ def _chain_diagnostics(sampler, burn: int, names) -> dict:
 def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
            start=None, space=None, likelihood: Likelihood | None = None, cache_dir=None,
-           progress: bool = True, log=print) -> PosteriorResult:
+           metrics: str | None = None, progress: bool = True, log=print) -> PosteriorResult:
     """Sample the posterior of a model's parameters given ``dataset`` (module docstring).
 
     model : the updating model: any model of the contract
@@ -508,9 +508,11 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
     likelihood : use these scales instead of measuring them at the start
         (e.g. to compare a direct and a surrogate posterior under one likelihood).
     cache_dir : folder of the netCDF evaluation cache (an interrupted run resumes).
+    metrics : the metric set, ``"paper"`` or ``"full"`` (:mod:`bayes_update.core.problem`;
+        default ``full`` for a model of the contract, ``paper`` for the beam).
     """
     settings = settings or PosteriorSettings()
-    problem, space = make_problem(dataset, model, space)
+    problem, space = make_problem(dataset, model, space, metrics)
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
                          "(the high-level chirp) as well as the 'linear' one")
@@ -527,18 +529,32 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
             pool.shutdown()
 
 
-def make_problem(dataset: Dataset, model=None, space=None):
+def make_problem(dataset: Dataset, model=None, space=None, metrics=None):
     """(problem, space) for ``model`` on ``dataset``: a model of the contract
     (declared ``parameters``; checked with one run here, before any heavy work)
     gets a :class:`bayes_update.core.Problem` and its :class:`ParameterSet`; the
     beam (``fe.BeamModel`` or ``fe.ModalROM``, the default) gets
-    :class:`UpdatingProblem` and the (eta, c, P_eff, k_s) :class:`ParameterSpace`."""
+    :class:`UpdatingProblem` and the (eta, c, P_eff, k_s) :class:`ParameterSpace`.
+
+    metrics : the metric set (default: ``full`` for a model of the contract,
+        ``paper`` for the beam).  Under ``full`` the linear test's J1 follows
+        the parameters it moves (:func:`bayes_update.core.calibrate.screen_linear`,
+        d + 1 runs of the linear test)."""
     if model is not None and hasattr(model, "parameters"):
+        from .core.calibrate import screen_linear
+        from .core.problem import DEFAULT_N_FUNCTIONS, linear_n_functions
+
         checked = check_model(model, dataset.by_role("linear")[0].force if dataset.by_role("linear")
                               else dataset.tests[0].force, dataset.sampling_rate_hz)
-        return Problem(dataset, model), space if space is not None else checked
+        space = space if space is not None else checked
+        problem = Problem(dataset, model, metrics=metrics)
+        if problem.metrics == "full":
+            n_functions = linear_n_functions(len(screen_linear(problem, space)[0]))
+            if n_functions != DEFAULT_N_FUNCTIONS:
+                problem = Problem(dataset, model, n_functions=n_functions, metrics=metrics)
+        return problem, space
     model = model if model is not None else fe.BeamModel(rig=dataset.rig)
-    return UpdatingProblem(dataset, model), space if space is not None else ParameterSpace(dataset.rig)
+    return UpdatingProblem(dataset, model, metrics=metrics), space if space is not None else ParameterSpace(dataset.rig)
 
 
 def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):
@@ -781,7 +797,8 @@ def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = Non
 
     from .metrics import describe_basis
     config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
-              "basis": describe_basis(ev.problem.basis), "data": ev.problem.data_fingerprint,
+              "basis": describe_basis(ev.problem.basis), "metric_set": ev.problem.metrics,
+              "data": ev.problem.data_fingerprint,
               "rig": ev.problem.rig.to_dict() if ev.problem.rig is not None else None,
               "coordinates": list(ev.space.coordinate_names)}
     if whitening is not None:     # points are stored in the whitened coordinates
@@ -808,7 +825,7 @@ class _Predict:
                 v = self.problem.simulate(p, st)
             except self.problem.failures:
                 return None
-            out[st] = stage_output(st, self.problem.components(st, v))
+            out[st] = self.problem.output(st, self.problem.components(st, v))
             out[Likelihood.key(st)] = self.problem.metric(st, v)
         return out
 
@@ -828,7 +845,7 @@ def posterior_predictive(res: PosteriorResult, n: int, pool, seed, progress) -> 
         Y = np.array([out[i][st] for i in ok])
         ref = res.problem.reference_components(st)
         bands[st] = {"low": np.percentile(Y, 5, axis=0), "high": np.percentile(Y, 95, axis=0),
-                     "median": np.median(Y, axis=0), "reference": stage_output(st, ref)}
+                     "median": np.median(Y, axis=0), "reference": res.problem.output(st, ref)}
         e_model = np.array([out[i][Likelihood.key(st)] for i in ok])
         pred[f"{Likelihood.key(st)}_model_median"] = float(np.median(e_model))
         if res.surrogates:

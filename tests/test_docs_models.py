@@ -46,7 +46,7 @@ def test_the_example_runs(tmp_path):
     from test_user_model import make_dataset
 
     model_code, use_code = _blocks("python")[:2]
-    write_dataset(make_dataset(seed=5), tmp_path / "my_test")
+    write_dataset(make_dataset(seed=5, truth={"gain": 1.0, "k2": 0.0}), tmp_path / "my_test")
     use_code = use_code.replace('"my_test/"', repr(str(tmp_path / "my_test")))
     use_code = use_code.replace('"my_test_posterior/"', repr(str(tmp_path / "posterior")))
     use_code = use_code.replace("PosteriorSettings()", "PosteriorSettings.quick(n_linear=0, n_global=0)")

@@ -18,50 +18,51 @@ from bayes_update import Parameter
 
 # ----------------------------------------------------------------------------- the model (< 30 lines)
 @njit(cache=False)
-def _duffing_velocity(f, fs, m, wn, zeta, k3, substeps):
-    h, x, v = 1.0 / (fs * substeps), 0.0, 0.0
-    out = np.zeros(f.size)
+def _acc(u, x, v, m, wn, zeta, k2, k3):
+    return (u - k2 * x * x - k3 * x ** 3) / m - 2 * zeta * wn * v - wn * wn * x
+
+
+@njit(cache=False)
+def _duffing_velocity(f, fs, m, wn, zeta, k2, k3, substeps):
+    h, x, v, out, c = 1.0 / (fs * substeps), 0.0, 0.0, np.zeros(f.size), (m, wn, zeta, k2, k3)
     for i in range(f.size - 1):
-        for s in range(substeps):              # force linear between samples
+        for s in range(substeps):              # RK4; the force linear between samples
             u0, u1 = f[i] + (f[i + 1] - f[i]) * s / substeps, f[i] + (f[i + 1] - f[i]) * (s + 1) / substeps
-            um = 0.5 * (u0 + u1)
-            a1 = (u0 - k3 * x ** 3) / m - 2 * zeta * wn * v - wn * wn * x
-            x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1
-            a2 = (um - k3 * x2 ** 3) / m - 2 * zeta * wn * v2 - wn * wn * x2
-            x3, v3 = x + 0.5 * h * v2, v + 0.5 * h * a2
-            a3 = (um - k3 * x3 ** 3) / m - 2 * zeta * wn * v3 - wn * wn * x3
-            x4, v4 = x + h * v3, v + h * a3
-            a4 = (u1 - k3 * x4 ** 3) / m - 2 * zeta * wn * v4 - wn * wn * x4
-            x, v = x + h * (v + 2 * v2 + 2 * v3 + v4) / 6, v + h * (a1 + 2 * a2 + 2 * a3 + a4) / 6
+            a1 = _acc(u0, x, v, *c)
+            a2 = _acc(0.5 * (u0 + u1), x + 0.5 * h * v, v + 0.5 * h * a1, *c)
+            a3 = _acc(0.5 * (u0 + u1), x + 0.5 * h * (v + 0.5 * h * a1), v + 0.5 * h * a2, *c)
+            a4 = _acc(u1, x + h * (v + 0.5 * h * a2), v + h * a3, *c)
+            x, v = x + h * (v + h * (a1 + a2 + a3) / 6), v + h * (a1 + 2 * a2 + 2 * a3 + a4) / 6
         out[i + 1] = v
     return out
 
 
 class Duffing:
-    """m x'' + 2 zeta wn m x' + m wn^2 x + k3 x^3 = f; velocity [m/s] out. ``free`` names the parameters."""
+    """m x'' + 2 zeta wn m x' + m wn^2 x + k2 x^2 + k3 x^3 = f, sensor = gain x'; ``free``: the parameters."""
 
     ALL = {"fn": Parameter("fn", 30.0, 50.0, unit="Hz"), "zeta": Parameter("zeta", 0.005, 0.08, log=True),
-           "k3": Parameter("k3", 0.0, 10.0, unit="1e8 N/m^3")}
+           "k3": Parameter("k3", 0.0, 10.0, unit="1e8 N/m^3"), "gain": Parameter("gain", 0.5, 2.0, unit="V s/m"),
+           "k2": Parameter("k2", -3.0, 3.0, unit="1e6 N/m^2")}
 
     def __init__(self, free=("fn", "zeta", "k3"), fixed=None, substeps=4, mass=0.1):
         self.parameters = [self.ALL[n] for n in free]
-        self.fixed, self.substeps, self.mass = dict(fixed or {}), substeps, mass
+        self.fixed, self.substeps, self.mass = {"gain": 1.0, "k2": 0.0, **(fixed or {})}, substeps, mass
 
     def simulate(self, theta, force, fs):
         p = {**self.fixed, **theta}
-        return _duffing_velocity(np.asarray(force, float), fs, self.mass, 2 * np.pi * p["fn"], p["zeta"],
-                                 1e8 * p["k3"], self.substeps)
+        return p["gain"] * _duffing_velocity(np.asarray(force, float), fs, self.mass, 2 * np.pi * p["fn"],
+                                             p["zeta"], 1e6 * p["k2"], 1e8 * p["k3"], self.substeps)
 
     def refined(self):
         return Duffing([q.name for q in self.parameters], self.fixed, 4 * self.substeps, self.mass)
 # ---------------------------------------------------------------------------------------------------
 
 
-TRUTH = {"fn": 41.3, "zeta": 0.021, "k3": 4.2}
+TRUTH = {"fn": 41.3, "zeta": 0.021, "k3": 4.2, "gain": 1.3, "k2": 1.2}
 FS = 1187.5          # a sampling rate that is not a round number [Hz]
 
 
-def make_dataset(seed=0, snr_db=40.0, n=4096):
+def make_dataset(seed=0, snr_db=40.0, n=4096, truth=None):
     """Low (linear) and high (nonlinear) chirps 15 -> 75 Hz in 2.2 s, then free decay; the data come from
     the refined model, with white noise of 1 % RMS on the force and on the response."""
     import fe
@@ -70,15 +71,21 @@ def make_dataset(seed=0, snr_db=40.0, n=4096):
     t = np.arange(n) / FS
     T = 2.2
     sweep = np.sin(2 * np.pi * (15 * t + (75 - 15) / (2 * T) * t ** 2)) * (t < T)
+    truth = TRUTH if truth is None else {**TRUTH, **truth}
     truth_model = Duffing().refined()
     rng = np.random.default_rng(seed)
     tests = []
     for name, level, role in (("low", 0.05, "linear"), ("high", 1.0, "nonlinear")):
         f = level * sweep
-        y = truth_model.simulate(TRUTH, f, FS)
+        y = truth_model.simulate(truth, f, FS)
         noisy = [z + 10 ** (-snr_db / 20) * np.sqrt(np.mean(z ** 2)) * rng.standard_normal(n) for z in (f, y)]
         tests.append(Record(f"chirp_{name}.csv", "chirp", name, role, t, noisy[0], noisy[1]))
-    return Dataset("duffing", FS, fe.Rig(), tests, extra={"truth": TRUTH})
+    return Dataset("duffing", FS, fe.Rig(), tests, extra={"truth": truth})
+
+
+def three_parameter_duffing():
+    """--model tests/test_user_model.py:three_parameter_duffing (gain and k2 known)."""
+    return Duffing(("fn", "zeta", "k3"), fixed={"gain": TRUTH["gain"], "k2": TRUTH["k2"]})
 
 
 @pytest.fixture(scope="module")
@@ -93,7 +100,7 @@ def _check_covers(res, free):
         assert s["r_hat"] < 1.01, (name, s["r_hat"])
 
 
-@pytest.mark.parametrize("free", [("zeta", "k3"), ("fn", "zeta", "k3")])
+@pytest.mark.parametrize("free", [("zeta", "k3"), ("fn", "zeta", "k3"), ("fn", "zeta", "gain", "k3", "k2")])
 def test_posterior_of_a_user_model_covers_the_truth(data, free):
     from bayes_update.posterior import PosteriorSettings, sample
 
@@ -111,7 +118,8 @@ def test_cli_sample_with_a_model_from_a_file(tmp_path, data):
 
     write_dataset(data, tmp_path / "data")
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "sample", "--model", f"{__file__}:Duffing",
+    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "sample", "--model",
+                          f"{__file__}:three_parameter_duffing",
                           "--data", str(tmp_path / "data"), "--out", str(out), "--quick", "--workers", "2"],
                          capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stderr[-3000:]
@@ -155,7 +163,7 @@ def test_sensor_offsets_do_not_move_the_posterior(data):
         return d
 
     settings = PosteriorSettings.quick(n_linear=0, n_global=0, n_predictive=0)
-    runs = [sample(d, Duffing(), settings, workers=2, progress=False, log=lambda *a: None).summary
+    runs = [sample(d, three_parameter_duffing(), settings, workers=2, progress=False, log=lambda *a: None).summary
             for d in (data, offset(data, 0.1, 0.1), offset(data, 1.5, 0.0))]
     for shifted in runs[1:]:
         for name in ("fn", "zeta", "k3"):

@@ -1,0 +1,72 @@
+"""What ``bayes-update calibrate`` writes for a model of the contract:
+calibration.json, report.txt and a figure of the fit on every test."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .core.calibrate import Calibration
+
+__all__ = ["fit_figure", "format_calibration", "write_calibration"]
+
+
+def format_calibration(cal: Calibration) -> str:
+    """A plain-text table of the calibrated values, the metrics and the prediction errors."""
+    lines = [f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, "
+             f"{cal.n_model_runs} model runs",
+             f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
+             f"{'parameter':>12} {'stage 1':>14} {'final':>14}  unit"]
+    for name, value in cal.theta.items():
+        lines.append(f"{name:>12} {cal.stage1[name]:>14.6g} {value:>14.6g}  {cal.units[name]}")
+    lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
+    for test, err in cal.prediction_errors.items():
+        lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
+    if not cal.prediction_errors:
+        lines.append("no validation test (role 'validation'): no prediction error to report")
+    for stage, dirs in cal.unidentified.items():
+        for d in dirs:
+            lines.append(f"UNIDENTIFIED after the {stage} stage: " + ", ".join(
+                f"{k} {v:+.2f}" for k, v in d["direction"].items())
+                + f" (prior-range units; sd {d['sd_over_range']:.2g} of the range)")
+    return "\n".join(lines)
+
+
+def fit_figure(cal: Calibration):
+    """Measured and calibrated responses of every test (time, and amplitude spectra)."""
+    import matplotlib.pyplot as plt
+
+    problem = cal.problem
+    tests = [(st, t) for st, t in problem.tests.items()] + [("validation", t) for t in problem.validation.values()]
+    fig, axes = plt.subplots(len(tests), 2, figsize=(11, 2.6 * len(tests)), squeeze=False)
+    for (role, t), (ax_t, ax_f) in zip(tests, axes):
+        y_mod = problem.run(cal.theta, t.force)
+        time = np.arange(t.force.size) / problem.fs
+        ax_t.plot(time, t.velocity, lw=0.6, label="measured")
+        ax_t.plot(time, y_mod, lw=0.6, alpha=0.8, label="calibrated model")
+        ax_t.set_title(f"{t.name} ({role})", fontsize=9)
+        ax_t.set_xlabel("time [s]")
+        f = np.fft.rfftfreq(t.force.size, 1.0 / problem.fs)
+        for y, lab in ((t.velocity, "measured"), (y_mod, "model"), (t.velocity - y_mod, "difference")):
+            ax_f.semilogy(f, np.abs(np.fft.rfft(y)) + 1e-300, lw=0.6, label=lab)
+        ax_f.set_xlabel("frequency [Hz]")
+        ax_f.set_xlim(0, problem.fs / 2)
+    axes[0, 0].legend(fontsize=8)
+    axes[0, 1].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def write_calibration(cal: Calibration, out) -> Path:
+    """calibration.json, report.txt and calibration_fit.png into ``out``."""
+    import matplotlib.pyplot as plt
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "calibration.json").write_text(json.dumps(cal.calibration_json(), indent=2, default=float) + "\n")
+    (out / "report.txt").write_text(format_calibration(cal) + "\n")
+    fig = fit_figure(cal)
+    fig.savefig(out / "calibration_fit.png", dpi=110)
+    plt.close(fig)
+    return out
