@@ -41,6 +41,7 @@ import numpy as np
 import fe
 import surrogates
 
+from .beam_rig import rig_of
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
 from .core import Problem, check_model
@@ -537,8 +538,8 @@ def make_problem(dataset: Dataset, model=None, space=None):
         checked = check_model(model, dataset.by_role("linear")[0].force if dataset.by_role("linear")
                               else dataset.tests[0].force, dataset.sampling_rate_hz)
         return Problem(dataset, model), space if space is not None else checked
-    model = model if model is not None else fe.BeamModel(rig=dataset.rig)
-    return UpdatingProblem(dataset, model), space if space is not None else ParameterSpace(dataset.rig)
+    model = model if model is not None else fe.BeamModel(rig=rig_of(dataset))
+    return UpdatingProblem(dataset, model), space if space is not None else ParameterSpace(rig_of(dataset))
 
 
 def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):
