@@ -33,6 +33,7 @@ from scipy.optimize import minimize
 
 import fe
 
+from .beam_rig import rig_of
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
 from .metrics import UpdatingProblem
@@ -159,13 +160,13 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
               progress: bool = True, log=print) -> CalibrationResult:
     """Run the two-stage updating on ``dataset`` (see the module docstring).
 
-    model : a model of the rig (default ``fe.BeamModel(rig=dataset.rig)``).
+    model : a model of the rig (default ``fe.BeamModel(rig=rig_of(dataset))``).
     executor : any ``concurrent.futures.Executor`` for the grids; default a
         local process pool over ``workers`` processes (all cores); ``workers=1``
         runs serially.
     """
     settings = settings or CalibrationSettings()
-    rig = dataset.rig
+    rig = rig_of(dataset)
     model = model if model is not None else fe.BeamModel(rig=rig)
     t_start = time.perf_counter()
     problem = UpdatingProblem(dataset, model)

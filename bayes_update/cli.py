@@ -14,6 +14,7 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from . import signals
+from .beam_rig import rig_of
 from .core import ModelError
 from .dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
 
@@ -93,7 +94,7 @@ def _rig_for(data: Dataset, args) -> fe.Rig:
     A factor that contradicts the one the data set states needs --override-factor."""
     import dataclasses
 
-    rig = data.rig
+    rig = rig_of(data)
     factor = getattr(args, "bending_stiffness_factor", None)
     if factor is None:
         return rig
@@ -275,7 +276,7 @@ def cmd_simulate(args) -> int:
 
     data = read_dataset(args.data) if args.data else _default_dataset()
     rig = _rig_for(data, args)
-    if rig != data.rig:
+    if rig != rig_of(data):
         import dataclasses
         data = dataclasses.replace(data, rig=rig)
     model = _model_for(args, rig)
@@ -294,7 +295,7 @@ def cmd_simulate(args) -> int:
         fig.savefig(Path(args.out) / f"{simulated.name}.png", dpi=110)
     modes = model.modal_analysis(params, n_modes=2)
     summary = {"elapsed_s": elapsed, "tests": [t.file for t in out.tests],
-               "P_eff_N": params.effective_preload(data.rig),
+               "P_eff_N": params.effective_preload(rig_of(data)),
                "f1_hz": float(modes.frequencies_hz[0]), "zeta1": float(modes.damping_ratios[0])}
     (Path(args.out) / "simulate.json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"simulated {len(out.tests)} test(s) in {elapsed:.2f} s; P_eff = {summary['P_eff_N']:.2f} N, "

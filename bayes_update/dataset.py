@@ -1,48 +1,95 @@
-"""Data sets: recorded (or virtual) tests of the rig, in memory and on disk.
+"""Data sets: recorded (or virtual) tests of a structure, in memory and on disk.
+
+The data layer knows no model: it never imports :mod:`fe`.  A data set for
+any model (``simulate(theta, force, fs) -> response``, docs/models.md) is a
+sampling rate, one or several response sensors and a list of tests; the beam
+rig's description is one optional block that only the beam code reads
+(:func:`bayes_update.beam_rig.rig_of`).
 
 In memory
 ---------
-A :class:`Dataset` holds the rig description (:class:`fe.Rig`, SI units), the
-sampling rate [Hz] and one :class:`Record` per test.  A record carries three
-1-D float arrays of equal length: ``time`` [s], ``force`` [N] (load cell) and
-``velocity`` [m/s] (transverse, at the sensor), plus its ``signal``, ``level``
-and ``role`` (one of :data:`ROLES`).  The units are fixed (:data:`UNITS`);
-importers convert to them explicitly and record what they converted.
+A :class:`Dataset` holds the sampling rate [Hz], one :class:`Record` per test,
+the data set's raw ``rig`` block (or None) and the other ``dataset.json``
+keys.  A record carries ``time`` [s] and ``force`` [N] (1-D float arrays of
+length n) and ``response``: shape (n,) for one sensor, (n, n_sensors) for
+several, columns in the order of :attr:`Dataset.sensors`; plus its
+``signal``, ``level`` and ``role`` (one of :data:`ROLES`).  A sensor is a
+``(name, response kind)`` pair, the kind one of :data:`RESPONSE_KINDS`; the
+default, and the beam's, is one sensor ``("velocity", "velocity")``, for
+which :attr:`Record.velocity` is an alias of :attr:`Record.response`.  Units
+are SI (:data:`RESPONSE_UNITS`: m, m/s, m/s^2); nothing here converts,
+integrates or differentiates.
 
 On disk: the folder format (DESIGN.md section 5, a public contract)
 -------------------------------------------------------------------
 A folder with ``dataset.json`` and one file per test.  A CSV file has a
-header row and the columns ``time`` [s], ``force`` [N], ``velocity`` [m/s]
-(other columns are ignored).  A test file may also be a UFF type-58 file
-(``.uff`` or ``.unv``, see :mod:`bayes_update.uff`).  ``dataset.json`` keys:
+header row and the columns ``time`` [s], ``force`` [N] and one column per
+sensor, named by the sensor's name (other columns are ignored): by default
+``velocity`` [m/s].  A test file may also be a UFF type-58 file (``.uff`` or
+``.unv``, see :mod:`bayes_update.uff`; force and velocity only).
+``dataset.json`` keys:
 
 ``name``
     free text (default: the folder name).
 ``sampling_rate_hz``
     required, the sampling rate of every test [Hz].
+``response``
+    optional, the response kind of the single sensor: ``"displacement"``
+    [m], ``"velocity"`` [m/s] (default) or ``"acceleration"`` [m/s^2]; the
+    CSV column has that name.  With ``sensors``, the default kind of the
+    sensors (a sensor that states another kind is an error).
+``sensors``
+    optional, for several sensors: a list of ``{"name": ..., "response":
+    ...}``, one CSV column per sensor named by ``name`` (unique, not
+    ``time`` or ``force``, no comma); ``response`` as above (default: the
+    top-level ``response``, else velocity).  The column order of
+    :attr:`Record.response` is the list's order.
 ``rig``
-    the rig (:meth:`fe.Rig.from_dict`: ``length_m``, ``width_m``,
-    ``thickness_m``, ``youngs_modulus_pa``, ``poisson_ratio``,
-    ``density_kg_m3``, ``shaker_position_m``, ``sensor_position_m`` (from the
-    clamped bottom), ``bending_stiffness_factor``); absent keys take the
-    paper's values, ``bending_stiffness_factor`` 1.0.  A user's own rig
-    (other length, positions) is described here and the model takes its
-    geometry from it.
+    optional, the beam rig (read by the beam code only,
+    :func:`bayes_update.beam_rig.rig_of`: :meth:`fe.Rig.from_dict` keys
+    ``length_m``, ``width_m``, ``thickness_m``, ``youngs_modulus_pa``,
+    ``poisson_ratio``, ``density_kg_m3``, ``shaker_position_m``,
+    ``sensor_position_m`` (from the clamped bottom),
+    ``bending_stiffness_factor``; absent keys, or an absent block, take the
+    paper's values, ``bending_stiffness_factor`` 1.0).  Kept here as given
+    (:attr:`Dataset.rig`) and written back unchanged; a user model ignores it.
 ``tests``
-    a list of ``{"file", "signal", "level", "role"}``; extra keys of an entry
-    are kept in :attr:`Record.meta`.  For a UFF file holding several tests,
-    ``"uff_load_case"`` selects the test (R6 F4 of the records).
+    required, a list of ``{"file", "role", "signal", "level"}``: ``file``
+    and ``role`` required, ``signal`` and ``level`` free text, default
+    ``"unknown"``; extra keys of an entry are kept in :attr:`Record.meta`.
+    For a UFF file holding several tests, ``"uff_load_case"`` selects the
+    test (R6 F4 of the records).
 any other key
     kept in :attr:`Dataset.extra` and written back unchanged (e.g. the
     ``truth`` block of a virtual data set, which the updating code never
     reads).
 
+Examples: a user model's displacement response::
+
+    {"sampling_rate_hz": 2000.0, "response": "displacement",
+     "tests": [{"file": "low.csv", "role": "linear"},
+               {"file": "high.csv", "role": "nonlinear"}]}
+
+with ``low.csv`` headed ``time,force,displacement``; two sensors::
+
+    {"sampling_rate_hz": 2000.0,
+     "sensors": [{"name": "tip_acc", "response": "acceleration"},
+                 {"name": "mid_disp", "response": "displacement"}],
+     "tests": [...]}
+
+with CSV files headed ``time,force,tip_acc,mid_disp``.
+
+:func:`write_dataset` writes the sensors in a canonical form: nothing for the
+default single velocity sensor, ``response`` for one sensor named after its
+kind, ``sensors`` otherwise.
+
 Errors (all subclasses of :class:`DatasetError`, itself a ``ValueError``; the
 message always names the file and what is wrong)
 --------------------------------------------------------------------------
 =========================  ===================================================
-:class:`MissingColumnError`  a CSV lacks ``time``, ``force`` or ``velocity``
-                             (or a UFF test lacks its force/velocity record)
+:class:`MissingColumnError`  a CSV lacks ``time``, ``force`` or a sensor's
+                             column (or a UFF test lacks its force/velocity
+                             record)
 :class:`LengthMismatchError` a CSV row has a different number of values than
                              the header, or channels of a record differ in
                              length
@@ -53,8 +100,16 @@ message always names the file and what is wrong)
                              ``sampling_rate_hz`` (by more than 1 % of a
                              sample period anywhere in the record)
 :class:`UnknownRoleError`    a test's role is not one of :data:`ROLES`
-:class:`DatasetError`        anything else (missing file, bad JSON, bad rig
-                             block, unparsable number, ...)
+:class:`UnknownResponseError` a response kind is not one of
+                             :data:`RESPONSE_KINDS`
+:class:`SensorError`         a bad ``sensors`` block: duplicate or invalid
+                             names, a sensor's kind contradicting the
+                             top-level ``response``; also
+                             :attr:`Record.velocity` on a data set whose
+                             response is not a single velocity
+:class:`DatasetError`        anything else (missing file, bad JSON,
+                             unparsable number, ...); a bad ``rig`` block is
+                             reported by :func:`bayes_update.beam_rig.rig_of`
 =========================  ===================================================
 
 The readers never resample, interpolate or reorder: data that do not meet
@@ -71,19 +126,33 @@ from pathlib import Path
 
 import numpy as np
 
-from fe import Rig
-
 from .core.problem import DatasetError
 
 ROLES = ("linear", "nonlinear", "validation")
 """Roles of a test: ``linear`` (low level, fits the linear kernel: e_lin),
 ``nonlinear`` (high level: e_nlin), ``validation`` (not used by the update)."""
 
+RESPONSE_KINDS = ("displacement", "velocity", "acceleration")
+"""Kinds of a response sensor."""
+
+RESPONSE_UNITS = {"displacement": "m", "velocity": "m/s", "acceleration": "m/s^2"}
+"""SI units of each response kind (never converted by the readers)."""
+
+DEFAULT_RESPONSE = "velocity"
+DEFAULT_SENSORS = ((DEFAULT_RESPONSE, DEFAULT_RESPONSE),)
+"""The default (and the beam's) sensors: one velocity sensor, CSV column ``velocity``."""
+
 COLUMNS = ("time", "force", "velocity")
+"""CSV columns of the default single velocity sensor."""
 UNITS = {"time": "s", "force": "N", "velocity": "m/s"}
-"""Units of the in-memory channels (fixed)."""
+"""Units of the default in-memory channels (fixed)."""
 
 UFF_SUFFIXES = (".uff", ".unv")
+
+# keys of dataset.json read by this module (never in Dataset.extra)
+RESERVED_KEYS = ("name", "sampling_rate_hz", "response", "sensors", "rig", "tests")
+TEST_KEYS = ("file", "signal", "level", "role")
+DEFAULT_SIGNAL = DEFAULT_LEVEL = "unknown"
 
 # Formats of the CSV writer: fixed, so that the same arrays give the same bytes.
 TIME_FORMAT = "%.12g"
@@ -94,7 +163,7 @@ TIME_TOLERANCE = 0.01
 
 
 class MissingColumnError(DatasetError):
-    """A required column (time, force, velocity) or channel is missing."""
+    """A required column (time, force, a sensor's) or channel is missing."""
 
 
 class LengthMismatchError(DatasetError):
@@ -125,33 +194,88 @@ class UnknownRoleError(DatasetError):
     """A test's role is not one of ROLES."""
 
 
+class UnknownResponseError(DatasetError):
+    """A response kind is not one of RESPONSE_KINDS."""
+
+
+class SensorError(DatasetError):
+    """The sensors are malformed or contradict each other, or the velocity alias
+    is used on a data set whose response is not a single velocity."""
+
+
 def _where(source) -> str:
     return str(source) if source is not None else "<in-memory record>"
 
 
-def check_channels(time, force, velocity, source=None):
-    """Validate three channels; return them as 1-D float arrays.
+def check_sensors(sensors, source=None) -> tuple:
+    """Validate sensors (a sequence of ``(name, kind)`` pairs); return them as a tuple of tuples.
 
-    Raises :class:`LengthMismatchError` or :class:`NonFiniteError` naming
-    ``source`` (a file name, or the record) on bad input.
+    Raises :class:`UnknownResponseError` or :class:`SensorError` naming ``source``.
     """
     where = _where(source)
+    try:
+        pairs = tuple((name, kind) for name, kind in sensors)
+    except (TypeError, ValueError):
+        raise SensorError(f"{where}: sensors must be (name, response kind) pairs, got {sensors!r}") from None
+    if not pairs:
+        raise SensorError(f"{where}: a data set needs at least one sensor")
+    for name, kind in pairs:
+        if not isinstance(name, str) or not name or name != name.strip() or "," in name \
+                or name in ("time", "force"):
+            raise SensorError(f"{where}: sensor name {name!r} is not usable as a CSV column: "
+                              "give a non-empty name without commas or surrounding spaces, "
+                              "other than 'time' and 'force'")
+        if kind not in RESPONSE_KINDS:
+            raise UnknownResponseError(f"{where}: sensor {name!r} has unknown response kind {kind!r}; "
+                                       f"kinds are {RESPONSE_KINDS}")
+    names = [n for n, _ in pairs]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise SensorError(f"{where}: duplicate sensor name(s) {dup}; give each sensor its own name "
+                          "(it is its CSV column)")
+    return pairs
+
+
+def check_channels(time, force, response, source=None, sensors=DEFAULT_SENSORS):
+    """Validate a record's channels; return ``(time, force, response)`` as float arrays.
+
+    ``time`` and ``force``: 1-D, length n.  ``response``: shape (n,) for one
+    sensor ((n, 1) is accepted and flattened), (n, len(sensors)) for several.
+    Raises :class:`LengthMismatchError`, :class:`NonFiniteError` or
+    :class:`DatasetError` naming ``source`` (a file name, or the record) on
+    bad input.
+    """
+    where = _where(source)
+    sensors = check_sensors(sensors, source)
+    names = [n for n, _ in sensors]
     arrays = {}
-    for name, values in (("time", time), ("force", force), ("velocity", velocity)):
+    for name, values in (("time", time), ("force", force)):
         a = np.asarray(values, dtype=float)
         if a.ndim != 1:
             raise DatasetError(f"{where}: channel {name!r} must be 1-D, got shape {a.shape}")
         arrays[name] = a
-    sizes = {k: v.size for k, v in arrays.items()}
+    resp = np.asarray(response, dtype=float)
+    if len(sensors) == 1:
+        if resp.ndim == 2 and resp.shape[1] == 1:
+            resp = resp[:, 0]
+        if resp.ndim != 1:
+            raise DatasetError(f"{where}: channel {names[0]!r} must be 1-D, got shape {resp.shape}")
+        columns = {names[0]: resp}
+    else:
+        if resp.ndim != 2 or resp.shape[1] != len(sensors):
+            raise DatasetError(f"{where}: the response must have shape (n, {len(sensors)}), one column "
+                               f"per sensor {names}, got shape {resp.shape}")
+        columns = {name: resp[:, j] for j, name in enumerate(names)}
+    sizes = {k: v.shape[0] for k, v in {**arrays, **columns}.items()}
     if len(set(sizes.values())) != 1:
         raise LengthMismatchError(f"{where}: channels have different lengths {sizes}")
-    for name, values in arrays.items():
+    for name, values in {**arrays, **columns}.items():
         bad = ~np.isfinite(values)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
             raise NonFiniteError(f"{where}: channel {name!r} has NaN or inf "
                                  f"(sample {i}, {int(bad.sum())} bad value(s))")
-    return arrays["time"], arrays["force"], arrays["velocity"]
+    return arrays["time"], arrays["force"], resp
 
 
 def check_time(time, fs: float, source=None, line_offset: int | None = None) -> None:
@@ -196,9 +320,13 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
             "fix sampling_rate_hz or the time column, the reader never resamples silently")
 
 
+def _is_single_velocity(sensors) -> bool:
+    return len(sensors) == 1 and sensors[0][1] == "velocity"
+
+
 @dataclass
 class Record:
-    """One recorded test of the rig.
+    """One recorded test.
 
     Attributes
     ----------
@@ -206,16 +334,22 @@ class Record:
     signal : excitation type (``chirp``, ``sine``, or free text).
     level : excitation level (``low``, ``medium``, ``high``, or free text).
     role : one of :data:`ROLES`.
-    time : sample times [s], uniform.
-    force : shaker force measured by the load cell [N].
-    velocity : transverse velocity at the sensor [m/s].
+    time : sample times [s], uniform, shape (n,).
+    force : measured input force [N], shape (n,).
+    response : measured response (SI units of each sensor's kind): shape
+        (n,) for one sensor, (n, n_sensors) for several, columns in the order
+        of ``sensors``.  For the beam: transverse velocity at the sensor [m/s].
     meta : extra keys of the test entry in ``dataset.json`` (e.g. the
         nominal force amplitude), kept and written back.
     source : where the record was read from (for messages), or None.
+    sensors : ``((name, response kind), ...)``; default one velocity sensor
+        named ``velocity`` (:data:`DEFAULT_SENSORS`).
 
+    ``velocity`` is an alias of ``response`` (read and write) when the record
+    has a single velocity sensor; otherwise it raises :class:`SensorError`.
     The channels are validated on construction (equal lengths, finite
-    values, known role); assigning new arrays later (e.g. a simulated
-    velocity) is allowed, :meth:`validate` re-checks.
+    values, known role, shape matching the sensors); assigning new arrays
+    later (e.g. a simulated response) is allowed, :meth:`validate` re-checks.
     """
 
     file: str
@@ -224,25 +358,56 @@ class Record:
     role: str
     time: np.ndarray
     force: np.ndarray
-    velocity: np.ndarray
+    response: np.ndarray
     meta: dict = field(default_factory=dict)
     source: str | None = None
-
-    units = UNITS
+    sensors: tuple = DEFAULT_SENSORS
 
     def __post_init__(self):
         self.validate()
 
     def validate(self) -> None:
         where = self.source or self.file
-        for key in ("file", "signal", "level", "role"):
+        for key in TEST_KEYS:
             if not isinstance(getattr(self, key), str) or not getattr(self, key):
                 raise DatasetError(f"{where}: test {key!r} must be a non-empty string, "
                                    f"got {getattr(self, key)!r}")
         if self.role not in ROLES:
             raise UnknownRoleError(f"{where}: unknown role {self.role!r}; roles are {ROLES}")
-        self.time, self.force, self.velocity = check_channels(
-            self.time, self.force, self.velocity, where)
+        self.sensors = check_sensors(self.sensors, where)
+        self.time, self.force, self.response = check_channels(
+            self.time, self.force, self.response, where, self.sensors)
+
+    def _velocity_alias(self) -> None:
+        if not _is_single_velocity(self.sensors):
+            raise SensorError(
+                f"{self.source or self.file}: Record.velocity is the response of a single velocity "
+                f"sensor, but this record's sensors are {list(self.sensors)}; use Record.response "
+                "(columns in sensor order) or Record.channel(name)")
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The response [m/s] of a record with a single velocity sensor (the beam's)."""
+        self._velocity_alias()
+        return self.response
+
+    @velocity.setter
+    def velocity(self, values) -> None:
+        self._velocity_alias()
+        self.response = values
+
+    def channel(self, name: str) -> np.ndarray:
+        """One sensor's response, shape (n,)."""
+        names = [n for n, _ in self.sensors]
+        if name not in names:
+            raise KeyError(f"no sensor named {name!r}; sensors are {names}")
+        r = np.asarray(self.response)
+        return r if r.ndim == 1 else r[:, names.index(name)]
+
+    @property
+    def units(self) -> dict:
+        """Units of the channels: time, force and each sensor."""
+        return {"time": "s", "force": "N", **{n: RESPONSE_UNITS[k] for n, k in self.sensors}}
 
     @property
     def name(self) -> str:
@@ -264,24 +429,59 @@ class Record:
         return self.n_samples / self.sampling_rate_hz
 
 
+class RigBlock(dict):
+    """The raw ``rig`` block of a ``dataset.json`` (a dict, as read).  Only the beam
+    code interprets it (:func:`bayes_update.beam_rig.rig_of`); :meth:`to_dict`
+    gives a plain copy, like :meth:`fe.Rig.to_dict`."""
+
+    def to_dict(self) -> dict:
+        return copy.deepcopy(dict(self))
+
+
 @dataclass
 class Dataset:
-    """A set of tests of one rig.
+    """A set of tests of one structure, with the same sensors.
 
-    name : free text; sampling_rate_hz : [Hz] of every test; rig :
-    :class:`fe.Rig` (SI); tests : list of :class:`Record`; extra : other
-    ``dataset.json`` keys, preserved (e.g. ``truth``, never read by the
-    updating code); source : folder or file read from, or None.
+    name : free text; sampling_rate_hz : [Hz] of every test; rig : the beam
+    rig's description, kept for the beam code: the raw ``rig`` block of
+    ``dataset.json`` (a :class:`RigBlock`, i.e. a dict), None when absent, or
+    an object with ``to_dict()`` given by the caller (the beam code passes an
+    :class:`fe.Rig`); read it as an ``fe.Rig`` with
+    :func:`bayes_update.beam_rig.rig_of`.  tests : list of :class:`Record`,
+    all with the same sensors; extra : other ``dataset.json`` keys, preserved
+    (e.g. ``truth``, never read by the updating code); source : folder or
+    file read from, or None.
     """
 
     name: str
     sampling_rate_hz: float
-    rig: Rig
+    rig: object
     tests: list
     extra: dict = field(default_factory=dict)
     source: str | None = None
 
-    units = UNITS
+    def __post_init__(self):
+        if isinstance(self.rig, dict) and not isinstance(self.rig, RigBlock):
+            self.rig = RigBlock(self.rig)
+
+    @property
+    def sensors(self) -> list:
+        """``[(name, response kind), ...]``: the response columns, in order."""
+        return list(self.tests[0].sensors) if self.tests else list(DEFAULT_SENSORS)
+
+    @property
+    def response_kind(self) -> str:
+        """The response kind of a data set with a single sensor."""
+        sensors = self.sensors
+        if len(sensors) != 1:
+            raise SensorError(f"{self.source or self.name}: {len(sensors)} sensors {sensors}; "
+                              "response_kind is for a single sensor, see Dataset.sensors")
+        return sensors[0][1]
+
+    @property
+    def units(self) -> dict:
+        """Units of the channels: time, force and each sensor."""
+        return {"time": "s", "force": "N", **{n: RESPONSE_UNITS[k] for n, k in self.sensors}}
 
     def by_role(self, role: str) -> list:
         if role not in ROLES:
@@ -299,25 +499,35 @@ class Dataset:
         return [t.name for t in self.tests]
 
     def fingerprint(self) -> str:
-        """sha256 (hex) of what the updating reads: the sampling rate and each
-        test's file name, role and channels (exact float64 bytes).  Caches key
-        on this, never on the folder's path: new data at the same path must
-        not reuse old results."""
+        """sha256 (hex) of what the updating reads: the sampling rate, the
+        sensors (names and kinds, when not the default single velocity sensor),
+        and each test's file name, role and channels (exact float64 bytes of
+        time, force and response).  Caches key on this, never on the folder's
+        path: new data at the same path must not reuse old results.  (A data
+        set with the default sensor hashes exactly as before sensors existed.)"""
         h = hashlib.sha256(repr(float(self.sampling_rate_hz)).encode())
+        sensors = [tuple(s) for s in self.sensors]
+        if sensors != list(DEFAULT_SENSORS):
+            h.update(("|sensors|" + json.dumps(sensors)).encode())
         for t in self.tests:
             h.update(f"|{t.file}|{t.role}|".encode())
-            for channel in (t.time, t.force, t.velocity):
+            for channel in (t.time, t.force, t.response):
                 h.update(np.ascontiguousarray(channel, dtype=np.float64).tobytes())
         return h.hexdigest()
 
     def validate(self) -> None:
-        """Check every record (channels, role, time column against the sampling rate)."""
+        """Check every record (channels, role, sensors, time column against the sampling rate)."""
         where = self.source or self.name
         fs = self.sampling_rate_hz
         if not (isinstance(fs, (int, float)) and np.isfinite(fs) and fs > 0):
             raise DatasetError(f"{where}: sampling_rate_hz must be a positive number, got {fs!r}")
-        if not isinstance(self.rig, Rig):
-            raise DatasetError(f"{where}: rig must be an fe.Rig")
+        if not (self.rig is None or callable(getattr(self.rig, "to_dict", None))):
+            raise DatasetError(f"{where}: rig must be None, the rig block (a dict) or an object with "
+                               f"to_dict() such as fe.Rig, got {type(self.rig).__name__}")
+        reserved = sorted(k for k in self.extra if k in RESERVED_KEYS)
+        if reserved:
+            raise DatasetError(f"{where}: extra key(s) {reserved} are dataset.json keys of their own; "
+                               "set them through the Dataset's fields or the records' sensors")
         files = [t.file for t in self.tests]
         dup = sorted({f for f in files if files.count(f) > 1})
         if dup:
@@ -325,6 +535,12 @@ class Dataset:
         for t in self.tests:
             t.validate()
             check_time(t.time, fs, t.source or t.file)
+        sensors = self.sensors
+        for t in self.tests:
+            if list(t.sensors) != sensors:
+                raise SensorError(f"{where}: test {t.file} has sensors {list(t.sensors)}, test "
+                                  f"{self.tests[0].file} {sensors}; every test of a data set has the "
+                                  "same sensors")
 
 
 # ---------------------------------------------------------------------- reading
@@ -356,20 +572,17 @@ def read_dataset(folder) -> Dataset:
                            f"got {meta['sampling_rate_hz']!r}") from None
     if not (np.isfinite(fs) and fs > 0):
         raise DatasetError(f"{meta_path}: sampling_rate_hz must be positive, got {fs}")
-    rig_block = meta.get("rig", {})
-    if not isinstance(rig_block, dict):
+    rig = meta.get("rig")
+    if rig is not None and not isinstance(rig, dict):
         raise DatasetError(f"{meta_path}: 'rig' must be an object")
-    try:
-        rig = Rig.from_dict(rig_block)
-    except (TypeError, ValueError) as exc:
-        raise DatasetError(f"{meta_path}: bad 'rig' block: {exc}") from None
+    sensors = sensors_from_metadata(meta, meta_path)
     if not isinstance(meta["tests"], list) or not meta["tests"]:
         raise DatasetError(f"{meta_path}: 'tests' must be a non-empty list")
     tests = []
     for entry in meta["tests"]:
         if not isinstance(entry, dict):
             raise DatasetError(f"{meta_path}: test entry {entry!r} is not an object")
-        for key in ("file", "signal", "level", "role"):
+        for key in ("file", "role"):
             if key not in entry:
                 raise DatasetError(f"{meta_path}: test entry {entry} lacks {key!r}")
         if entry["role"] not in ROLES:
@@ -379,19 +592,60 @@ def read_dataset(folder) -> Dataset:
         if not path.is_file():
             raise DatasetError(f"{path}: file listed in dataset.json does not exist")
         if path.suffix.lower() in UFF_SUFFIXES:
+            if not _is_single_velocity(sensors):
+                raise SensorError(f"{path}: a UFF test file holds force and velocity records only, but "
+                                  f"{meta_path} declares the sensors {list(sensors)}; write this test "
+                                  "as a CSV file with one column per sensor")
             from .uff import read_uff_test
 
-            time, force, velocity, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
+            time, force, response, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
         else:
-            time, force, velocity = _read_csv(path, fs)
-        extra = {k: v for k, v in entry.items() if k not in ("file", "signal", "level", "role")}
-        tests.append(Record(entry["file"], entry["signal"], entry["level"], entry["role"],
-                            time, force, velocity, extra, source=str(path)))
-    extra = {k: v for k, v in meta.items()
-             if k not in ("name", "sampling_rate_hz", "rig", "tests")}
+            time, force, response = _read_csv(path, fs, sensors, meta_path)
+        extra = {k: v for k, v in entry.items() if k not in TEST_KEYS}
+        tests.append(Record(entry["file"], entry.get("signal", DEFAULT_SIGNAL),
+                            entry.get("level", DEFAULT_LEVEL), entry["role"],
+                            time, force, response, extra, source=str(path), sensors=sensors))
+    extra = {k: v for k, v in meta.items() if k not in RESERVED_KEYS}
     ds = Dataset(meta.get("name", folder.name), fs, rig, tests, extra, source=str(folder))
     ds.validate()
     return ds
+
+
+def sensors_from_metadata(meta: dict, meta_path=None) -> tuple:
+    """The sensors ``((name, kind), ...)`` a ``dataset.json`` declares (its ``response``
+    and ``sensors`` keys; default one velocity sensor).  Raises
+    :class:`UnknownResponseError` or :class:`SensorError` naming ``meta_path``."""
+    where = _where(meta_path)
+    kinds = f"kinds are {RESPONSE_KINDS}"
+    top = meta.get("response", DEFAULT_RESPONSE)
+    if top not in RESPONSE_KINDS:
+        raise UnknownResponseError(f"{where}: unknown response kind {top!r} ('response'); {kinds}")
+    if "sensors" not in meta:
+        return ((top, top),)
+    block = meta["sensors"]
+    if not isinstance(block, list) or not block:
+        raise SensorError(f"{where}: 'sensors' must be a non-empty list of "
+                          '{"name": ..., "response": ...} objects')
+    sensors = []
+    for entry in block:
+        if not isinstance(entry, dict) or "name" not in entry:
+            raise SensorError(f"{where}: sensor entry {entry!r} must be an object with a 'name' "
+                              "(its CSV column) and a 'response' kind")
+        unknown = sorted(set(entry) - {"name", "response"})
+        if unknown:
+            raise SensorError(f"{where}: sensor {entry['name']!r} has unknown key(s) {unknown}; a "
+                              "sensor has 'name' and 'response'")
+        kind = entry.get("response", top)
+        if kind not in RESPONSE_KINDS:
+            raise UnknownResponseError(f"{where}: sensor {entry['name']!r} has unknown response kind "
+                                       f"{kind!r}; {kinds}")
+        if "response" in meta and kind != top:
+            raise SensorError(
+                f"{where}: sensor {entry['name']!r} has response {kind!r} but the top-level "
+                f"'response' is {top!r}; drop the top-level 'response' and give each sensor its "
+                "kind, or make them agree")
+        sensors.append((entry["name"], kind))
+    return check_sensors(sensors, where)
 
 
 def _diagnose_rows(path: Path, n_columns: int) -> None:
@@ -414,18 +668,27 @@ def _diagnose_rows(path: Path, n_columns: int) -> None:
                     raise DatasetError(f"{path}: line {lineno} has {what}") from None
 
 
-def _read_csv(path: Path, fs: float):
-    """Read one test CSV: time [s], force [N], velocity [m/s]; checks everything."""
+def _read_csv(path: Path, fs: float, sensors=DEFAULT_SENSORS, meta_path=None):
+    """Read one test CSV: time [s], force [N], one column per sensor; checks everything.
+    Returns ``(time, force, response)``, response (n,) for one sensor, (n, k) for k."""
+    names = [n for n, _ in sensors]
+    columns = ("time", "force", *names)
     try:
         with path.open() as fh:
             first = fh.readline()
     except UnicodeDecodeError:
         raise DatasetError(f"{path}: not a text (CSV) file") from None
     header = [h.strip() for h in first.strip().split(",")]
-    missing = [c for c in COLUMNS if c not in header]
+    missing = [c for c in columns if c not in header]
     if missing:
-        raise MissingColumnError(f"{path}: missing column(s) {missing}; header is {header}")
-    dup = sorted({h for h in header if header.count(h) > 1 and h in COLUMNS})
+        hint = ""
+        if any(c in names for c in missing):
+            declared = (f"{meta_path or 'dataset.json'} declares the sensor(s) "
+                        f"{[list(s) for s in sensors]}")
+            hint = (f"; {declared}: name the response column(s) after the sensors, or set "
+                    "'response'/'sensors' in dataset.json to match the header")
+        raise MissingColumnError(f"{path}: missing column(s) {missing}; header is {header}{hint}")
+    dup = sorted({h for h in header if header.count(h) > 1 and h in columns})
     if dup:
         raise DatasetError(f"{path}: duplicate column(s) {dup} in header {header}")
     try:
@@ -438,26 +701,41 @@ def _read_csv(path: Path, fs: float):
     if data.shape[1] != len(header):
         raise LengthMismatchError(
             f"{path}: {data.shape[1]} value(s) per row but {len(header)} column name(s) in the header")
-    cols = {name: data[:, header.index(name)] for name in COLUMNS}
+    cols = {name: data[:, header.index(name)] for name in columns}
     for name, values in cols.items():
         bad = ~np.isfinite(values)
         if bad.any():
             line = int(np.flatnonzero(bad)[0]) + 2
             raise NonFiniteError(f"{path}: column {name!r} has NaN or inf (line {line})")
     check_time(cols["time"], fs, path, line_offset=2)
-    return cols["time"], cols["force"], cols["velocity"]
+    if len(names) == 1:
+        response = cols[names[0]]
+    else:
+        response = np.column_stack([cols[n] for n in names])
+    return cols["time"], cols["force"], response
 
 
 # ---------------------------------------------------------------------- writing
+def sensors_metadata(sensors) -> dict:
+    """The ``dataset.json`` keys of the sensors, canonical form: ``{}`` for the default
+    single velocity sensor, ``{"response": kind}`` for one sensor named after its
+    kind, ``{"sensors": [{"name", "response"}, ...]}`` otherwise."""
+    sensors = [tuple(s) for s in sensors]
+    if sensors == list(DEFAULT_SENSORS):
+        return {}
+    if len(sensors) == 1 and sensors[0][0] == sensors[0][1]:
+        return {"response": sensors[0][1]}
+    return {"sensors": [{"name": n, "response": k} for n, k in sensors]}
+
+
 def dataset_metadata(dataset: Dataset) -> dict:
     """The ``dataset.json`` content of a data set (the contract keys, then the extra keys)."""
-    meta = {
-        "name": dataset.name,
-        "sampling_rate_hz": dataset.sampling_rate_hz,
-        "rig": dataset.rig.to_dict(),
-        "tests": [dict({"file": t.file, "signal": t.signal, "level": t.level, "role": t.role},
-                       **copy.deepcopy(t.meta)) for t in dataset.tests],
-    }
+    meta = {"name": dataset.name, "sampling_rate_hz": dataset.sampling_rate_hz}
+    meta.update(sensors_metadata(dataset.sensors))
+    if dataset.rig is not None:
+        meta["rig"] = dataset.rig.to_dict()
+    meta["tests"] = [dict({"file": t.file, "signal": t.signal, "level": t.level, "role": t.role},
+                          **copy.deepcopy(t.meta)) for t in dataset.tests]
     for key, value in dataset.extra.items():
         if key not in meta:
             meta[key] = copy.deepcopy(value)
@@ -468,9 +746,12 @@ def write_dataset(dataset: Dataset, folder) -> Path:
     """Write a data set in the folder format (dataset.json + one CSV per test).
 
     The CSV numbers have a fixed format (time ``%.12g`` [s]; force [N] and
-    velocity [m/s] ``%.9e``, ten significant digits), so the same arrays
-    always give the same bytes.  Test files are always written as CSV (a
-    ``.uff`` file name is replaced by ``.csv``).
+    each response column ``%.9e``, ten significant digits), so the same
+    arrays always give the same bytes.  The response columns are named by the
+    sensors (default: ``velocity``).  Test files are always written as CSV (a
+    ``.uff`` file name is replaced by ``.csv``).  The ``rig`` block is written
+    as held (:attr:`Dataset.rig`: the raw block, or ``to_dict()`` of an
+    ``fe.Rig``), and not at all when None.
     """
     dataset = copy.copy(dataset)
     dataset.tests = [copy.copy(t) for t in dataset.tests]
@@ -482,9 +763,10 @@ def write_dataset(dataset: Dataset, folder) -> Path:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     meta = dataset_metadata(dataset)
+    names = [n for n, _ in dataset.sensors]
     (folder / "dataset.json").write_text(json.dumps(meta, indent=2) + "\n")
     for t in dataset.tests:
-        arr = np.column_stack([t.time, t.force, t.velocity])
-        np.savetxt(folder / t.file, arr, delimiter=",", header=",".join(COLUMNS), comments="",
-                   fmt=(TIME_FORMAT, VALUE_FORMAT, VALUE_FORMAT))
+        arr = np.column_stack([t.time, t.force, t.response])
+        np.savetxt(folder / t.file, arr, delimiter=",", header=",".join(("time", "force", *names)),
+                   comments="", fmt=(TIME_FORMAT, VALUE_FORMAT) + (VALUE_FORMAT,) * len(names))
     return folder

@@ -30,6 +30,7 @@ from scipy import signal as ss
 import fe
 import volterra
 
+from .beam_rig import rig_of
 from .dataset import Dataset
 from .metrics import basis_from_reference, relative_error
 
@@ -99,7 +100,7 @@ def diagnose(dataset: Dataset, model, params: fe.Parameters, basis: volterra.Kau
     out = {"by_test": {}, "by_order": {}, "by_frequency": {}, "by_amplitude": {}, "f1_hz": f1,
            "_velocity": {}}
     for t in dataset.tests:
-        v = fe.simulate(model, params, t.force, fs=fs, positions=[dataset.rig.sensor_position_m]).sensor_velocity
+        v = fe.simulate(model, params, t.force, fs=fs, positions=[rig_of(dataset).sensor_position_m]).sensor_velocity
         out["_velocity"][t.name] = v
         out["by_test"][t.name] = {"role": t.role, "signal": t.signal, "level": t.level,
                                   "rel_l2": relative_error(t.velocity, v)}

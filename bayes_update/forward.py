@@ -7,6 +7,7 @@ import copy
 from tqdm.auto import tqdm
 
 import fe
+from .beam_rig import rig_of
 from .dataset import Dataset
 
 
@@ -16,6 +17,6 @@ def simulate_dataset(dataset: Dataset, model, params: fe.Parameters, progress: b
     out = copy.deepcopy(dataset)
     for test in tqdm(out.tests, desc="simulate", unit="test", disable=not progress):
         result = fe.simulate(model, params, test.force, fs=dataset.sampling_rate_hz,
-                             positions=[dataset.rig.sensor_position_m])
+                             positions=[rig_of(dataset).sensor_position_m])
         test.velocity = result.sensor_velocity.copy()
     return out

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import fe
 
+from .beam_rig import rig_of
 from .core.problem import (DEFAULT_N_FUNCTIONS, STAGE_ORDERS, STAGES, Problem, basis_from_reference,  # noqa: F401
                            describe_basis, excited_band, relative_error, stage_output)
 
@@ -35,7 +36,7 @@ class UpdatingProblem(Problem):
     """The metrics of a data set on a model of the beam rig (``fe.BeamModel``,
     ``fe.ModalROM``, or another object with ``simulate(params, force, fs,
     positions)`` returning a :class:`fe.SimulationResult`), built for
-    ``dataset.rig``; ``params`` are :class:`fe.Parameters`.  Everything else is
+    ``rig_of(dataset)``; ``params`` are :class:`fe.Parameters`.  Everything else is
     :class:`bayes_update.core.problem.Problem`."""
 
     failures = (fe.BucklingError, fe.ConvergenceError)
@@ -49,10 +50,11 @@ class UpdatingProblem(Problem):
         if not hasattr(model, "simulate"):
             raise TypeError(f"{type(model).__name__} is not a model of the rig (no simulate method)")
         rig = getattr(model, "rig", None)
-        if rig is not None and rig != dataset.rig:
+        if rig is not None and rig != rig_of(dataset):
             raise ValueError("the model was built for another rig than the data set's "
-                             f"(model: {rig}, data: {dataset.rig})")
+                             f"(model: {rig}, data: {rig_of(dataset)})")
         super().__init__(dataset, model, n_functions, basis, metrics)
+        self.rig = rig_of(dataset)   # the generic Problem keeps the data set's raw rig block
 
     def run(self, params: fe.Parameters, force, model=None):
         """Model velocity at the sensor [m/s] under ``force`` [N]."""

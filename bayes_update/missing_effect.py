@@ -53,6 +53,7 @@ import numpy as np
 
 import fe
 
+from .beam_rig import rig_of
 from .dataset import Dataset
 from .evaluation import default_executor
 from .likelihood import NAMES, UNITS, Likelihood, ParameterSpace, estimate_likelihood
@@ -396,7 +397,7 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
     from .validation import validate
 
     settings = settings or DiscrepancySettings()
-    model = model if model is not None else fe.BeamModel(rig=dataset.rig)
+    model = model if model is not None else fe.BeamModel(rig=rig_of(dataset))
     if isinstance(model, fe.ModalROM):
         raise ValueError("the discrepancy workflow adds effects the modal ROM cannot carry "
                          "(only a bow fits its reduced form): use fe.BeamModel")
@@ -404,7 +405,7 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
     unknown = [n for n in names if n not in CANDIDATES]
     if unknown:
         raise ValueError(f"unknown candidate effect(s) {unknown}; choose from {sorted(CANDIDATES)}")
-    space = space or ParameterSpace(dataset.rig)
+    space = space or ParameterSpace(rig_of(dataset))
     problem = UpdatingProblem(dataset, model)
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the discrepancy workflow needs the high-level test "

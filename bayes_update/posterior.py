@@ -41,6 +41,7 @@ import numpy as np
 import fe
 import surrogates
 
+from .beam_rig import rig_of
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
 from .core import Problem, check_model
@@ -553,8 +554,8 @@ def make_problem(dataset: Dataset, model=None, space=None, metrics=None):
             if n_functions != DEFAULT_N_FUNCTIONS:
                 problem = Problem(dataset, model, n_functions=n_functions, metrics=metrics)
         return problem, space
-    model = model if model is not None else fe.BeamModel(rig=dataset.rig)
-    return UpdatingProblem(dataset, model, metrics=metrics), space if space is not None else ParameterSpace(dataset.rig)
+    model = model if model is not None else fe.BeamModel(rig=rig_of(dataset))
+    return UpdatingProblem(dataset, model, metrics=metrics), space if space is not None else ParameterSpace(rig_of(dataset))
 
 
 def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):

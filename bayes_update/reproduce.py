@@ -25,6 +25,7 @@ import numpy as np
 
 import fe
 
+from .beam_rig import rig_of
 from .calibrate import CalibrationSettings, calibrate, format_tables, write_result
 from .likelihood import ParameterSpace
 from .posterior import PosteriorSettings, format_summary, sample, write_posterior
@@ -108,14 +109,14 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
     data = load_default_dataset()
     timing, head = {}, {}
     t_all = time.perf_counter()
-    stated = data.rig.bending_stiffness_factor
+    stated = rig_of(data).bending_stiffness_factor
     cal_settings = CalibrationSettings.quick() if quick else CalibrationSettings()
     post_settings = PosteriorSettings.quick() if quick else PosteriorSettings()
     truth = truth_paper_units(data)
     calibrations, posteriors = {}, {}
     for factor in (stated, 1.0):
         tag = f"factor_{factor:g}"
-        rig = dataclasses.replace(data.rig, bending_stiffness_factor=factor)
+        rig = dataclasses.replace(rig_of(data), bending_stiffness_factor=factor)
         d = dataclasses.replace(data, rig=rig)
         model = fe.ModalROM(rig=rig) if quick else fe.BeamModel(rig=rig)
         log(f"[{tag}] deterministic updating ({'coarse' if quick or factor != stated else 'full'} grids)")
@@ -141,7 +142,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
         log("[discrepancy] the workflow on the hidden-effect variant of the rig")
         t0 = time.perf_counter()
         dd = discrepancy_dataset()
-        disc = find_missing_effect(dd, fe.BeamModel(rig=dd.rig),
+        disc = find_missing_effect(dd, fe.BeamModel(rig=rig_of(dd)),
                                    settings=DiscrepancySettings.quick() if quick else DiscrepancySettings(),
                                    workers=workers, log=log)
         hidden = dd.extra["truth"]["effects"]

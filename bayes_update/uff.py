@@ -33,7 +33,9 @@ takes them from the velocity record if present, else names the test
 (the sensor) and reference node 1 (the shaker), direction +Y (2), for both
 records, and load cases 1, 2, ... in test order.  Positions of the nodes are
 not read from the file: the rig (geometry, shaker and sensor positions)
-comes from ``dataset.json`` or the ``rig`` argument.
+comes from ``dataset.json`` or the ``rig`` argument.  A UFF test holds one
+velocity sensor: data sets with other response kinds or several sensors are
+read and written as CSV only.
 
 Time and sampling rate: UFF58 stores the abscissa start and increment with six
 significant digits (format E13.5), so the reader takes the sampling rate as
@@ -58,8 +60,6 @@ from pathlib import Path
 
 import numpy as np
 
-from fe import Rig
-
 from .dataset import (
     ROLES,
     Dataset,
@@ -69,7 +69,9 @@ from .dataset import (
     NonFiniteError,
     Record,
     SamplingRateError,
+    SensorError,
     UnknownRoleError,
+    _is_single_velocity,
     check_time,
 )
 
@@ -249,14 +251,16 @@ def read_uff_test(path, fs: float | None = None, load_case=None):
     return g["time"], g["force"], g["velocity"], info
 
 
-def read_uff(path, rig: Rig | None = None, name: str | None = None,
+def read_uff(path, rig=None, name: str | None = None,
              sampling_rate_hz: float | None = None, tests: dict | None = None) -> Dataset:
     """Read a UFF file of type-58 time records into a :class:`Dataset`.
 
     Parameters
     ----------
     path : the ``.uff``/``.unv`` file (see the module docstring for the mapping).
-    rig : the rig (default :class:`fe.Rig()`: the paper's geometry, factor 1.0).
+    rig : the beam rig kept in :attr:`Dataset.rig` (an ``fe.Rig`` or a ``rig``
+        block dict; default None, which the beam code reads as the paper's
+        geometry, factor 1.0: :func:`bayes_update.beam_rig.rig_of`).
     name : data-set name (default: the file name).
     sampling_rate_hz : declared rate [Hz], checked against the file (default:
         taken from the file).
@@ -292,8 +296,7 @@ def read_uff(path, rig: Rig | None = None, name: str | None = None,
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise DatasetError(f"{path}: several load cases share the test name(s) {dup} (id1)")
-    ds = Dataset(name or path.stem, float(fs), rig if rig is not None else Rig(), records,
-                 source=str(path))
+    ds = Dataset(name or path.stem, float(fs), rig, records, source=str(path))
     ds.validate()
     return ds
 
@@ -335,6 +338,10 @@ def write_uff(dataset: Dataset, path, binary: bool = False) -> Path:
     """
     pyuff = _pyuff()
     dataset.validate()
+    if not _is_single_velocity(dataset.sensors):
+        raise SensorError(f"{path}: UFF files hold force and velocity records only, but the data set "
+                          f"{dataset.name!r} has the sensors {dataset.sensors}; write it as a folder "
+                          "(write_dataset)")
     path = Path(path)
     if path.exists():
         os.remove(path)

@@ -59,6 +59,7 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from . import signals
+from .beam_rig import rig_of
 from .dataset import Dataset, Record, read_dataset, write_dataset
 
 PAPER_EQUIVALENT_RIG = fe.Rig(bending_stiffness_factor=1.24)
@@ -408,7 +409,7 @@ def truth_paper_units(dataset) -> dict | None:
     t = (dataset.extra or {}).get("truth", {}).get("parameters_si")
     if not t:
         return None
-    kb = dataset.rig.axial_stiffness
+    kb = rig_of(dataset).axial_stiffness
     return {"eta": t["eta"] / 1e6, "c": t["c"] / 1e3, "F": t["F"], "k_s": t["k_s"] / 1e3,
             "P_eff": t["F"] * kb / (kb + t["k_s"])}
 

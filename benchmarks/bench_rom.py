@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 import fe  # noqa: E402
+from bayes_update.beam_rig import rig_of  # noqa: E402
 from bayes_update.virtual_rig import load_default_dataset  # noqa: E402
 
 PARAMS = fe.PAPER_PARAMETERS
@@ -136,12 +137,12 @@ def main():
     print(f"machine: {machine()}; BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']}; "
           f"load average at start {load} (a shared machine: medians absorb some of it)\n")
     print(f"Force: default data set, chirp_high ({FORCE.size} samples at {FS:g} Hz), "
-          f"rig factor {DATA.rig.bending_stiffness_factor}, paper's parameters.\n")
-    rom = fe.ModalROM(rig=DATA.rig)
+          f"rig factor {rig_of(DATA).bending_stiffness_factor}, paper's parameters.\n")
+    rom = fe.ModalROM(rig=rig_of(DATA))
     t0 = time.perf_counter()
-    model_setup = fe.ModalROM(rig=DATA.rig).rig_matrices
+    model_setup = fe.ModalROM(rig=rig_of(DATA)).rig_matrices
     setup = time.perf_counter() - t0
-    full = fe.BeamModel(rig=DATA.rig)
+    full = fe.BeamModel(rig=rig_of(DATA))
     t = interleaved_times(rom, full)
     substeps = rom.choose_substeps(PARAMS, FS)
     print(f"ModalROM ({rom.n_modes} modes, shapes from {rom.n_elements} elements, "
@@ -167,14 +168,14 @@ def main():
     print(f"Per-model setup (FE matrices of {model_setup.mass.shape[0]} free transverse dofs, "
           f"Cholesky, buckling load; once per ModalROM): {1e3 * setup:.1f} ms (first call, "
           "includes the effect checks)\n")
-    med, worst = prior_box_times(fe.ModalROM(rig=DATA.rig))
+    med, worst = prior_box_times(fe.ModalROM(rig=rig_of(DATA)))
     print(f"Random points of the prior box (a new P_eff each, precomputation included, "
           f"40 points): median {1e3 * med:.3f} ms, max {1e3 * worst:.3f} ms\n")
     print("Cost against the number of modes (substeps chosen automatically):\n")
     print("| modes | substeps | ms excl. | ms incl. | us per RK4 step |")
     print("|---|---|---|---|---|")
     for n in (1, 2, 3, 4, 5, 7):
-        r = fe.ModalROM(rig=DATA.rig, n_modes=n)
+        r = fe.ModalROM(rig=rig_of(DATA), n_modes=n)
         e, i = rom_times(r, repeats=31)
         m = r.choose_substeps(PARAMS, FS)
         print(f"| {n} | {m} | {1e3 * e:.3f} | {1e3 * i:.3f} | {1e6 * e / ((FORCE.size - 1) * m):.3f} |")

@@ -26,6 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fe  # noqa: E402
+from bayes_update.beam_rig import rig_of  # noqa: E402
 from bayes_update.posterior import PosteriorSettings, sample  # noqa: E402
 from bayes_update.posterior_plots import LABELS, ORDER, paper_draws  # noqa: E402
 from bayes_update.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
@@ -84,7 +85,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args(argv)
     data = load_default_dataset()
-    model = fe.ModalROM(data.rig) if args.model == "rom" else fe.BeamModel(data.rig)
+    model = fe.ModalROM(rig_of(data)) if args.model == "rom" else fe.BeamModel(rig_of(data))
     kw = dict(n_linear=0, n_global=0)
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
     if args.model == "fe" and not args.quick:

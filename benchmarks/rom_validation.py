@@ -32,10 +32,11 @@ from _machine import machine  # noqa: E402
 import fe  # noqa: E402
 from fe import _kernels as K  # noqa: E402
 from fe.model import KD  # noqa: E402
+from bayes_update.beam_rig import rig_of  # noqa: E402
 from bayes_update.virtual_rig import load_default_dataset  # noqa: E402
 
 DATA = load_default_dataset()
-RIG = DATA.rig
+RIG = rig_of(DATA)
 FS = DATA.sampling_rate_hz
 KB = RIG.axial_stiffness
 PAPER = fe.PAPER_PARAMETERS

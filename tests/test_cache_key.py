@@ -9,6 +9,7 @@ import shutil
 import numpy as np
 
 import fe
+from bayes_update.beam_rig import rig_of
 from bayes_update.dataset import read_dataset, write_dataset
 from bayes_update.likelihood import ParameterSpace
 from bayes_update.metrics import UpdatingProblem
@@ -18,8 +19,8 @@ from bayes_update.virtual_rig import DEFAULT_DATASET_DIR
 
 def _cache_file(data_dir, cache_dir):
     data = read_dataset(data_dir)
-    problem = UpdatingProblem(data, fe.ModalROM(rig=data.rig))
-    ev = Evaluate(problem, ParameterSpace(data.rig), problem.stages)
+    problem = UpdatingProblem(data, fe.ModalROM(rig=rig_of(data)))
+    ev = Evaluate(problem, ParameterSpace(rig_of(data)), problem.stages)
     return _cache(cache_dir, ev, "design").file
 
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import fe
+from bayes_update.beam_rig import rig_of
 from bayes_update.calibrate import parabola_vertex, parameters_from, preload_for_frequency
 from bayes_update.cli import main
 from bayes_update.dataset import DatasetError, read_dataset
@@ -28,7 +29,7 @@ def data():
 
 @pytest.fixture(scope="module")
 def problem(data):
-    return UpdatingProblem(data, fe.BeamModel(rig=data.rig))
+    return UpdatingProblem(data, fe.BeamModel(rig=rig_of(data)))
 
 
 def test_relative_error_and_reference_against_itself(problem):
@@ -43,7 +44,7 @@ def test_relative_error_and_reference_against_itself(problem):
 def test_basis_pole_is_the_rigs_first_mode(data, problem):
     # the pole is identified from the noisy low-level record; the rig's linearised
     # first mode (its own fine model) is the independent reference
-    rig_model = fe.BeamModel(rig=data.rig, n_elements=20)
+    rig_model = fe.BeamModel(rig=rig_of(data), n_elements=20)
     modes = rig_model.modal_analysis(TRUTH, n_modes=1)
     pole = problem.basis.pole(1)
     assert abs(pole.freq_hz / modes.frequencies_hz[0] - 1) < 2e-3
@@ -54,7 +55,7 @@ def test_basis_pole_is_the_rigs_first_mode(data, problem):
 def test_e_lin_sees_only_p_eff_and_e_nlin_breaks_the_ridge(data, problem):
     """On the ridge (same P_eff) e_lin is unchanged to a small fraction of its
     off-ridge change; e_nlin is not (DESIGN.md section 2)."""
-    rig = data.rig
+    rig = rig_of(data)
     on = [parameters_from(rig, 3.0, 15.0, ks, 74.06) for ks in (0.0, 180.0, 540.0)]
     off = parameters_from(rig, 3.0, 15.0, 180.0, 74.06 + 1.0)
     e = [problem.evaluate(p) for p in on + [off]]
@@ -68,7 +69,7 @@ def test_e_lin_is_unimodal_in_eta_with_its_minimum_at_the_truth(data, problem):
     """A linear-only fit of the low-level test: e_lin falls then rises through the
     true eta (with orders 2-3 in that fit it was erratic, see bayes_update.metrics)."""
     etas = [2.0, 2.5, 3.0, 3.5, 4.0]
-    e = [problem.evaluate(parameters_from(data.rig, eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
+    e = [problem.evaluate(parameters_from(rig_of(data), eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
          for eta in etas]
     assert int(np.argmin(e)) == 2
     assert e[0] > e[1] > e[2] < e[3] < e[4]
@@ -83,7 +84,7 @@ def test_failed_run_gives_nan_and_the_message(problem, data):
 
 
 def test_executors_give_identical_results(problem, data):
-    pts = [parameters_from(data.rig, 3.0, c, 180.0, 74.0) for c in (5.0, 15.0)]
+    pts = [parameters_from(rig_of(data), 3.0, c, 180.0, 74.0) for c in (5.0, 15.0)]
     func = partial(problem.evaluate, stages=("linear",))
     serial = evaluate_many(func, pts, None, progress=False)
     with ThreadPoolExecutor(2) as ex:
@@ -98,21 +99,21 @@ def test_problem_rejects_bad_data_sets(data):
 
     no_linear = dataclasses.replace(data, tests=[t for t in data.tests if t.role != "linear"])
     with pytest.raises(DatasetError, match="role 'linear'"):
-        UpdatingProblem(no_linear, fe.BeamModel(rig=data.rig))
+        UpdatingProblem(no_linear, fe.BeamModel(rig=rig_of(data)))
     two = dataclasses.replace(data, tests=[dataclasses.replace(t, role="linear") for t in data.tests
                                            if t.signal == "chirp"])
     with pytest.raises(DatasetError, match="exactly one"):
-        UpdatingProblem(two, fe.BeamModel(rig=data.rig))
+        UpdatingProblem(two, fe.BeamModel(rig=rig_of(data)))
     with pytest.raises(ValueError, match="another rig"):
         UpdatingProblem(data, fe.BeamModel())                    # factor 1.0 against 1.24
     lin_only = dataclasses.replace(data, tests=[t for t in data.tests if t.role == "linear"])
-    prob = UpdatingProblem(lin_only, fe.BeamModel(rig=data.rig))
+    prob = UpdatingProblem(lin_only, fe.BeamModel(rig=rig_of(data)))
     with pytest.raises(DatasetError, match="e_nlin"):
         prob.evaluate(TRUTH)
 
 
 def test_helpers(data):
-    model = fe.BeamModel(rig=data.rig)
+    model = fe.BeamModel(rig=rig_of(data))
     f1 = model.modal_analysis(fe.Parameters(eta=0, c=0, F=60.0, k_s=0), n_modes=1).frequencies_hz[0]
     assert abs(preload_for_frequency(model, f1) - 60.0) < 1e-6
     with pytest.raises(ValueError, match="no preload"):
@@ -120,8 +121,8 @@ def test_helpers(data):
     x = np.linspace(0, 4, 9)
     assert abs(parabola_vertex(x, (x - 1.3) ** 2) - 1.3) < 1e-12
     assert parabola_vertex(x, x) == 0.0
-    p = parameters_from(data.rig, 3.0, 15.0, 180.0, 74.0)
-    assert abs(p.effective_preload(data.rig) - 74.0) < 1e-12 and p.c == 15e3 and p.k_s == 180e3
+    p = parameters_from(rig_of(data), 3.0, 15.0, 180.0, 74.0)
+    assert abs(p.effective_preload(rig_of(data)) - 74.0) < 1e-12 and p.c == 15e3 and p.k_s == 180e3
 
 
 # ---------------------------------------------------------------- acceptance
@@ -164,7 +165,7 @@ def png_size(path):
 def test_calibrate_writes_the_documented_outputs(quick_run, data):
     out, result = quick_run
     settings = result.settings
-    kb = data.rig.axial_stiffness / 1e3                     # N/mm
+    kb = rig_of(data).axial_stiffness / 1e3                     # N/mm
     pcols = ["c_N_s_per_mm", "F_N", "k_s_N_per_mm", "P_eff_N", "eta_MPa_s"]
     # calibration.json: the result object, SI and paper units consistent
     cal = json.loads((out / "calibration.json").read_text())
@@ -234,7 +235,7 @@ def test_calibrate_recovers_the_truth(quick_run, data):
     truth = read_dataset(default_dataset_path()).extra["truth"]   # read by the test only
     assert fe.Parameters(**truth["parameters_si"]) == TRUTH
     cal = json.loads((out / "calibration.json").read_text())
-    p_true = TRUTH.effective_preload(data.rig)
+    p_true = TRUTH.effective_preload(rig_of(data))
     # Measured with these reduced settings (--quick: 3 c, 4 k_s, 5 P_eff, 40
     # refinement runs; deterministic): P_eff -0.03 % (the posterior sd of P_eff
     # is 0.035 %), eta +0.8 %, c +3.3 %, k_s 145 N/mm.  Tolerances about 3x,

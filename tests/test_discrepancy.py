@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 import fe
+from bayes_update.beam_rig import rig_of
 from bayes_update.discrepancy import decay_curve, diagnose, diagnostics_figure, harmonic_amplitudes
 from bayes_update.virtual_rig import PAPER_TESTS, load_default_dataset, make_dataset
 
@@ -14,7 +15,7 @@ TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "sine_h
 def diagnoses():
     straight = load_default_dataset()
     bowed = make_dataset(imperfection=0.5e-3, tests=TESTS)
-    model = fe.BeamModel(rig=straight.rig)
+    model = fe.BeamModel(rig=rig_of(straight))
     return diagnose(straight, model, TRUTH), diagnose(bowed, model, TRUTH)
 
 
@@ -44,7 +45,7 @@ def test_a_hidden_bow_shows_in_y2_and_the_even_harmonic(diagnoses):
 
 def test_model_decay_matches_its_modal_damping(diagnoses):
     straight, _ = diagnoses
-    zeta1 = fe.BeamModel(rig=load_default_dataset().rig).modal_analysis(TRUTH, 1).damping_ratios[0]
+    zeta1 = fe.BeamModel(rig=rig_of(load_default_dataset())).modal_analysis(TRUTH, 1).damping_ratios[0]
     model_decay = straight["by_amplitude"]["chirp_low"]["model"]
     assert np.allclose(model_decay["zeta"], zeta1, rtol=0.1)
     fig = diagnostics_figure(straight)

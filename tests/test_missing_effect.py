@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 import fe
+from bayes_update.beam_rig import rig_of
 from bayes_update.missing_effect import (CANDIDATES, DECISIVE, EXPLAINED_FACTOR, DiscrepancySettings,
                                          find_missing_effect, write_discrepancy)
 from bayes_update.mode import laplace_log_evidence, ModeResult
@@ -202,7 +203,7 @@ def test_candidate_values_round_trip_and_bad_input():
         find_missing_effect(make_dataset(tests=TESTS[:2]), candidates=["gravity"], progress=False)
     with pytest.raises(ValueError, match="modal ROM"):
         data = make_dataset(tests=TESTS[:2])
-        find_missing_effect(data, fe.ModalROM(data.rig), progress=False)
+        find_missing_effect(data, fe.ModalROM(rig_of(data)), progress=False)
     with pytest.raises(ValueError, match="unknown effect"):
         hidden_effects(["gravity"], 0)
 

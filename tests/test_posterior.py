@@ -9,6 +9,7 @@ from scipy import stats
 
 import fe
 import volterra
+from bayes_update.beam_rig import rig_of
 from bayes_update.likelihood import (Likelihood, ParameterSpace, StageScale, noise_scale_from_replicates,
                                      white_noise_sd)
 from bayes_update.posterior import PosteriorSettings, run_emcee, sample
@@ -26,7 +27,7 @@ def data():
 def test_prior_density_integrates_to_the_public_box_area(data):
     """The internal (P_eff, k_s) density (K_b + k_s) / K_b on the image of the
     (F, k_s) box has the box's area: the Jacobian is right."""
-    space = ParameterSpace(data.rig)
+    space = ParameterSpace(rig_of(data))
     box = space.box()
     P = np.linspace(box[2, 0], box[2, 1], 801)
     K = np.linspace(box[3, 0], box[3, 1], 801)
@@ -38,7 +39,7 @@ def test_prior_density_integrates_to_the_public_box_area(data):
 
 
 def test_prior_draws_are_uniform_in_F_and_round_trip(data):
-    space = ParameterSpace(data.rig)
+    space = ParameterSpace(rig_of(data))
     X = space.sample_prior(20000, seed=1)
     F = space.F_of(X)
     assert stats.kstest((F - 60) / 35, "uniform").pvalue > 1e-3
@@ -50,8 +51,8 @@ def test_prior_draws_are_uniform_in_F_and_round_trip(data):
 
 def test_bad_prior_and_parameters_outside_it_are_named(data):
     with pytest.raises(ValueError, match="prior range of c"):
-        ParameterSpace(data.rig, c=(10.0, 5.0))
-    space = ParameterSpace(data.rig)
+        ParameterSpace(rig_of(data), c=(10.0, 5.0))
+    space = ParameterSpace(rig_of(data))
     with pytest.raises(ValueError, match="k_s = 700"):
         space.check(fe.Parameters(eta=3e6, c=15e3, F=77.0, k_s=700e3))
 
@@ -340,14 +341,14 @@ def rom_posterior(data):
     (the deterministic start is tested in test_calibrate)."""
     start = fe.Parameters(eta=3.05e6, c=12e3, F=77.5, k_s=200e3)
     settings = PosteriorSettings.quick(n_linear=24, n_global=0, n_predictive=8)
-    return sample(data, fe.ModalROM(data.rig), settings, workers=2, start=start, progress=False,
+    return sample(data, fe.ModalROM(rig_of(data)), settings, workers=2, start=start, progress=False,
                   log=lambda *a: None)
 
 
 def test_posterior_covers_the_truth_on_the_default_data(rom_posterior, data):
     s = rom_posterior.summary
     truth = dict(TRUTH)
-    kb = data.rig.axial_stiffness / 1e3
+    kb = rig_of(data).axial_stiffness / 1e3
     truth["P_eff"] = 77.0 * kb / (kb + 180.0)
     si = {"eta": 1e6, "c": 1e3, "F": 1.0, "k_s": 1e3, "P_eff": 1.0}
     for name, value in truth.items():
@@ -384,7 +385,7 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
 
 def test_sample_refuses_a_start_outside_the_prior(data):
     with pytest.raises(ValueError, match="outside the prior box"):
-        sample(data, fe.ModalROM(data.rig), PosteriorSettings.quick(), workers=1,
+        sample(data, fe.ModalROM(rig_of(data)), PosteriorSettings.quick(), workers=1,
                start=fe.Parameters(eta=9e6, c=15e3, F=77.0, k_s=180e3), progress=False)
 
 
@@ -415,7 +416,7 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
     settings = PosteriorSettings.quick(n_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
                                        n_global=0, n_predictive=0)
-    direct = sample(data, fe.ModalROM(data.rig), settings, workers=2, start=start, direct=True,
+    direct = sample(data, fe.ModalROM(rig_of(data)), settings, workers=2, start=start, direct=True,
                     likelihood=rom_posterior.likelihood, progress=False, log=lambda *a: None)
     a = paper_draws(rom_posterior.space, rom_posterior.draws)
     b = paper_draws(direct.space, direct.draws)
@@ -450,7 +451,7 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
     out = cli_sample
     summary = json.loads((out / "posterior_summary.json").read_text())
     idata = az.from_netcdf(str(out / "posterior.nc"))
-    kb = load_default_dataset().rig.axial_stiffness / 1e3
+    kb = rig_of(load_default_dataset()).axial_stiffness / 1e3
     truth_si = {"eta": 3e6, "c": 15e3, "F": 77.0, "k_s": 180e3, "P_eff": 77.0 * kb / (kb + 180.0)}
     for name in ("eta", "c", "F", "k_s", "P_eff"):
         got = summary["parameters"][name]
@@ -476,7 +477,7 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
 def test_whitening_round_trip_and_box_cut_fraction(data):
     from bayes_update.posterior import Whitening, _box_cut_fraction
 
-    space = ParameterSpace(data.rig)
+    space = ParameterSpace(rig_of(data))
     cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2
     cov[1, 3] = cov[3, 1] = -0.9 * 2.0 * 150.0
     w = Whitening.from_covariance(np.array([3.0, 15.0, 74.0, 200.0]), cov)

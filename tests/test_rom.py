@@ -14,6 +14,7 @@ import fe
 from fe import _kernels as K
 from fe.model import KD, _beam_axial_force, hermite_weights
 from fe.rom import ModalROM
+from bayes_update.beam_rig import rig_of
 from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
 
 RIG = PAPER_EQUIVALENT_RIG
@@ -211,9 +212,9 @@ def test_transient_against_full_fe(dataset, label, params, effects, test):
     0.12-0.35 %."""
     rec = record(dataset, test)
     settings = FE_REFERENCE_BOW if effects else FE_REFERENCE
-    ref = fe.BeamModel(rig=dataset.rig, effects=effects, **settings).simulate(
+    ref = fe.BeamModel(rig=rig_of(dataset), effects=effects, **settings).simulate(
         params, rec.force, dataset.sampling_rate_hz)
-    rom = ModalROM(rig=dataset.rig, effects=effects)
+    rom = ModalROM(rig=rig_of(dataset), effects=effects)
     res = fe.simulate(rom, params, rec.force, dataset.sampling_rate_hz)
     err = rel_l2(res.sensor_velocity, ref.sensor_velocity)
     print(f"{label} {test}: {100 * err:.3f} %")
