@@ -390,7 +390,9 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         fs = problem.fs
         band = noise_band(test.force, fs)
         sig_f = white_noise_sd(test.force, fs, band)
-        sig_y = white_noise_sd(test.velocity, fs, band)
+        y_ref = test.response if test.response.ndim == 2 else test.response[:, None]
+        sig_y = np.array([white_noise_sd(y_ref[:, j], fs, band) for j in range(y_ref.shape[1])])
+        sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
         basis = problem.projector(stage).basis
         v0 = problem.simulate(params, stage)
         ref_norm = np.linalg.norm(problem.output(stage, problem.reference_components(stage)))
@@ -398,11 +400,11 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         D = []
         for _ in range(int(n_replicates)):
             u = test.force + sig_f * rng.standard_normal(test.force.size)
-            y_meas = v0 + sig_y * rng.standard_normal(v0.size)
+            y_meas = v0 + sig_y * rng.standard_normal(v0.shape)
             v = problem.run(params, u)
             proj = volterra.VolterraProjector(u, basis)
-            D.append((problem.output(stage, proj.components(y_meas)) - problem.output(stage, proj.components(v)))
-                     / ref_norm)
+            D.append((problem.output(stage, problem.components(stage, y_meas, proj))
+                      - problem.output(stage, problem.components(stage, v, proj))) / ref_norm)
         D = np.array(D)
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
@@ -419,7 +421,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         residuals[stage] = D
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),
-                                   noise_levels={"force_N": sig_f, "velocity_m_s": sig_y,
+                                   noise_levels={"force_N": sig_f, "velocity_m_s": sig_y.tolist(),
                                                  "band_hz": list(band)},
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,

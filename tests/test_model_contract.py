@@ -62,10 +62,18 @@ def test_log_uniform_prior_is_uniform_in_the_log():
     assert stats.kstest((X[:, 0] - 20) / 40, "uniform").pvalue > 0.01
     u = (X[:, 1] - np.log(1e-3)) / (np.log(1e-1) - np.log(1e-3))
     assert stats.kstest(u, "uniform").pvalue > 0.01
-    # the density in x = log(zeta) of a prior uniform in log(zeta) is flat: the
-    # log-Jacobian e^x of exp is what turns the flat-in-theta density into it
+    # the density in x = log(zeta) of a prior uniform in log(zeta) is flat
     lp = space.log_prior(X)
-    np.testing.assert_allclose(lp, X[:, 1], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(lp, 0.0, rtol=0, atol=1e-12)
+    # independently: an MCMC on log_prior alone draws zeta log-uniformly (and fn uniformly)
+    import emcee
+
+    sampler = emcee.EnsembleSampler(16, 2, lambda x: space.log_prior(x)[0])
+    sampler.run_mcmc(space.sample_prior(16, seed=5), 4000, progress=False)
+    chain = sampler.get_chain(discard=500, thin=20, flat=True)
+    zeta = np.exp(chain[:, 1])
+    assert stats.kstest(np.log(zeta / 1e-3) / np.log(100.0), "uniform").pvalue > 0.01
+    assert stats.kstest((chain[:, 0] - 20) / 40, "uniform").pvalue > 0.01
     assert space.log_prior([70.0, np.log(0.01)])[0] == -np.inf
     assert space.log_prior([30.0, np.log(0.5)])[0] == -np.inf
 

@@ -151,8 +151,12 @@ class ParameterSet:
         return float(np.sum(x[self.is_log]))   # d theta / d log theta = theta
 
     def log_prior(self, X) -> np.ndarray:
-        """Log density of the prior in internal coordinates (up to a constant):
-        0 + log-Jacobian inside the box, -inf outside. X: (n, d) or (d,)."""
+        """Log density of the prior in internal coordinates (up to a constant),
+        -inf outside the box.  The prior is uniform in theta (log-uniform for a
+        ``log=True`` parameter), so its density in x is
+        ``prod p(theta_i) |d theta / d x|``: the log-Jacobian minus
+        ``sum log theta_i`` over the log-scale parameters (0 when x is theta
+        with those parameters in natural log). X: (n, d) or (d,)."""
         X = np.atleast_2d(np.asarray(X, float))
         out = np.full(len(X), -np.inf)
         for i, x in enumerate(X):
@@ -160,7 +164,7 @@ class ParameterSet:
                 continue
             t = self.theta_array(self.from_internal(x))
             if np.all((t >= self.low) & (t <= self.high)):
-                out[i] = self._log_jacobian(x)
+                out[i] = self._log_jacobian(x) - float(np.sum(np.log(t[self.is_log])))
         return out
 
     def box(self, n_probe: int = 256) -> np.ndarray:

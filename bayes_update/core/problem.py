@@ -122,7 +122,12 @@ def describe_basis(basis: volterra.KautzBasis) -> dict:
 class _Test:
     name: str
     force: np.ndarray
-    velocity: np.ndarray
+    response: np.ndarray       # (n,), or (n, n_sensors)
+
+    @property
+    def velocity(self) -> np.ndarray:
+        """The response under the beam's name for it (its sensor measures velocity)."""
+        return self.response
 
 
 #: factored projectors of the problems a worker process has seen (token -> {stage: projector})
@@ -187,7 +192,9 @@ class Problem:
                                "that e_lin and the Kautz pole come from); set it in dataset.json")
         lin = self.tests["linear"]
         if basis is None:
-            basis = basis_from_reference(lin.force, lin.velocity, self.fs, n_functions)
+            # the pole is the structure's: any sensor shows it (the first one is taken)
+            first = lin.response if lin.response.ndim == 1 else lin.response[:, 0]
+            basis = basis_from_reference(lin.force, first, self.fs, n_functions)
         if not isinstance(basis, volterra.KautzBasis):
             raise TypeError("basis must be a volterra.KautzBasis")
         if basis.fs != self.fs:
@@ -197,10 +204,11 @@ class Problem:
         self.basis = basis
         self._projectors = {}
         self._reference = {}
+        self._sensor_noise = {}
         self._token = uuid.uuid4().hex    # identifies this problem's projectors in worker processes
 
     def _test(self, record) -> _Test:
-        force, response = np.array(record.force, float), np.array(record.velocity, float)
+        force, response = np.array(record.force, float), np.array(record.response, float)
         if self.remove_offsets:
             force -= force.mean()
             response -= response.mean(axis=0)
@@ -243,21 +251,49 @@ class Problem:
             self._projectors[stage] = volterra.VolterraProjector(self.tests[stage].force, basis)
         return self._projectors[stage]
 
-    def components(self, stage: str, velocity) -> dict:
-        """{order: y_n} of a velocity record [m/s] under the stage's recorded force
-        (orders :data:`STAGE_ORDERS` of the stage)."""
-        return self.projector(stage).components(velocity)
+    def components(self, stage: str, response, projector=None) -> dict:
+        """{order: y_n} of a response record under the stage's recorded force
+        (orders :data:`STAGE_ORDERS` of the stage; ``projector``: another input's).
+
+        Several sensors (response (n, n_sensors)): each sensor's components,
+        divided by that sensor's measured noise (:meth:`sensor_noise`), one
+        after the other; the metrics then weigh the sensors by their noise."""
+        proj = self.projector(stage) if projector is None else projector
+        y = np.asarray(response, float)
+        if y.ndim == 1:
+            return proj.components(y)
+        per = [proj.components(y[:, j]) for j in range(y.shape[1])]
+        w = 1.0 / self.sensor_noise(stage)
+        return {n: np.concatenate([w[j] * c[n] for j, c in enumerate(per)]) for n in per[0]}
+
+    def sensor_noise(self, stage: str) -> np.ndarray:
+        """Measured noise of each sensor of a several-sensor test: rms residual
+        of its own Volterra fit per sample (as :meth:`noise_sd`) [sensor unit]."""
+        if stage not in self._sensor_noise:
+            y = self.tests[stage].response
+            proj = self.projector(stage)
+            self._sensor_noise[stage] = np.array([self._residual_rms(y[:, j], proj.components(y[:, j]), stage)
+                                                  for j in range(y.shape[1])])
+        return self._sensor_noise[stage]
+
+    def _residual_rms(self, y, comps, stage, n_sensors: int = 1) -> float:
+        """rms of y - sum(comps) per degree of freedom left by the fit (one fit per sensor)."""
+        basis = self.projector(stage).basis
+        n_coef = 1 + sum(math.comb(basis.n_functions[k] + k - 1, k) for k in STAGE_ORDERS[stage])
+        return float(np.linalg.norm(y - sum(comps.values())) / math.sqrt(max(y.size - n_sensors * n_coef, 1)))
 
     def reference_components(self, stage: str) -> dict:
         if stage not in self._reference:
-            self._reference[stage] = self.components(stage, self.tests[stage].velocity)
+            self._reference[stage] = self.components(stage, self.tests[stage].response)
         return self._reference[stage]
 
     def run(self, params, force, model=None) -> np.ndarray:
         """Response of ``model`` (default: the problem's) at ``params`` to ``force``
-        sampled at the data's rate: ``model.simulate(theta, force, fs)``."""
+        sampled at the data's rate: ``model.simulate(theta, force, fs)``, (n,)
+        for one sensor, (n, n_sensors) for several."""
         model = self.model if model is None else model
-        return np.asarray(model.simulate(params, force, self.fs), float)
+        y = np.asarray(model.simulate(params, force, self.fs), float)
+        return y[:, 0] if y.ndim == 2 and y.shape[1] == 1 else y
 
     def simulate(self, params, stage: str) -> np.ndarray:
         """Model response under the stage's recorded force."""
@@ -273,23 +309,24 @@ class Problem:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
         return n_compared_regressors(self.projector(stage).basis, stage, self.metrics)
 
-    def metric(self, stage: str, velocity) -> float:
+    def metric(self, stage: str, response) -> float:
         """e_lin (stage 'linear') or e_nlin (stage 'nonlinear') of a model response."""
         return relative_error(self.output(stage, self.reference_components(stage)),
-                              self.output(stage, self.components(stage, velocity)))
+                              self.output(stage, self.components(stage, response)))
 
     def noise_sd(self, stage: str) -> float:
         """The stage's measured noise: rms of the reference record's residual
         after its Volterra fit (orders :data:`STAGE_ORDERS`), per sample, in
-        the response's unit, ``||y - sum_n y_n|| / sqrt(n - n_coefficients)``.
-        It holds the sensor noise, the input noise passed through the system
-        and whatever the fitted orders cannot represent."""
+        the response's unit, ``||y - sum_n y_n|| / sqrt(n - n_coefficients)``
+        (several sensors: of the noise-weighted sensors, so about 1).  It holds
+        the sensor noise, the input noise passed through the system and
+        whatever the fitted orders cannot represent."""
         self._check_stage(stage)
-        y = self.tests[stage].velocity
-        fitted = sum(self.reference_components(stage).values())
-        basis = self.projector(stage).basis
-        n_coef = 1 + sum(math.comb(basis.n_functions[k] + k - 1, k) for k in STAGE_ORDERS[stage])
-        return float(np.linalg.norm(y - fitted) / math.sqrt(max(y.size - n_coef, 1)))
+        y = self.tests[stage].response
+        if y.ndim == 1:
+            return self._residual_rms(y, self.reference_components(stage), stage)
+        y = np.concatenate([y[:, j] / w for j, w in enumerate(self.sensor_noise(stage))])
+        return self._residual_rms(y, self.reference_components(stage), stage, n_sensors=len(self.sensor_noise(stage)))
 
     def prediction_errors(self, params, model=None) -> dict:
         """Direct output error of the model on every validation test:
@@ -298,7 +335,7 @@ class Problem:
         out = {}
         for name, t in self.validation.items():
             try:
-                out[name] = relative_error(t.velocity, self.run(params, t.force, model=model))
+                out[name] = relative_error(t.response, self.run(params, t.force, model=model))
             except self.failures:
                 out[name] = math.nan
         return out
