@@ -139,6 +139,16 @@ def test_hidden_quadratic_spring_is_named_and_closes_the_gap(hidden_k2):
     assert set(doc["final_mode"]["parameters"]) == {"fn", "zeta", "k3"}
 
 
+def test_hidden_quadratic_damping_is_named_not_the_spring():
+    """The other candidate hidden: the choice goes the other way."""
+    res = _run({"c2": 1.0})
+    rows = [(r["name"], r["two_ln_B"]) for r in res.rounds[0]["candidates"]]
+    assert res.named == ["c2"] and res.verdict == "named", rows
+    c2 = res.final.to_json(res.effects)["effects"]["c2"]["c2"]
+    assert c2["interval"][0] <= 1.0 <= c2["interval"][1], c2
+    assert res.gap_after["e_nlin"] <= 0.5 * res.gap_before["e_nlin"], (res.gap_before, res.gap_after)
+
+
 def test_no_hidden_effect_names_nothing(no_effect):
     from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR
 

@@ -114,8 +114,8 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     cov = mode.covariance(scale=hi - lo)
     logz = laplace_log_evidence(mode, space.log_prior_density(mode.x), hi - lo)
     r, n = mode.residual, len(mode.residual) // len(stages)
-    metrics = {("e_lin" if st == "linear" else "e_nlin"): float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd)
-               for i, st in enumerate(stages)}
+    metrics = {("e_lin" if st == "linear" else "e_nlin"):
+               float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd) for i, st in enumerate(stages)}
     return Fit(list(names), space, mode, logz, cov, metrics)
 
 
