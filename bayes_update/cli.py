@@ -27,7 +27,12 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
                    help="fe: the beam's full FE model (default); rom: its modal reduced-order model "
                         "(fe.ModalROM, ~1 ms per run); or your own model, path/to/file.py:NAME or "
                         "package.module:NAME (a class or zero-argument factory with `parameters` and "
+<<<<<<< HEAD
                         "`simulate(theta, force, fs)`; docs/models.md)")
+=======
+                        "`simulate(theta, force, fs)`; docs/models.md; sample, and discrepancy when the model has "
+                        "candidate_effects())")
+>>>>>>> disc
     p.add_argument("--modes", type=int, default=None,
                    help="modes kept by --model rom (default 3)")
     p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
@@ -202,6 +207,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "them by Laplace evidence, name one only when 2 ln B > 6 and its "
                                    "parameter excludes 'no effect', re-update and report the gap before "
                                    "and after. Writes discrepancy.json, evidence.md and figures. "
+                                   "With --model path/to/file.py:NAME: the candidates are the model's "
+                                   "candidate_effects() (docs/models.md). "
                                    "Without --data: the embedded default data set.")
     p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
     p.add_argument("--out", type=Path, required=True, help="output folder")
@@ -209,7 +216,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None,
                    help="processes for the model runs (default: all cores; 1 = serial)")
     p.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
-                   help="restrict the catalogue (default: all four effects)")
+                   help="restrict the catalogue (default: all four effects, or all the model's candidate_effects())")
     _add_model_options(p)
     _add_factor_options(p)
     p.set_defaults(func=cmd_discrepancy)
@@ -423,6 +430,9 @@ def cmd_discrepancy(args) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    model = _user_model(args)
+    if model is not None:
+        return _discrepancy_of_user_model(args, model)
     data = read_dataset(args.data) if args.data else load_default_dataset()
     rig = _rig_for(data, args)
     data = dataclasses.replace(data, rig=rig)
@@ -432,6 +442,24 @@ def cmd_discrepancy(args) -> int:
     truth = truth_paper_units(data)
     hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
     write_discrepancy(res, data, args.out, truth={"parameters": truth, "effects": hidden} if truth else None)
+    print(format_result(res))
+    print(f"time: {res.timing['total']:.0f} s; wrote {args.final_out}")
+    return 0
+
+
+def _discrepancy_of_user_model(args, model) -> int:
+    """`discrepancy --model SPEC`: the generic engine, candidates from the model's candidate_effects()."""
+    from .core.discrepancy import DiscrepancySettings, find_discrepancy, format_result, write_discrepancy
+    from .core.effects import candidate_effects
+
+    candidate_effects(model, [p.name for p in getattr(model, "parameters", ())])   # before any data work
+    if args.data is None:
+        raise ValueError("--model SPEC needs --data: the embedded default data set is the beam's")
+    data = read_dataset(args.data)
+    settings = DiscrepancySettings.quick() if args.quick else DiscrepancySettings()
+    res = find_discrepancy(data, model, settings=settings, workers=args.workers, candidates=args.candidates)
+    truth = data.extra.get("truth")
+    write_discrepancy(res, args.out, truth=truth if isinstance(truth, dict) else None)
     print(format_result(res))
     print(f"time: {res.timing['total']:.0f} s; wrote {args.final_out}")
     return 0

@@ -53,27 +53,18 @@ import numpy as np
 
 import fe
 
+<<<<<<< HEAD
 from .beam_rig import rig_of
+=======
+# the naming rules, shared with the generic engine (bayes_update.core.discrepancy)
+from .core.effects import (DECISIVE, EXPLAINED_FACTOR, evidence_table, misfit_allowance,  # noqa: F401
+                           misfit_ratios)
+>>>>>>> disc
 from .dataset import Dataset
 from .evaluation import default_executor
 from .likelihood import NAMES, UNITS, Likelihood, ParameterSpace, estimate_likelihood
 from .metrics import UpdatingProblem
 from .mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
-
-#: 2 ln B above which the evidence is called decisive (Kass and Raftery 1995: > 6 "strong", > 10 "very strong")
-DECISIVE = 6.0
-#: A model explains the data when e_lin and e_nlin at its mode are each at most
-#: this many times :func:`misfit_allowance` (noise and unabsorbed model error).
-#: Under noise alone e^2 / allowance^2 is about chi^2_nu / nu: beyond 3^2 with
-#: probability 0.27 % for nu = 1, 1e-4 for nu = 2.  Measured (reduced
-#: settings, tests/test_missing_effect.py's data sets): 0.4-0.9 where the
-#: hidden effect was named right (1.06 for notebook 05's bow, the highest
-#: seen), 0.6-0.8 for the baseline on data without a
-#: hidden effect (three noise seeds), 42-45 (e_nlin) where an effect outside
-#: the catalogue was hidden and the best candidate passed the evidence rule;
-#: at full settings 0.49-0.62 over benchmarks/discrepancy_cases.py's six
-#: cases (6 of 6 still succeed) and 0.90 in reproduce's bow case.
-EXPLAINED_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -520,26 +511,6 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
                              gap_with_tentative=gap_tentative)
 
 
-def misfit_allowance(lik: Likelihood) -> dict:
-    """{e_lin, e_nlin: the misfit noise and model error leave at a model's mode}:
-    sqrt(mean e^2 over the noise replicates + e_model_unabsorbed^2).  The
-    replicates' mean e^2 counts the noise in every direction of the stage's
-    output (the parameters take up part of it at the mode, so this is an
-    upper expectation); of the model error only the part no parameter change
-    can take up remains at the mode."""
-    out = {}
-    for st, sc in lik.scales.items():
-        me = sc.model_error_unabsorbed if sc.model_error_unabsorbed is not None else sc.model_error
-        out[Likelihood.key(st)] = math.sqrt(sc.noise_mean_square + me ** 2)
-    return out
-
-
-def misfit_ratios(fit: Fit, lik: Likelihood) -> dict:
-    """{e_lin, e_nlin: the fit's misfit over :func:`misfit_allowance`}."""
-    allow = misfit_allowance(lik)
-    return {k: float(fit.metrics[k] / allow[k]) for k in allow}
-
-
 def _signature_value(sig: str, diag: dict, gap: dict, problem: UpdatingProblem):
     high = problem.tests["nonlinear"].name
     if sig in ("y2", "y3"):
@@ -561,37 +532,6 @@ def _signature_check(named, d0, d1, gap0, gap1, problem) -> dict:
 
 
 # ------------------------------------------------------------------- output
-def evidence_table(res: DiscrepancyResult) -> str:
-    """Markdown table of every round's candidates."""
-    lines = []
-    for i, rnd in enumerate(res.rounds):
-        base = " + ".join(["baseline"] + rnd["base"])
-        lines += [f"Round {i + 1}: candidates added to {base}", "",
-                  "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null |",
-                  "|---|---|---|---|---|"]
-        for c in rnd["candidates"]:
-            pars = ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in c["parameters"].items())
-            lines.append(f"| {c['name']} | {c['two_ln_B']:.1f} | {c['delta_log_likelihood']:.1f} | {pars} | "
-                         f"{'yes' if c['excludes_null'] else 'no'} |")
-        lines.append("")
-    ratios = ", ".join(f"{k} {v:.2g}x" for k, v in res.misfit_ratio.items())
-    if res.named:
-        named = ", ".join(res.named)
-    elif res.tentative:
-        named = ("none: no candidate explains the gap (" + ", ".join(res.tentative) + " passed the evidence rule "
-                 f"but leaves the misfit at {ratios} what noise and model error allow)")
-    elif not res.explains_gap:
-        named = (f"none: no candidate explains the gap (the baseline's misfit is {ratios} what noise and "
-                 "model error allow)")
-    else:
-        named = "none (no candidate improves the fit beyond what the noise explains)"
-    lines.append(f"Named: **{named}** (rule: 2 ln B > {DECISIVE:g} and the effect's mode more than 2 sd "
-                 f"from its null value, and with it e_lin and e_nlin within {EXPLAINED_FACTOR:g}x what noise "
-                 "and model error allow)")
-    lines.append(f"Verdict: {res.verdict}; misfit over what noise and model error allow: {ratios}")
-    return "\n".join(lines)
-
-
 def gap_figure(res: DiscrepancyResult, dataset: Dataset):
     """Before/after: the metrics and validation misfit, the evidence, and the
     residual PSD of a validation test (or the high-level chirp)."""

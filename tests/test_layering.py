@@ -11,6 +11,7 @@ FORBIDDEN = {
     "volterra": ("bayes_update", "fe", "surrogates"),      # knows nothing of inference
     "fe": ("bayes_update", "volterra", "surrogates"),
     "bayes_update.core": ("fe",),                          # the generic core knows no beam
+    "bayes_update.core.discrepancy": ("fe",),              # nor does its discrepancy engine, imported
 }
 
 
