@@ -27,12 +27,8 @@ def _add_model_options(p: argparse.ArgumentParser) -> None:
                    help="fe: the beam's full FE model (default); rom: its modal reduced-order model "
                         "(fe.ModalROM, ~1 ms per run); or your own model, path/to/file.py:NAME or "
                         "package.module:NAME (a class or zero-argument factory with `parameters` and "
-<<<<<<< HEAD
-                        "`simulate(theta, force, fs)`; docs/models.md)")
-=======
-                        "`simulate(theta, force, fs)`; docs/models.md; sample, and discrepancy when the model has "
+                        "`simulate(theta, force, fs)`; docs/models.md; discrepancy needs its "
                         "candidate_effects())")
->>>>>>> disc
     p.add_argument("--modes", type=int, default=None,
                    help="modes kept by --model rom (default 3)")
     p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
@@ -218,6 +214,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
                    help="restrict the catalogue (default: all four effects, or all the model's candidate_effects())")
     _add_model_options(p)
+    _add_metrics_option(p)
     _add_factor_options(p)
     p.set_defaults(func=cmd_discrepancy)
 
@@ -433,6 +430,8 @@ def cmd_discrepancy(args) -> int:
     model = _user_model(args)
     if model is not None:
         return _discrepancy_of_user_model(args, model)
+    if args.metrics not in (None, "paper"):
+        raise ValueError("--metrics full: the beam's discrepancy workflow runs on the paper's metrics")
     data = read_dataset(args.data) if args.data else load_default_dataset()
     rig = _rig_for(data, args)
     data = dataclasses.replace(data, rig=rig)
@@ -457,7 +456,8 @@ def _discrepancy_of_user_model(args, model) -> int:
         raise ValueError("--model SPEC needs --data: the embedded default data set is the beam's")
     data = read_dataset(args.data)
     settings = DiscrepancySettings.quick() if args.quick else DiscrepancySettings()
-    res = find_discrepancy(data, model, settings=settings, workers=args.workers, candidates=args.candidates)
+    res = find_discrepancy(data, model, settings=settings, workers=args.workers, candidates=args.candidates,
+                           metrics=args.metrics)
     truth = data.extra.get("truth")
     write_discrepancy(res, args.out, truth=truth if isinstance(truth, dict) else None)
     print(format_result(res))

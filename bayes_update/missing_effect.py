@@ -53,13 +53,10 @@ import numpy as np
 
 import fe
 
-<<<<<<< HEAD
 from .beam_rig import rig_of
-=======
 # the naming rules, shared with the generic engine (bayes_update.core.discrepancy)
 from .core.effects import (DECISIVE, EXPLAINED_FACTOR, evidence_table, misfit_allowance,  # noqa: F401
                            misfit_ratios)
->>>>>>> disc
 from .dataset import Dataset
 from .evaluation import default_executor
 from .likelihood import NAMES, UNITS, Likelihood, ParameterSpace, estimate_likelihood

@@ -44,7 +44,7 @@ import surrogates
 from .beam_rig import rig_of
 from .dataset import Dataset
 from .evaluation import default_executor, evaluate_many
-from .core import Problem, check_model
+from .core import check_model
 from .likelihood import (UNITS, CurvatureAdjustment, Likelihood, ParameterSpace, curvature_adjustment,
                          estimate_likelihood)
 from .metrics import UpdatingProblem
@@ -542,26 +542,20 @@ def make_problem(dataset: Dataset, model=None, space=None, metrics=None):
         the parameters it moves (:func:`bayes_update.core.calibrate.screen_linear`,
         d + 1 runs of the linear test)."""
     if model is not None and hasattr(model, "parameters"):
-        from .core.calibrate import screen_linear
-        from .core.problem import DEFAULT_N_FUNCTIONS, linear_n_functions
+        from .core.calibrate import problem_for
 
         checked = check_model(model, dataset.by_role("linear")[0].force if dataset.by_role("linear")
                               else dataset.tests[0].force, dataset.sampling_rate_hz)
         space = space if space is not None else checked
-        problem = Problem(dataset, model, metrics=metrics)
-        if problem.metrics == "full":
-            n_functions = linear_n_functions(len(screen_linear(problem, space)[0]))
-            if n_functions != DEFAULT_N_FUNCTIONS:
-                problem = Problem(dataset, model, n_functions=n_functions, metrics=metrics)
-        return problem, space
+        return problem_for(dataset, model, space, metrics)[0], space
     model = model if model is not None else fe.BeamModel(rig=rig_of(dataset))
     return UpdatingProblem(dataset, model, metrics=metrics), space if space is not None else ParameterSpace(rig_of(dataset))
 
 
 def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):
     """(start point, model runs): the beam's is the paper's deterministic updating
-    on coarse grids; any other model's is the best point, by the sum of the
-    stages' metrics, of a scrambled Sobol' design of ``n_points`` over the prior."""
+    on coarse grids; any other model's the generic two-stage calibration
+    (:mod:`bayes_update.core.calibrate`) on the problem as built."""
     if isinstance(problem, UpdatingProblem):
         from .calibrate import CalibrationSettings, calibrate
 
@@ -569,17 +563,12 @@ def default_start(dataset, problem, space, pool, n_points: int, seed, progress, 
         cal = calibrate(dataset, problem.model, CalibrationSettings.quick(), executor=pool,
                         progress=progress, log=lambda *a: None)
         return cal.final_params, cal.setup["n_model_runs"]
-    log(f"start: the best of {n_points} Sobol' points over the prior")
-    from scipy.stats import qmc
+    from .core.calibrate import screen_linear, two_stage
 
-    U = qmc.Sobol(len(space), scramble=True, seed=seed).random(n_points)
-    points = [space.theta(space.from_unit(u)) for u in U]
-    res = evaluate_many(partial(problem.evaluate, stages=problem.stages), points, pool, progress=progress,
-                        desc="start design")
-    score = [sum(r[Likelihood.key(st)] for st in problem.stages) for r in res]
-    if not np.any(np.isfinite(score)):
-        raise RuntimeError(f"the model failed at all {n_points} start points: " + str(res[0].get("error")))
-    return points[int(np.nanargmin(score))], len(points) * len(problem.stages)
+    log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
+    names, _, runs = screen_linear(problem, space, pool)
+    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=pool, progress=progress)
+    return space.to_parameters(found.x), runs + found.n_model_runs
 
 
 def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress, log,

@@ -45,7 +45,8 @@ from ..mode import ResidualFunction, find_mode
 from .model import check_model
 from .problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
 
-__all__ = ["Calibration", "calibrate_model", "screen_linear", "unidentified_directions"]
+__all__ = ["Calibration", "TwoStage", "calibrate_model", "problem_for", "screen_linear", "two_stage",
+           "unidentified_directions"]
 
 #: a step of this fraction of a prior range probes the linear test's sensitivity
 SCREEN_STEP = 0.05
@@ -167,7 +168,7 @@ def _noise_rows(problem: Problem, fun: ResidualFunction) -> np.ndarray:
     return np.concatenate(rows)
 
 
-def _starts(fun, point_map, space, free, n_start, n_best, seed, executor, progress, desc):
+def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc):
     """The ``n_best`` best points of a scrambled Sobol' design over the prior (free coordinates)."""
     U = qmc.Sobol(len(space), scramble=True, seed=seed).random(n_start)
     X = np.array([space.to_internal(space.theta(space.from_unit(u))) for u in U])[:, list(free)]
@@ -176,6 +177,61 @@ def _starts(fun, point_map, space, free, n_start, n_best, seed, executor, progre
         raise RuntimeError(f"the model failed at all {n_start} points of the {desc}")
     order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))
     return [X[i] for i in order[:n_best]], len(X)
+
+
+def problem_for(dataset, model, space, metrics=None, executor=None) -> tuple[Problem, list, dict, int]:
+    """(problem, linear parameter names, their sensitivities, model runs) for a
+    model of the contract: the screen of step 1 on a default problem and,
+    under the ``full`` set, the problem rebuilt with J1 for that many linear
+    parameters (:func:`linear_n_functions`)."""
+    problem = Problem(dataset, model, metrics=metrics)
+    names, sens, runs = screen_linear(problem, space, executor)
+    if problem.metrics == "full":
+        n_functions = linear_n_functions(len(names))
+        if n_functions != DEFAULT_N_FUNCTIONS:
+            problem = Problem(dataset, model, n_functions=n_functions, metrics=problem.metrics)
+    return problem, names, sens, runs
+
+
+@dataclass
+class TwoStage:
+    """What :func:`two_stage` found (internal coordinates)."""
+
+    x1: np.ndarray          # after stage 1
+    x: np.ndarray           # after stage 2
+    unidentified: dict      # stage -> directions (:func:`unidentified_directions`)
+    n_model_runs: int
+
+
+def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_best: int = 3,
+              max_iterations: int = 40, seed: int = 0, executor=None, progress: bool = True) -> TwoStage:
+    """Stages 2-4 of the module docstring on a built problem."""
+    box = space.box()
+    lower, upper = box[:, 0], box[:, 1]
+    steps = 1e-3 * (upper - lower)
+    weighted = problem.metrics == "full"
+    runs = 0
+    # stage 1: the linear parameters on e_lin (the others at the prior's centre)
+    free1 = tuple(space.names.index(n) for n in linear_names)
+    map1 = _PointMap(space, space.to_internal(space.center()), free1)
+    fun1 = _residual(problem, ("linear",), map1, weighted)
+    starts, n = _starts(fun1, space, free1, n_start, n_best, seed, executor, progress, "stage 1 design")
+    mode1 = find_mode(fun1, starts, lower[list(free1)], upper[list(free1)], steps[list(free1)], executor,
+                      max_iterations)
+    runs += n + mode1.n_evaluations
+    x1 = map1.full(mode1.x)
+    unident = {"linear": unidentified_directions(mode1.jacobian, (upper - lower)[list(free1)], linear_names,
+                                                  _noise_rows(problem, fun1))}
+    # stage 2: everything on both tests, from stage 1's point and the best of a design
+    free2 = tuple(range(len(space)))
+    map2 = _PointMap(space, x1, free2)
+    fun2 = _residual(problem, ("linear", "nonlinear"), map2, weighted)
+    starts, n = _starts(fun2, space, free2, n_start, n_best - 1, seed + 1, executor, progress, "stage 2 design")
+    mode2 = find_mode(fun2, [x1] + starts, lower, upper, steps, executor, max_iterations)
+    runs += n + mode2.n_evaluations
+    unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names,
+                                                   _noise_rows(problem, fun2))
+    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs)
 
 
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,
@@ -195,61 +251,28 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        problem = Problem(dataset, model, metrics=metrics)
+        problem, lin_names, sens, runs = problem_for(dataset, model, space, metrics, pool)
         if "nonlinear" not in problem.stages:
             raise ValueError(f"{problem.source}: calibrate needs a test with role 'nonlinear' as well "
                              "as the linear one")
-        lin_names, sens, runs = screen_linear(problem, space, pool)
-        n_functions = DEFAULT_N_FUNCTIONS
-        if metrics == "full":
-            n_functions = linear_n_functions(len(lin_names))
-            if n_functions != DEFAULT_N_FUNCTIONS:
-                problem = Problem(dataset, model, n_functions=n_functions, metrics=metrics)
+        n_functions = tuple(problem.basis.n_functions[k] for k in (1, 2, 3))
         log(f"linear parameters (screen): {', '.join(lin_names)}; J = {n_functions}")
-        box = space.box()
-        lower, upper = box[:, 0], box[:, 1]
-        steps = 1e-3 * (upper - lower)
-        weighted = metrics == "full"
-        x_center = space.to_internal(space.center())
-
-        # stage 1: the linear parameters on e_lin --------------------------------------
-        free1 = tuple(space.names.index(n) for n in lin_names)
-        map1 = _PointMap(space, x_center, free1)
-        fun1 = _residual(problem, ("linear",), map1, weighted)
-        starts, n = _starts(fun1, map1, space, free1, n_start, n_best, seed, pool, progress, "stage 1 design")
-        runs += n
-        mode1 = find_mode(fun1, starts, lower[list(free1)], upper[list(free1)], steps[list(free1)], pool,
-                          max_iterations)
-        runs += mode1.n_evaluations
-        x1 = map1.full(mode1.x)
-        unident = {"linear": unidentified_directions(mode1.jacobian, (upper - lower)[list(free1)], lin_names,
-                                                      _noise_rows(problem, fun1))}
-
-        # stage 2: everything on both tests --------------------------------------------
-        free2 = tuple(range(len(space)))
-        map2 = _PointMap(space, x1, free2)
-        fun2 = _residual(problem, ("linear", "nonlinear"), map2, weighted)
-        starts, n = _starts(fun2, map2, space, free2, n_start, n_best - 1, seed + 1, pool, progress,
-                            "stage 2 design")
-        runs += n
-        mode2 = find_mode(fun2, [x1] + starts, lower, upper, steps, pool, max_iterations)
-        runs += mode2.n_evaluations
-        unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names,
-                                                       _noise_rows(problem, fun2))
-        theta = space.to_parameters(mode2.x)
-        found = problem.evaluate(theta)
+        found = two_stage(problem, space, lin_names, n_start=n_start, n_best=n_best,
+                          max_iterations=max_iterations, seed=seed, executor=pool, progress=progress)
+        theta = space.to_parameters(found.x)
+        metrics_at = problem.evaluate(theta)
         pred = problem.prediction_errors(theta)
-        runs += len(problem.stages) + len(pred)
+        runs += found.n_model_runs + len(problem.stages) + len(pred)
     finally:
         if own_pool:
             pool.shutdown()
-    for d in unident["nonlinear"]:
+    for d in found.unidentified["nonlinear"]:
         log("WARNING: the data do not identify the direction " + ", ".join(
             f"{k} {v:+.2f}" for k, v in d["direction"].items()) + f" (prior-range units; sd "
             f"{d['sd_over_range']:.2f} of the range): the point returned is one of many along it")
-    return Calibration(theta=theta, stage1=space.to_parameters(x1), linear_parameters=lin_names,
-                       sensitivity=sens, metrics={"e_lin": found["e_lin"], "e_nlin": found["e_nlin"]},
-                       metric_set=metrics, prediction_errors=pred, unidentified=unident,
+    return Calibration(theta=theta, stage1=space.to_parameters(found.x1), linear_parameters=lin_names,
+                       sensitivity=sens, metrics={"e_lin": metrics_at["e_lin"], "e_nlin": metrics_at["e_nlin"]},
+                       metric_set=problem.metrics, prediction_errors=pred, unidentified=found.unidentified,
                        noise_sd={st: problem.noise_sd(st) for st in problem.stages},
-                       n_functions=tuple(n_functions), n_model_runs=runs,
+                       n_functions=n_functions, n_model_runs=runs,
                        units={p.name: p.unit for p in space.parameters}, problem=problem)

@@ -44,6 +44,7 @@ from ..evaluation import default_executor
 from ..mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
 from .effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, WithNulls, candidate_effects, evidence_table,
                       misfit_ratios)
+from .calibrate import problem_for
 from .model import check_model
 from .parameters import ParameterSet
 from .problem import DatasetError, Problem, relative_error
@@ -204,7 +205,8 @@ class DiscrepancyResult:
 
 
 def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: DiscrepancySettings | None = None,
-                     executor=None, workers=None, progress: bool = False, log=print) -> DiscrepancyResult:
+                     metrics: str | None = None, executor=None, workers=None, progress: bool = False,
+                     log=print) -> DiscrepancyResult:
     """The workflow of the module docstring for ``model`` (any model of the contract
     with ``candidate_effects()``) on ``dataset`` (tests with roles ``linear``,
     ``nonlinear`` and optionally ``validation``).
@@ -212,6 +214,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     start : {name: value} of the model's parameters (default: the best of
         ``settings.n_start`` Sobol' points over the prior).
     candidates : effect names to consider (default: all the model offers).
+    metrics : the metric set (default ``full``; :mod:`bayes_update.core.problem`).
     """
     from ..likelihood import estimate_likelihood      # the likelihood's scales (its module also serves the beam)
     from ..posterior import default_start
@@ -227,7 +230,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     lin = dataset.by_role("linear")
     check_model(model, (lin[0] if lin else dataset.tests[0]).force, dataset.sampling_rate_hz,
                 theta={**base.center(), **nulls})
-    problem = Problem(dataset, WithNulls(model, nulls))
+    problem = problem_for(dataset, WithNulls(model, nulls), base, metrics)[0]
     if "nonlinear" not in problem.stages:
         raise DatasetError(f"{problem.source}: the discrepancy workflow needs the high-level test "
                            "(role 'nonlinear') as well as the linear one")
