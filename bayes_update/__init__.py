@@ -5,7 +5,7 @@ A model is any object with declared ``parameters`` (:class:`Parameter`) and
 ``simulate(theta, force, fs)``; see :mod:`bayes_update.core` and docs/models.md.
 """
 
-from .core import Model, ModelError, ModelSpecError, Parameter, ParameterSet, Problem, check_model, load_model
+from bayes_update.core import Model, ModelError, ModelSpecError, Parameter, ParameterSet, Problem, check_model, load_model
 
 __all__ = ["Model", "ModelError", "ModelSpecError", "Parameter", "ParameterSet", "Problem", "check_model",
            "load_model"]

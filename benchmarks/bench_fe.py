@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 import fe  # noqa: E402
-from bayes_update.signals import chirp  # noqa: E402
+from bayes_update.data.signals import chirp  # noqa: E402
 
 PARAMS = fe.PAPER_PARAMETERS
 FORCE = chirp(0.1)
@@ -36,7 +36,7 @@ def median_time(model, repeats=7):
 
 
 def first_call_seconds():
-    code = ("import time; t0 = time.perf_counter(); import fe; from bayes_update.signals import chirp; "
+    code = ("import time; t0 = time.perf_counter(); import fe; from bayes_update.data.signals import chirp; "
             "fe.BeamModel().simulate(fe.PAPER_PARAMETERS, chirp(0.1)); print(time.perf_counter() - t0)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return float(out.stdout.strip())

@@ -41,7 +41,7 @@ def main():
 
     import fe
     from bayes_update.core import Problem
-    from bayes_update.dataset import Dataset, Record
+    from bayes_update.data.dataset import Dataset, Record
     from test_user_model import FS, TRUTH, Duffing
 
     rng = np.random.default_rng(0)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 import fe
-from bayes_update.signals import chirp
+from bayes_update.data.signals import chirp
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -29,8 +29,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 import fe  # noqa: E402
-from bayes_update.beam_rig import rig_of  # noqa: E402
-from bayes_update.virtual_rig import load_default_dataset  # noqa: E402
+from bayes_update.models.beam.rig import rig_of  # noqa: E402
+from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
 
 PARAMS = fe.PAPER_PARAMETERS
 DATA = load_default_dataset()

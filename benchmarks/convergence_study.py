@@ -18,7 +18,7 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 import fe  # noqa: E402
-from bayes_update.signals import chirp  # noqa: E402
+from bayes_update.data.signals import chirp  # noqa: E402
 
 P = fe.PAPER_PARAMETERS
 FS = 1024.0

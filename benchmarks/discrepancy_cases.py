@@ -6,7 +6,7 @@ For each seed and each case (the four effects hidden in turn, none, and a bow
 plus amplitude-dependent damping), a data set from the virtual rig (20
 elements at 4096 Hz, 40 dB noise on both channels; the two updating chirps,
 the medium chirp and the high sine for validation) with magnitudes drawn
-from bayes_update.virtual_rig.HIDDEN_EFFECT_RANGES, then the whole workflow
+from bayes_update.models.beam.virtual_rig.HIDDEN_EFFECT_RANGES, then the whole workflow
 (deterministic start on coarse grids, baseline, naming, re-update) on the
 default FE model.  A case succeeds when the named effects are the hidden
 ones (none for "none"; for the combined case, both or the stronger), e_lin +
@@ -27,8 +27,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bayes_update.missing_effect import CANDIDATES, DiscrepancySettings, find_missing_effect  # noqa: E402
-from bayes_update.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset  # noqa: E402
+from bayes_update.models.beam.missing_effect import CANDIDATES, DiscrepancySettings, find_missing_effect  # noqa: E402
+from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset  # noqa: E402
 
 from _machine import machine  # noqa: E402
 

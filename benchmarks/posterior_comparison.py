@@ -26,10 +26,10 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fe  # noqa: E402
-from bayes_update.beam_rig import rig_of  # noqa: E402
-from bayes_update.posterior import PosteriorSettings, sample  # noqa: E402
-from bayes_update.posterior_plots import LABELS, ORDER, paper_draws  # noqa: E402
-from bayes_update.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
+from bayes_update.models.beam.rig import rig_of  # noqa: E402
+from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
+from bayes_update.reports.posterior_plots import LABELS, ORDER, paper_draws  # noqa: E402
+from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
 
 from _machine import machine  # noqa: E402
 

@@ -28,8 +28,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine  # noqa: E402
 
 import fe  # noqa: E402
-from bayes_update import signals  # noqa: E402
-from bayes_update.virtual_rig import (  # noqa: E402
+from bayes_update.data import signals
+from bayes_update.models.beam.virtual_rig import (  # noqa: E402
     PAPER_TESTS,
     VirtualRig,
     linear_departure,

@@ -32,8 +32,8 @@ from _machine import machine  # noqa: E402
 import fe  # noqa: E402
 from fe import _kernels as K  # noqa: E402
 from fe.model import KD  # noqa: E402
-from bayes_update.beam_rig import rig_of  # noqa: E402
-from bayes_update.virtual_rig import load_default_dataset  # noqa: E402
+from bayes_update.models.beam.rig import rig_of  # noqa: E402
+from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
 
 DATA = load_default_dataset()
 RIG = rig_of(DATA)

@@ -34,12 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fe  # noqa: E402
-from bayes_update import signals  # noqa: E402
-from bayes_update.dataset import Dataset, Record  # noqa: E402
-from bayes_update.likelihood import ParameterSpace  # noqa: E402
-from bayes_update.posterior import PosteriorSettings, sample  # noqa: E402
-from bayes_update.posterior_plots import ORDER, paper_draws  # noqa: E402
-from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
+from bayes_update.data import signals
+from bayes_update.data.dataset import Dataset, Record  # noqa: E402
+from bayes_update.models.beam.space import ParameterSpace  # noqa: E402
+from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
+from bayes_update.reports.posterior_plots import ORDER, paper_draws  # noqa: E402
+from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
 
 from _machine import machine  # noqa: E402
 

@@ -32,10 +32,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import fe  # noqa: E402
-from bayes_update.likelihood import ParameterSpace, estimate_likelihood  # noqa: E402
-from bayes_update.metrics import UpdatingProblem  # noqa: E402
-from bayes_update.mode import ResidualFunction  # noqa: E402
-from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
+from bayes_update.models.beam.space import ParameterSpace  # noqa: E402
+from bayes_update.core.likelihood import estimate_likelihood  # noqa: E402
+from bayes_update.models.beam.problem import UpdatingProblem  # noqa: E402
+from bayes_update.core.mode import ResidualFunction  # noqa: E402
+from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
 
 from _machine import machine  # noqa: E402
 from sbc import N_RANK, synthetic_dataset  # noqa: E402

@@ -5,7 +5,7 @@ import pickle
 
 import numpy as np
 
-from bayes_update.likelihood import Likelihood, StageScale, curvature_adjustment
+from bayes_update.core.likelihood import Likelihood, StageScale, curvature_adjustment
 
 N, D_PAR = 40, 4
 

@@ -9,12 +9,13 @@ import shutil
 import numpy as np
 
 import fe
-from bayes_update.beam_rig import rig_of
-from bayes_update.dataset import read_dataset, write_dataset
-from bayes_update.likelihood import ParameterSpace
-from bayes_update.metrics import UpdatingProblem
-from bayes_update.posterior import Evaluate, _cache
-from bayes_update.virtual_rig import DEFAULT_DATASET_DIR
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import read_dataset, write_dataset
+from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.models.beam.problem import UpdatingProblem
+from bayes_update.core.posterior import Evaluate
+from bayes_update.core.posterior.design import _cache
+from bayes_update.models.beam.virtual_rig import DEFAULT_DATASET_DIR
 
 
 def _cache_file(data_dir, cache_dir):

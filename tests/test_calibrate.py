@@ -11,13 +11,14 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.beam_rig import rig_of
-from bayes_update.calibrate import parabola_vertex, parameters_from, preload_for_frequency
-from bayes_update.cli import main
-from bayes_update.dataset import DatasetError, read_dataset
-from bayes_update.evaluation import default_executor, evaluate_many
-from bayes_update.metrics import UpdatingProblem, relative_error
-from bayes_update.virtual_rig import default_dataset_path, load_default_dataset
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.calibrate import parabola_vertex, parameters_from, preload_for_frequency
+from bayes_update.reports.cli import main
+from bayes_update.data.dataset import DatasetError, read_dataset
+from surrogates.evaluation import default_executor, evaluate_many
+from bayes_update.models.beam.problem import UpdatingProblem
+from bayes_update.core.problem import relative_error
+from bayes_update.models.beam.virtual_rig import default_dataset_path, load_default_dataset
 
 TRUTH = fe.PAPER_PARAMETERS
 
@@ -67,7 +68,7 @@ def test_e_lin_sees_only_p_eff_and_e_nlin_breaks_the_ridge(data, problem):
 
 def test_e_lin_is_unimodal_in_eta_with_its_minimum_at_the_truth(data, problem):
     """A linear-only fit of the low-level test: e_lin falls then rises through the
-    true eta (with orders 2-3 in that fit it was erratic, see bayes_update.metrics)."""
+    true eta (with orders 2-3 in that fit it was erratic, see bayes_update.core.problem)."""
     etas = [2.0, 2.5, 3.0, 3.5, 4.0]
     e = [problem.evaluate(parameters_from(rig_of(data), eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
          for eta in etas]
@@ -130,7 +131,7 @@ def test_helpers(data):
 def quick_run(tmp_path_factory):
     """``bayes-update calibrate --quick`` through the CLI, with the result object
     the CLI computed (captured on its way to ``write_result``)."""
-    import bayes_update.calibrate as cal_module
+    import bayes_update.models.beam.calibrate as cal_module
 
     out = tmp_path_factory.mktemp("calibrate")
     captured = {}

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from bayes_update.cli import main
-from bayes_update.dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
+from bayes_update.reports.cli import main
+from bayes_update.data.dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
 from fe import Rig
 
 

@@ -6,8 +6,8 @@ import json
 import numpy as np
 import pytest
 
-from bayes_update.beam_rig import rig_of
-from bayes_update.dataset import (
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import (
     Dataset,
     DatasetError,
     LengthMismatchError,
@@ -21,7 +21,7 @@ from bayes_update.dataset import (
     read_dataset,
     write_dataset,
 )
-from bayes_update.uff import read_uff, write_uff
+from bayes_update.data.uff import read_uff, write_uff
 from fe import Rig
 
 FS = 1024.0
@@ -115,7 +115,7 @@ def test_dataset_json_may_reference_uff_files_and_sets_the_rig(tmp_path):
 def test_uff_units_are_converted_explicitly(tmp_path):
     import pyuff
 
-    from bayes_update.uff import _record_dict
+    from bayes_update.data.uff import _record_dict
 
     rec = make_records()[0]
     f = _record_dict(rec, "force", 1, False, FS)
@@ -248,7 +248,7 @@ def test_errors_are_value_errors():
 def test_uff_wrong_channel_type_rate_and_lengths(tmp_path):
     import pyuff
 
-    from bayes_update.uff import _record_dict
+    from bayes_update.data.uff import _record_dict
 
     rec = make_records()[0]
     f = _record_dict(rec, "force", 1, False, FS)

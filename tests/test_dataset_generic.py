@@ -8,7 +8,7 @@ import sys
 import numpy as np
 import pytest
 
-from bayes_update.dataset import (
+from bayes_update.data.dataset import (
     Dataset,
     DatasetError,
     MissingColumnError,
@@ -223,7 +223,7 @@ def test_in_memory_checks():
 
 
 def test_uff_holds_a_single_velocity_only(tmp_path):
-    from bayes_update.uff import write_uff
+    from bayes_update.data.uff import write_uff
 
     with pytest.raises(SensorError, match=r"two.uff: UFF files hold force and velocity records only"):
         write_uff(two_sensor_dataset(), tmp_path / "two.uff")
@@ -241,7 +241,7 @@ def test_uff_holds_a_single_velocity_only(tmp_path):
 # ----------------------------------------------------------------- beam and layers
 def test_rig_block_is_kept_raw_and_read_by_the_beam_code(tmp_path):
     import fe
-    from bayes_update.beam_rig import rig_of
+    from bayes_update.models.beam.rig import rig_of
 
     folder, _ = displacement_folder(tmp_path)
     assert rig_of(read_dataset(folder)) == fe.Rig()                    # absent block: the paper's rig
@@ -264,7 +264,7 @@ def test_rig_block_is_kept_raw_and_read_by_the_beam_code(tmp_path):
 
 
 def test_default_data_set_reads_as_before():
-    from bayes_update.virtual_rig import load_default_dataset
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     ds = load_default_dataset()
     assert ds.sensors == [("velocity", "velocity")] and ds.response_kind == "velocity"
@@ -273,7 +273,7 @@ def test_default_data_set_reads_as_before():
     assert ds.fingerprint() == "66dbb1fac3f76708116fc3b70d41170a9562e1570bd3732663e0dba3a75203d1"
 
 
-@pytest.mark.parametrize("module", ["bayes_update.dataset", "bayes_update.uff"])
+@pytest.mark.parametrize("module", ["bayes_update.data.dataset", "bayes_update.data.uff"])
 def test_data_layer_imports_no_fe(module):
     code = f"import sys, {module}; print('fe' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -1,11 +1,11 @@
-"""Discrepancy diagnostics (bayes_update.discrepancy) on data with a hidden bow."""
+"""Discrepancy diagnostics (bayes_update.models.beam.diagnostics) on data with a hidden bow."""
 import numpy as np
 import pytest
 
 import fe
-from bayes_update.beam_rig import rig_of
-from bayes_update.discrepancy import decay_curve, diagnose, diagnostics_figure, harmonic_amplitudes
-from bayes_update.virtual_rig import PAPER_TESTS, load_default_dataset, make_dataset
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.diagnostics import decay_curve, diagnose, diagnostics_figure, harmonic_amplitudes
+from bayes_update.models.beam.virtual_rig import PAPER_TESTS, load_default_dataset, make_dataset
 
 TRUTH = fe.Parameters.from_paper_units(3, 15, 77, 180)
 TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "sine_high")]

@@ -45,7 +45,7 @@ def test_clamp_compliance_limits_give_clamped_and_pinned_buckling():
 
 
 def test_amplitude_dependent_damping_acts_at_high_amplitude_only():
-    from bayes_update.signals import chirp
+    from bayes_update.data.signals import chirp
 
     plain = fe.BeamModel()
     rub = fe.BeamModel(effects=(AmplitudeDependentDamping(kind="quadratic", coefficient=2e6),))

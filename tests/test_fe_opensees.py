@@ -41,7 +41,7 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.signals import chirp
+from bayes_update.data.signals import chirp
 
 from reference import require_reference  # noqa: E402
 

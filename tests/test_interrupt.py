@@ -18,7 +18,7 @@ import time
 
 import pytest
 
-SAMPLE = [sys.executable, "-m", "bayes_update.cli", "sample", "--quick", "--model", "rom", "--workers", "2"]
+SAMPLE = [sys.executable, "-m", "bayes_update", "sample", "--quick", "--model", "rom", "--workers", "2"]
 pytestmark = pytest.mark.skipif(os.name == "nt", reason="process groups and SIGINT are POSIX")
 
 

@@ -1,4 +1,4 @@
-"""The discrepancy workflow (bayes_update.missing_effect) on virtual-rig data
+"""The discrepancy workflow (bayes_update.models.beam.missing_effect) on virtual-rig data
 with a hidden effect: each of the four hidden in turn, none (over three noise
 seeds), an effect outside the candidate catalogue, and a bow plus
 amplitude-dependent damping.  Magnitudes are drawn from
@@ -17,11 +17,11 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.beam_rig import rig_of
-from bayes_update.missing_effect import (CANDIDATES, DECISIVE, EXPLAINED_FACTOR, DiscrepancySettings,
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.missing_effect import (CANDIDATES, DECISIVE, EXPLAINED_FACTOR, DiscrepancySettings,
                                          find_missing_effect, write_discrepancy)
-from bayes_update.mode import laplace_log_evidence, ModeResult
-from bayes_update.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
+from bayes_update.core.mode import laplace_log_evidence, ModeResult
+from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
 
 TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium")]
 # the paper's Table 3 as the baseline's start (prior knowledge; it saves the coarse grids)
@@ -209,7 +209,7 @@ def test_candidate_values_round_trip_and_bad_input():
 
 
 def test_cli_discrepancy_refuses_the_rom(tmp_path, capsys):
-    from bayes_update.cli import main
+    from bayes_update.reports.cli import main
 
     assert main(["discrepancy", "--model", "rom", "--out", str(tmp_path)]) == 2
     assert "modal ROM" in capsys.readouterr().err
@@ -219,7 +219,7 @@ def test_cli_discrepancy_refuses_the_rom(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def hidden_bow_dataset(tmp_path_factory):
     """`bayes-update make-dataset --hidden initial_imperfection` twice with the same --hidden-seed."""
-    from bayes_update.cli import main
+    from bayes_update.reports.cli import main
 
     out = tmp_path_factory.mktemp("hidden")
     for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
@@ -229,8 +229,8 @@ def hidden_bow_dataset(tmp_path_factory):
 
 
 def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
-    from bayes_update.dataset import read_dataset
-    from bayes_update.virtual_rig import HIDDEN_EFFECT_RANGES, load_default_dataset
+    from bayes_update.data.dataset import read_dataset
+    from bayes_update.models.beam.virtual_rig import HIDDEN_EFFECT_RANGES, load_default_dataset
 
     a, b = (json.loads((hidden_bow_dataset / n / "dataset.json").read_text()) for n in ("a", "b"))
     (effect,) = a["truth"]["effects"]
@@ -256,7 +256,7 @@ def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
 def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset, tmp_path):
     """`bayes-update discrepancy --quick` on the make-dataset output (start=None: the
     deterministic start on coarse grids, as a user runs it)."""
-    from bayes_update.cli import main
+    from bayes_update.reports.cli import main
 
     out = tmp_path / "disc"
     assert main(["discrepancy", "--data", str(hidden_bow_dataset / "a"), "--quick", "--workers", "2",

@@ -1,5 +1,5 @@
-"""The likelihood, the prior box and the posterior pipeline (bayes_update.likelihood,
-bayes_update.posterior)."""
+"""The likelihood, the prior box and the posterior pipeline (bayes_update.core.likelihood,
+bayes_update.core.posterior)."""
 import json
 import math
 
@@ -9,11 +9,11 @@ from scipy import stats
 
 import fe
 import volterra
-from bayes_update.beam_rig import rig_of
-from bayes_update.likelihood import (Likelihood, ParameterSpace, StageScale, noise_scale_from_replicates,
-                                     white_noise_sd)
-from bayes_update.posterior import PosteriorSettings, run_emcee, sample
-from bayes_update.virtual_rig import load_default_dataset
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.core.likelihood import Likelihood, StageScale, noise_scale_from_replicates, white_noise_sd
+from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.core.posterior import PosteriorSettings, run_emcee, sample
+from bayes_update.models.beam.virtual_rig import load_default_dataset
 
 TRUTH = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0}
 
@@ -181,12 +181,13 @@ def _sbc_truth(args):
     above and the surrogate-against-direct test cover those).  None when the
     data's Kautz pole cannot be identified (the data set is unusable, not the
     likelihood wrong)."""
-    from bayes_update import signals
-    from bayes_update.dataset import Dataset, Record
-    from bayes_update.likelihood import curvature_adjustment, estimate_likelihood, refined_model
-    from bayes_update.metrics import UpdatingProblem
-    from bayes_update.mode import ResidualFunction, find_mode
-    from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG
+    from bayes_update.data import signals
+    from bayes_update.data.dataset import Dataset, Record
+    from bayes_update.core.likelihood import curvature_adjustment, estimate_likelihood
+    from bayes_update.models.beam.space import refined_model
+    from bayes_update.models.beam.problem import UpdatingProblem
+    from bayes_update.core.mode import ResidualFunction, find_mode
+    from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
 
     k, x, seed, generator, snr_db = args
     rig = PAPER_EQUIVALENT_RIG
@@ -224,8 +225,8 @@ def _sbc_truth(args):
 
 
 def _sbc_z(n_truths, seed, generator, snr_db):
-    from bayes_update.evaluation import default_executor, evaluate_many
-    from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG
+    from surrogates.evaluation import default_executor, evaluate_many
+    from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
 
     truths = ParameterSpace(PAPER_EQUIVALENT_RIG).sample_prior(n_truths, seed=seed)
     pool = default_executor(2)
@@ -372,7 +373,7 @@ def test_posterior_covers_the_truth_on_the_default_data(rom_posterior, data):
 def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
     import arviz as az
 
-    from bayes_update.posterior import write_posterior
+    from bayes_update.reports.posterior import write_posterior
 
     write_posterior(rom_posterior, tmp_path, figures=False)
     idata = az.from_netcdf(str(tmp_path / "posterior.nc"))
@@ -411,7 +412,7 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
     import arviz as az
     from scipy import stats
 
-    from bayes_update.posterior_plots import paper_draws
+    from bayes_update.reports.posterior_plots import paper_draws
 
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
     settings = PosteriorSettings.quick(n_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
@@ -431,7 +432,7 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
 
 @pytest.fixture(scope="module")
 def cli_sample(tmp_path_factory):
-    from bayes_update.cli import main
+    from bayes_update.reports.cli import main
 
     out = tmp_path_factory.mktemp("cli_sample") / "post"
     assert main(["sample", "--model", "rom", "--quick", "--out", str(out), "--workers", "2", "--no-cache"]) == 0
@@ -446,7 +447,7 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
     figures are PNG images."""
     import arviz as az
 
-    from bayes_update.cli import main
+    from bayes_update.reports.cli import main
 
     out = cli_sample
     summary = json.loads((out / "posterior_summary.json").read_text())
@@ -475,7 +476,8 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
 
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
-    from bayes_update.posterior import Whitening, _box_cut_fraction
+    from bayes_update.core.posterior import Whitening
+    from bayes_update.core.posterior.mcmc import _box_cut_fraction
 
     space = ParameterSpace(rig_of(data))
     cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from scipy import signal as ss
 
-from bayes_update import spectral
-from bayes_update.signals import add_noise, chirp, rms, sine
+from bayes_update.data import spectral
+from bayes_update.data.signals import add_noise, chirp, rms, sine
 
 FS = 1024.0
 

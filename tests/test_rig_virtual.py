@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.beam_rig import rig_of
-from bayes_update import signals, spectral
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data import signals, spectral
 from reference import clamped_clamped_frequencies
-from bayes_update.cli import main
-from bayes_update.dataset import read_dataset
-from bayes_update.virtual_rig import (
+from bayes_update.reports.cli import main
+from bayes_update.data.dataset import read_dataset
+from bayes_update.models.beam.virtual_rig import (
     CHIRP_LEVELS_N,
     PAPER_TESTS,
     SINE_LEVELS_N,

@@ -14,8 +14,8 @@ import fe
 from fe import _kernels as K
 from fe.model import KD, _beam_axial_force, hermite_weights
 from fe.rom import ModalROM
-from bayes_update.beam_rig import rig_of
-from bayes_update.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
 
 RIG = PAPER_EQUIVALENT_RIG
 KB = RIG.axial_stiffness

@@ -1,4 +1,4 @@
-"""Sobol' indices (bayes_update.sensitivity) against a known answer: the Ishigami function.
+"""Sobol' indices (bayes_update.core.sensitivity) against a known answer: the Ishigami function.
 
 ``sobol_indices`` takes an updating problem (anything with ``evaluate(params)
 -> {"e_lin": ..., "e_nlin": ...}``) and a prior box; it runs a Sobol' design
@@ -19,8 +19,8 @@ import math
 import numpy as np
 import pytest
 
-from bayes_update.likelihood import ParameterSpace
-from bayes_update.sensitivity import sobol_indices
+from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.core.sensitivity import sobol_indices
 
 A, B = 7.0, 0.1
 V = A**2 / 8 + B * math.pi**4 / 5 + B**2 * math.pi**8 / 18 + 0.5

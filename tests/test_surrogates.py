@@ -14,7 +14,7 @@ from scipy.stats import qmc
 from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 from threadpoolctl import threadpool_limits
 
-from bayes_update.evaluation import default_executor, evaluate_many
+from surrogates.evaluation import default_executor, evaluate_many
 from surrogates import (CurvedValley, EvaluationCache, GPSurrogate, cached_evaluate, config_hash,
                         design, holdout_validation, propose_points, refine)
 

@@ -80,7 +80,7 @@ def _filtered_noise(n, level, seed):
 
 def make_dataset(n=8192, seed=0):
     """Returns (dataset, noise sd of each test's response)."""
-    from bayes_update.dataset import Dataset, Record
+    from bayes_update.data.dataset import Dataset, Record
 
     import fe
 
@@ -177,7 +177,7 @@ def test_noise_sd_adds_the_sensor_noise_to_what_the_basis_cannot_represent():
     functions have no direct feedthrough, which a force linear between samples puts in
     the sampled response (measured 2.2 % of the response here)."""
     from bayes_update.core import Problem
-    from bayes_update.dataset import Dataset, Record
+    from bayes_update.data.dataset import Dataset, Record
 
     import fe
 
@@ -218,12 +218,12 @@ def test_cli_calibrate_with_a_model_from_a_file(tmp_path, gain_data):
     import subprocess
     import sys
 
-    from bayes_update.dataset import write_dataset
+    from bayes_update.data.dataset import write_dataset
 
     ds, _ = gain_data
     write_dataset(ds, tmp_path / "data")
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "calibrate", "--model",
+    res = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--model",
                           f"{__file__}:GainDuffing", "--data", str(tmp_path / "data"), "--out", str(out),
                           "--quick", "--workers", "2"], capture_output=True, text=True, timeout=600)
     assert res.returncode == 0, res.stderr[-3000:]

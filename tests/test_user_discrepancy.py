@@ -73,7 +73,7 @@ def make_dataset(hidden=None, seed=0, snr_db=40.0, n=4096, high=0.4, medium=0.5)
     white noise of 1 % RMS on the force and on the response."""
     import fe
     from scipy import signal
-    from bayes_update.dataset import Dataset, Record
+    from bayes_update.data.dataset import Dataset, Record
 
     t = np.arange(n) / FS
     T = 2.2
@@ -181,8 +181,8 @@ def test_a_model_without_candidates_or_nulls_is_told_what_to_add():
 
 
 def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
-    from bayes_update.cli import main
-    from bayes_update.dataset import write_dataset
+    from bayes_update.reports.cli import main
+    from bayes_update.data.dataset import write_dataset
 
     write_dataset(make_dataset({"k2": HIDDEN_K2}), tmp_path / "data")
     out = tmp_path / "out"
@@ -194,7 +194,7 @@ def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
     assert doc["gap_after"]["e_nlin"] <= 0.5 * doc["gap_before"]["e_nlin"]
     assert "Named: **k2**" in (out / "evidence.md").read_text()
     # a model without candidate_effects(): one line saying what to add, nothing written
-    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "discrepancy", "--model",
+    res = subprocess.run([sys.executable, "-m", "bayes_update", "discrepancy", "--model",
                           f"{__file__}:_NoCandidates", "--data", str(tmp_path / "data"), "--out",
                           str(tmp_path / "none")], capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr

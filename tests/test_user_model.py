@@ -66,7 +66,7 @@ def make_dataset(seed=0, snr_db=40.0, n=4096, truth=None):
     """Low (linear) and high (nonlinear) chirps 15 -> 75 Hz in 2.2 s, then free decay; the data come from
     the refined model, with white noise of 1 % RMS on the force and on the response."""
     import fe
-    from bayes_update.dataset import Dataset, Record
+    from bayes_update.data.dataset import Dataset, Record
 
     t = np.arange(n) / FS
     T = 2.2
@@ -102,7 +102,7 @@ def _check_covers(res, free):
 
 @pytest.mark.parametrize("free", [("zeta", "k3"), ("fn", "zeta", "k3"), ("fn", "zeta", "gain", "k3", "k2")])
 def test_posterior_of_a_user_model_covers_the_truth(data, free):
-    from bayes_update.posterior import PosteriorSettings, sample
+    from bayes_update.core.posterior import PosteriorSettings, sample
 
     model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
     # five parameters (k2 and k3 correlated) mix slower: more walkers and steps for R-hat < 1.01
@@ -117,11 +117,11 @@ def test_posterior_of_a_user_model_covers_the_truth(data, free):
 
 
 def test_cli_sample_with_a_model_from_a_file(tmp_path, data):
-    from bayes_update.dataset import write_dataset
+    from bayes_update.data.dataset import write_dataset
 
     write_dataset(data, tmp_path / "data")
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "sample", "--model",
+    res = subprocess.run([sys.executable, "-m", "bayes_update", "sample", "--model",
                           f"{__file__}:three_parameter_duffing",
                           "--data", str(tmp_path / "data"), "--out", str(out), "--quick", "--workers", "2"],
                          capture_output=True, text=True, timeout=900)
@@ -134,14 +134,14 @@ def test_cli_sample_with_a_model_from_a_file(tmp_path, data):
 
 
 def test_cli_refuses_a_broken_model_before_heavy_work(tmp_path, data):
-    from bayes_update.dataset import write_dataset
+    from bayes_update.data.dataset import write_dataset
 
     write_dataset(data, tmp_path / "data")
     bad = tmp_path / "bad.py"
     bad.write_text("import numpy as np\nfrom bayes_update import Parameter\n"
                    "class Short:\n    parameters = [Parameter('a', 0, 1)]\n"
                    "    def simulate(self, theta, force, fs):\n        return np.zeros(len(force) - 1)\n")
-    res = subprocess.run([sys.executable, "-m", "bayes_update.cli", "sample", "--model", f"{bad}:Short",
+    res = subprocess.run([sys.executable, "-m", "bayes_update", "sample", "--model", f"{bad}:Short",
                           "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")],
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2
@@ -156,7 +156,7 @@ def test_sensor_offsets_do_not_move_the_posterior(data):
     passes without it too (h0 takes up the response's offset; the input's is too small to matter)."""
     import copy
 
-    from bayes_update.posterior import PosteriorSettings, sample
+    from bayes_update.core.posterior import PosteriorSettings, sample
 
     def offset(d, on_force, on_response):
         d = copy.deepcopy(d)

@@ -30,7 +30,7 @@ its declared parameters:
    point of a valley without a word.
 
 Every model run goes through the executor; the least-squares engine is
-:func:`bayes_update.mode.find_mode`.
+:func:`bayes_update.core.mode.find_mode`.
 """
 from __future__ import annotations
 
@@ -40,10 +40,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import qmc
 
-from ..evaluation import default_executor, evaluate_many
-from ..mode import ResidualFunction, find_mode
-from .model import check_model
-from .problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
+from surrogates.evaluation import default_executor, evaluate_many
+from bayes_update.core.mode import ResidualFunction, find_mode
+from bayes_update.core.model import check_model
+from bayes_update.core.problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
 
 __all__ = ["Calibration", "TwoStage", "calibrate_model", "problem_for", "screen_linear", "two_stage",
            "unidentified_directions"]

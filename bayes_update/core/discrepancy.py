@@ -3,13 +3,13 @@ model misses, add it, re-update, show the gap shrink.
 
 The model offers its candidates through ``candidate_effects()`` alone
 (:mod:`bayes_update.core.effects`); the workflow and its rules are those of the
-beam's :func:`bayes_update.missing_effect.find_missing_effect`:
+beam's :func:`bayes_update.models.beam.missing_effect.find_missing_effect`:
 
 1. **baseline**: start at ``start`` or at the best of a Sobol' design over the
-   prior (:func:`bayes_update.posterior.default_start`), the likelihood scales
-   there (:func:`bayes_update.likelihood.estimate_likelihood`, with only the
+   prior (:func:`bayes_update.core.posterior.default_start`), the likelihood scales
+   there (:func:`bayes_update.core.likelihood.estimate_likelihood`, with only the
    unabsorbed model error: a model comparison counts the rest as explained),
-   the mode by least squares (:mod:`bayes_update.mode`) and its Laplace
+   the mode by least squares (:mod:`bayes_update.core.mode`) and its Laplace
    evidence; every candidate parameter is passed at its ``null``;
 2. **candidates**: each effect's parameters are added (uniform prior on their
    bounds, log-uniform for ``log=True``); the extended mode is searched from
@@ -40,14 +40,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..evaluation import default_executor
-from ..mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
-from .effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, WithNulls, candidate_effects, evidence_table,
+from surrogates.evaluation import default_executor
+from bayes_update.core.mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
+from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, WithNulls, candidate_effects, evidence_table,
                       misfit_ratios)
-from .calibrate import problem_for
-from .model import check_model
-from .parameters import ParameterSet
-from .problem import DatasetError, Problem, relative_error
+from bayes_update.core.calibrate import problem_for
+from bayes_update.core.model import check_model
+from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.problem import DatasetError, Problem, relative_error
 
 __all__ = ["DiscrepancySettings", "DiscrepancyResult", "find_discrepancy", "write_discrepancy"]
 
@@ -216,8 +216,8 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     candidates : effect names to consider (default: all the model offers).
     metrics : the metric set (default ``full``; :mod:`bayes_update.core.problem`).
     """
-    from ..likelihood import estimate_likelihood      # the likelihood's scales (its module also serves the beam)
-    from ..posterior import default_start
+    from bayes_update.core.likelihood import estimate_likelihood  # the likelihood's scales (its module also serves the beam)
+    from bayes_update.core.posterior import default_start
 
     settings = settings or DiscrepancySettings()
     base = ParameterSet(model.parameters, model)

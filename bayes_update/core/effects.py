@@ -10,7 +10,7 @@ parameters of the baseline plus the added effects (:class:`ExtendedSpace`).
 
 The naming rules are shared by the generic engine
 (:mod:`bayes_update.core.discrepancy`) and the beam's
-(:mod:`bayes_update.missing_effect`): :data:`DECISIVE`,
+(:mod:`bayes_update.models.beam.missing_effect`): :data:`DECISIVE`,
 :data:`EXPLAINED_FACTOR`, :func:`misfit_allowance`, :func:`misfit_ratios` and
 the evidence table.
 """
@@ -21,8 +21,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .model import ModelSpecError
-from .parameters import Parameter, ParameterSet
+from bayes_update.core.model import ModelSpecError
+from bayes_update.core.parameters import Parameter, ParameterSet
 
 __all__ = ["DECISIVE", "EXPLAINED_FACTOR", "ExtendedSpace", "WithNulls", "candidate_effects", "evidence_table",
            "misfit_allowance", "misfit_ratios"]

@@ -26,9 +26,10 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from .parameters import Parameter, ParameterSet
+from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "check_model", "load_model"]
+__all__ = ["ADAPTERS", "BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "adapter_for", "check_model",
+           "load_model"]
 
 
 @runtime_checkable
@@ -53,6 +54,20 @@ class ModelSpecError(ValueError):
 
 # built-in names of --model: "module:NAME" specs, filled in as models ship
 BUILTIN_MODELS: dict[str, str] = {}
+
+#: Adapters of models from other packages, by the package of the model's class:
+#: "module:function", the function taking (dataset, model, space, metrics) and
+#: returning (problem, space).  Named, not imported: the core knows no model.
+ADAPTERS: dict[str, str] = {"fe": "bayes_update.models.beam.adapter:problem_and_space"}
+
+
+def adapter_for(model):
+    """The adapter function of ``model``'s package (:data:`ADAPTERS`), or None."""
+    spec = ADAPTERS.get(type(model).__module__.split(".")[0])
+    if spec is None:
+        return None
+    module, name = spec.split(":")
+    return getattr(importlib.import_module(module), name)
 
 
 def load_model(spec):

@@ -205,8 +205,6 @@ class ParameterSet:
                          **({"null": p.null} if p.null is not None else {})} for p in self.parameters}
 
     # -- what the inference pipeline reads (the beam's ParameterSpace has the same) --
-    has_ridge = False       # no beam-specific linear-only posterior
-
     @property
     def coordinate_names(self) -> tuple:
         """Names of the internal coordinates: the parameters' (``log_<name>`` for a

@@ -23,7 +23,7 @@ set from the reference linear test, and the model is driven by the recorded
 input of each test, so the regressors are factored once per test
 (:class:`volterra.VolterraProjector`) and an evaluation costs one model run per
 test plus two small matrix-vector products.  Why the linear test is fitted
-with the first-order kernel only: :mod:`bayes_update.metrics`.
+with the first-order kernel only: :mod:`bayes_update.core.problem`.
 """
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ import numpy as np
 
 import volterra
 
-from .model import ModelError
+from bayes_update.core.model import ModelError
 
 __all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS",
            "basis_from_reference", "describe_basis", "excited_band", "linear_n_functions", "n_compared_regressors",
@@ -371,6 +371,18 @@ class Problem:
                 "orders_compared": {s: list(METRIC_SETS[self.metrics][s]) for s in self.tests},
                 "tests": {s: t.name for s, t in self.tests.items()},
                 "model": self.describe_model()}
+
+    # ------------------------------------------------ what a model may refine
+    def default_space(self):
+        """The prior when none is given: the model's declared parameters."""
+        from bayes_update.core.parameters import ParameterSet
+
+        return ParameterSet(self.model.parameters, self.model)
+
+    def refined_model(self):
+        """The finer model of the same physics for the model-error term: the
+        model's ``refined()``, or None (the term is then zero)."""
+        return self.model.refined() if hasattr(self.model, "refined") else None
 
     def describe_model(self) -> dict:
         """What identifies the model in a cache key and a report: its class and a

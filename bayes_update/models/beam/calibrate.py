@@ -33,11 +33,11 @@ from scipy.optimize import minimize
 
 import fe
 
-from .beam_rig import rig_of
-from .dataset import Dataset
-from .evaluation import default_executor, evaluate_many
-from .metrics import UpdatingProblem
-from .validation import validate
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import Dataset
+from surrogates.evaluation import default_executor, evaluate_many
+from bayes_update.models.beam.problem import UpdatingProblem
+from bayes_update.models.beam.validation import validate
 
 MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
 
@@ -371,7 +371,7 @@ def format_tables(result: CalibrationResult) -> str:
 
 def write_result(result: CalibrationResult, dataset: Dataset, out) -> Path:
     """Write tables (CSV), figures (PNG), calibration.json and report.txt to ``out``."""
-    from . import plots
+    from bayes_update import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

@@ -3,41 +3,18 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
-import fe
-from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
-
-from . import signals
-from .beam_rig import rig_of
-from .core import ModelError
-from .dataset import Dataset, DatasetError, Record, read_dataset, write_dataset
-
-# the paper's high-level chirp on the default (locking-free) rig [N]
-DEFAULT_CHIRP_AMPLITUDE = 0.1
 
 
-def _add_model_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", default="fe", metavar="SPEC",
-                   help="fe: the beam's full FE model (default); rom: its modal reduced-order model "
-                        "(fe.ModalROM, ~1 ms per run); or your own model, path/to/file.py:NAME or "
-                        "package.module:NAME (a class or zero-argument factory with `parameters` and "
-                        "`simulate(theta, force, fs)`; docs/models.md; discrepancy needs its "
-                        "candidate_effects())")
-    p.add_argument("--modes", type=int, default=None,
-                   help="modes kept by --model rom (default 3)")
-    p.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS,
-                   help=f"beam elements (default {DEFAULT_ELEMENTS})")
-    p.add_argument("--substeps", type=int, default=DEFAULT_SUBSTEPS,
-                   help=f"generalized-alpha steps per sample (default {DEFAULT_SUBSTEPS})")
-    p.add_argument("--rho-inf", type=float, default=DEFAULT_RHO_INF,
-                   help=f"generalized-alpha spectral radius at infinity (default {DEFAULT_RHO_INF}; "
-                        "the paper used 0.01)")
+from bayes_update.models.beam import cli as beam_cli
+from bayes_update.core import ModelError
+from bayes_update.data.dataset import DatasetError, read_dataset
+
+
+
 
 
 def _add_metrics_option(p: argparse.ArgumentParser) -> None:
@@ -47,79 +24,25 @@ def _add_metrics_option(p: argparse.ArgumentParser) -> None:
                         "weighted by its noise; the default for your own model)")
 
 
-def _add_parameter_options(p: argparse.ArgumentParser) -> None:
-    d = fe.PAPER_PARAMETERS
-    p.add_argument("--eta", type=float, default=d.eta,
-                   help=f"deviatoric material viscosity [Pa s] (default {d.eta:g}, the paper's)")
-    p.add_argument("--c", type=float, default=d.c, help=f"top damper [N s/m] (default {d.c:g})")
-    p.add_argument("--F", type=float, default=d.F, help=f"preload [N] (default {d.F:g})")
-    p.add_argument("--k-s", type=float, default=d.k_s, help=f"top spring [N/m] (default {d.k_s:g})")
 
 
-def _add_factor_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--bending-stiffness-factor", type=float, default=None, metavar="X",
-                   help="multiply the model's EI by X (default: the data set's "
-                        "rig.bending_stiffness_factor, 1.0 when absent; 1.24 reproduces the "
-                        "paper's shear-locking mesh)")
-    p.add_argument("--override-factor", action="store_true",
-                   help="allow --bending-stiffness-factor to differ from the factor the data set states")
 
 
-BEAM_MODELS = ("fe", "rom")
 
 
 def _user_model(args):
     """The user's model of ``--model SPEC``, or None for the beam's."""
-    if args.model in BEAM_MODELS:
+    if args.model in beam_cli.BEAM_MODELS:
         return None
-    from .core import load_model
+    from bayes_update.core import load_model
 
     return load_model(args.model)
 
 
-def _model_for(args, rig: fe.Rig):
-    """The model the options ask for, on ``rig``."""
-    if args.model not in BEAM_MODELS:
-        raise ValueError(f"--model {args.model}: `{args.command}` runs the beam models ({', '.join(BEAM_MODELS)}) "
-                         "only so far; `bayes-update sample` takes a model of your own")
-    if args.model == "rom":
-        from fe.rom import DEFAULT_ROM_MODES
-        return fe.ModalROM(rig=rig, n_modes=args.modes or DEFAULT_ROM_MODES)
-    if args.modes is not None:
-        raise ValueError("--modes applies to --model rom only")
-    return fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps, rho_inf=args.rho_inf)
 
 
-def _rig_for(data: Dataset, args) -> fe.Rig:
-    """The model's rig: the data set's, with the factor from the command line if given.
-    A factor that contradicts the one the data set states needs --override-factor."""
-    import dataclasses
-
-    rig = rig_of(data)
-    factor = getattr(args, "bending_stiffness_factor", None)
-    if factor is None:
-        return rig
-    stated = _stated_factor(data)
-    if stated is not None and stated != factor and not args.override_factor:
-        raise ValueError(f"the data set states bending_stiffness_factor = {stated:g} but "
-                         f"--bending-stiffness-factor {factor:g} was given; pass --override-factor "
-                         "to use it anyway (e.g. to calibrate a locking-free model on the "
-                         "paper-equivalent data)")
-    return dataclasses.replace(rig, bending_stiffness_factor=factor)
 
 
-def _stated_factor(data: Dataset):
-    """The factor written in the data set's dataset.json, or None when absent."""
-    if data.source is None:
-        return None
-    path = Path(data.source)
-    path = path / "dataset.json" if path.is_dir() else path
-    try:
-        rig = json.loads(path.read_text()).get("rig", {})
-    except (OSError, ValueError):
-        return None
-    value = rig.get("bending_stiffness_factor")
-    return None if value is None else float(value)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -135,11 +58,11 @@ def build_parser() -> argparse.ArgumentParser:
                                    "per test. Without --data: the paper's 4 s chirp at the paper's "
                                    "parameters. Units are SI.")
     p.add_argument("--data", type=Path, default=None, help="data-set folder (dataset.json + CSV)")
-    _add_parameter_options(p)
-    _add_model_options(p)
-    _add_factor_options(p)
+    beam_cli.add_parameter_options(p)
+    beam_cli.add_model_options(p)
+    beam_cli.add_factor_options(p)
     p.add_argument("--out", type=Path, required=True, help="output folder")
-    p.set_defaults(func=cmd_simulate)
+    p.set_defaults(func=beam_cli.cmd_simulate)
 
     p = sub.add_parser("calibrate", help="the paper's two-stage deterministic updating (any model)",
                        description="Reproduce section 4 of the paper on a data set: e_lin over "
@@ -161,9 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=None,
                    help="processes for the grids (default: all cores; 1 = serial)")
     p.add_argument("--seed", type=int, default=0, help="seed of the start designs (your own model; default 0)")
-    _add_model_options(p)
+    beam_cli.add_model_options(p)
     _add_metrics_option(p)
-    _add_factor_options(p)
+    beam_cli.add_factor_options(p)
     p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("sample", help="posterior of (eta, c, F, k_s) with emcee (GP surrogate or direct)",
@@ -189,9 +112,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--prior", action="append", default=[], metavar="NAME=LO:HI",
                    help="change one range of the uniform prior box, in paper units (eta MPa s, c N s/mm, "
                         "F N, k_s N/mm), e.g. --prior F=20:95; repeatable")
-    _add_model_options(p)
+    beam_cli.add_model_options(p)
     _add_metrics_option(p)
-    _add_factor_options(p)
+    beam_cli.add_factor_options(p)
     p.set_defaults(func=cmd_sample)
 
     p = sub.add_parser("discrepancy", help="find the effect the model misses, add it, show the gap shrink",
@@ -213,9 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes for the model runs (default: all cores; 1 = serial)")
     p.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
                    help="restrict the catalogue (default: all four effects, or all the model's candidate_effects())")
-    _add_model_options(p)
+    beam_cli.add_model_options(p)
     _add_metrics_option(p)
-    _add_factor_options(p)
+    beam_cli.add_factor_options(p)
     p.set_defaults(func=cmd_discrepancy)
 
     p = sub.add_parser("reproduce", help="the whole study on the embedded default data set, with a report",
@@ -240,7 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "defaults it reproduces the embedded data set byte for byte.")
     p.add_argument("--out", type=Path, default=None,
                    help="output folder (default: the package's embedded data set, "
-                        "bayes_update/data/default)")
+                        "bayes_update/models/beam/default_data)")
     p.add_argument("--seed", type=int, default=None, help="noise seed (default 2017)")
     p.add_argument("--snr-force", type=float, default=None, metavar="DB",
                    help="force-channel SNR [dB re RMS] (default 40)")
@@ -266,60 +189,23 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _default_dataset() -> Dataset:
-    force = signals.chirp(DEFAULT_CHIRP_AMPLITUDE)
-    t = np.arange(force.size) / signals.PAPER_FS
-    test = Record("chirp_high.csv", "chirp", "high", "nonlinear", t, force, np.zeros_like(force))
-    return Dataset("paper-chirp", signals.PAPER_FS, fe.Rig(), [test])
 
 
-def cmd_simulate(args) -> int:
-    params = fe.Parameters(eta=args.eta, c=args.c, F=args.F, k_s=args.k_s)
-    from .forward import simulate_dataset
-    from .plots import plot_test
-
-    data = read_dataset(args.data) if args.data else _default_dataset()
-    rig = _rig_for(data, args)
-    if rig != rig_of(data):
-        import dataclasses
-        data = dataclasses.replace(data, rig=rig)
-    model = _model_for(args, rig)
-    start = time.perf_counter()
-    out = simulate_dataset(data, model, params)
-    elapsed = time.perf_counter() - start
-    from .metrics import _describe_model
-    out.extra["model"] = {**_describe_model(model), "parameters_si": params.to_dict()}
-    write_dataset(out, args.out)
-    for measured, simulated in zip(data.tests, out.tests):
-        has_data = args.data is not None
-        fig = plot_test(measured if has_data else simulated,
-                        simulated.velocity if has_data else None,
-                        title=f"{simulated.name}: model at eta={params.eta:g} Pa s, c={params.c:g} N s/m, "
-                              f"F={params.F:g} N, k_s={params.k_s:g} N/m")
-        fig.savefig(Path(args.out) / f"{simulated.name}.png", dpi=110)
-    modes = model.modal_analysis(params, n_modes=2)
-    summary = {"elapsed_s": elapsed, "tests": [t.file for t in out.tests],
-               "P_eff_N": params.effective_preload(rig_of(data)),
-               "f1_hz": float(modes.frequencies_hz[0]), "zeta1": float(modes.damping_ratios[0])}
-    (Path(args.out) / "simulate.json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"simulated {len(out.tests)} test(s) in {elapsed:.2f} s; P_eff = {summary['P_eff_N']:.2f} N, "
-          f"f1 = {summary['f1_hz']:.2f} Hz; wrote {args.final_out}")
-    return 0
 
 
 def cmd_calibrate(args) -> int:
     import dataclasses
 
-    from .calibrate import CalibrationSettings, calibrate, format_tables, write_result
-    from .virtual_rig import load_default_dataset
+    from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables, write_result
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
     data = read_dataset(args.data) if args.data else load_default_dataset()
     user = _user_model(args)
     if user is not None:
-        from .calibration_report import format_calibration, write_calibration
-        from .core.calibrate import calibrate_model
+        from bayes_update.reports.calibration import format_calibration, write_calibration
+        from bayes_update.core.calibrate import calibrate_model
 
         cal = calibrate_model(data, user, metrics=args.metrics or "full", workers=args.workers,
                               n_start=16 if args.quick else 64, seed=args.seed)
@@ -330,9 +216,9 @@ def cmd_calibrate(args) -> int:
     if args.metrics not in (None, "paper"):
         raise ValueError("--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
                          "use `sample --metrics full` for the beam under the full set")
-    rig = _rig_for(data, args)
+    rig = beam_cli.rig_for(data, args)
     data = dataclasses.replace(data, rig=rig)
-    model = _model_for(args, rig)
+    model = beam_cli.model_for(args, rig)
     settings = CalibrationSettings.quick() if args.quick else CalibrationSettings()
     result = calibrate(data, model, settings, workers=args.workers)
     write_result(result, data, args.out)
@@ -357,7 +243,7 @@ def _prior_ranges(items, names) -> dict:
 
 
 def _prior_space(rig, items):
-    from .likelihood import ParameterSpace
+    from bayes_update.models.beam.space import ParameterSpace
 
     return ParameterSpace(rig, **_prior_ranges(items, ("eta", "c", "F", "k_s")))
 
@@ -366,7 +252,7 @@ def _user_prior(model, items):
     """The model's declared prior with the --prior ranges (in the parameter's unit) put in, or None."""
     import dataclasses
 
-    from .core import ParameterSet
+    from bayes_update.core import ParameterSet
 
     if not items:
         return None
@@ -387,8 +273,9 @@ def _user_truth(data, space) -> dict | None:
 def cmd_sample(args) -> int:
     import dataclasses
 
-    from .posterior import PosteriorSettings, format_summary, sample, write_posterior
-    from .virtual_rig import load_default_dataset
+    from bayes_update.core.posterior import PosteriorSettings, sample
+    from bayes_update.reports.posterior import format_summary, write_posterior
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
@@ -400,16 +287,16 @@ def cmd_sample(args) -> int:
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
     model = _user_model(args)
     if model is None:
-        rig = _rig_for(data, args)
+        rig = beam_cli.rig_for(data, args)
         data = dataclasses.replace(data, rig=rig)
-        model = _model_for(args, rig)
+        model = beam_cli.model_for(args, rig)
         space = _prior_space(rig, args.prior)
     else:
         space = _user_prior(model, args.prior)
     res = sample(data, model, settings, workers=args.workers, direct=args.direct, space=space,
                  cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
-    from .virtual_rig import truth_paper_units
-    truth = truth_paper_units(data) if args.model in BEAM_MODELS else _user_truth(data, res.space)
+    from bayes_update.models.beam.virtual_rig import truth_paper_units
+    truth = truth_paper_units(data) if args.model in beam_cli.BEAM_MODELS else _user_truth(data, res.space)
     write_posterior(res, args.out, truth=truth)
     print(format_summary(res))
     t = res.timing
@@ -422,8 +309,8 @@ def cmd_sample(args) -> int:
 def cmd_discrepancy(args) -> int:
     import dataclasses
 
-    from .missing_effect import DiscrepancySettings, find_missing_effect, format_result, write_discrepancy
-    from .virtual_rig import load_default_dataset, truth_paper_units
+    from bayes_update.models.beam.missing_effect import DiscrepancySettings, find_missing_effect, format_result, write_discrepancy
+    from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
@@ -433,9 +320,9 @@ def cmd_discrepancy(args) -> int:
     if args.metrics not in (None, "paper"):
         raise ValueError("--metrics full: the beam's discrepancy workflow runs on the paper's metrics")
     data = read_dataset(args.data) if args.data else load_default_dataset()
-    rig = _rig_for(data, args)
+    rig = beam_cli.rig_for(data, args)
     data = dataclasses.replace(data, rig=rig)
-    model = _model_for(args, rig)
+    model = beam_cli.model_for(args, rig)
     settings = DiscrepancySettings.quick() if args.quick else DiscrepancySettings()
     res = find_missing_effect(data, model, settings=settings, workers=args.workers, candidates=args.candidates)
     truth = truth_paper_units(data)
@@ -448,8 +335,8 @@ def cmd_discrepancy(args) -> int:
 
 def _discrepancy_of_user_model(args, model) -> int:
     """`discrepancy --model SPEC`: the generic engine, candidates from the model's candidate_effects()."""
-    from .core.discrepancy import DiscrepancySettings, find_discrepancy, format_result, write_discrepancy
-    from .core.effects import candidate_effects
+    from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy, format_result, write_discrepancy
+    from bayes_update.core.effects import candidate_effects
 
     candidate_effects(model, [p.name for p in getattr(model, "parameters", ())])   # before any data work
     if args.data is None:
@@ -466,7 +353,7 @@ def _discrepancy_of_user_model(args, model) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from .reproduce import reproduce
+    from bayes_update.reports.beam_study import reproduce
 
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
@@ -477,13 +364,13 @@ def cmd_reproduce(args) -> int:
 
 
 def cmd_make_dataset(args) -> int:
-    from .virtual_rig import DEFAULT_DATASET_DIR, DEFAULT_SEED, DEFAULT_SNR_DB, make_dataset
+    from bayes_update.models.beam.virtual_rig import DEFAULT_SEED, DEFAULT_SNR_DB, make_dataset
 
     out = args.out
     start = time.perf_counter()
     rig = None
     if args.hidden:
-        from .virtual_rig import VirtualRig, hidden_effects
+        from bayes_update.models.beam.virtual_rig import VirtualRig, hidden_effects
         rig = VirtualRig(effects=hidden_effects(args.hidden, args.hidden_seed))
     ds = make_dataset(out, rig=rig,
                       seed=DEFAULT_SEED if args.seed is None else args.seed,
@@ -501,9 +388,9 @@ def cmd_make_dataset(args) -> int:
 
 def cmd_plot_data(args) -> int:
 
-    from . import spectral
-    from .plots import plot_frf, plot_psd, plot_test
-    from .virtual_rig import load_default_dataset
+    from bayes_update.data import spectral
+    from bayes_update.reports.plots import plot_frf, plot_psd, plot_test
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     data = read_dataset(args.data) if args.data else load_default_dataset()
     out = Path(args.out)
@@ -542,6 +429,10 @@ def cmd_plot_data(args) -> int:
     return 0
 
 
+#: errors reported in one line (exit status 2) instead of a traceback
+_REPORTED_ERRORS = (ValueError, DatasetError, ModelError) + beam_cli.FAILURES
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -552,7 +443,7 @@ def main(argv=None) -> int:
         if getattr(args, "out", None) is None and args.command != "make-dataset":
             return args.func(args)
         return _run_staged(args)
-    except (ValueError, DatasetError, fe.ConvergenceError, ModelError) as exc:
+    except _REPORTED_ERRORS as exc:
         print(f"bayes-update {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -566,14 +457,14 @@ _RESUMABLE = ("sample", "reproduce")
 
 def _run_staged(args) -> int:
     """Run a command that writes OUT: results go to a staging folder and reach
-    OUT only when the command finishes (:mod:`bayes_update.outputs`); the cache
+    OUT only when the command finishes (:mod:`bayes_update.reports.outputs`); the cache
     of model runs is OUT/cache."""
-    from .outputs import staged_output
+    from bayes_update.reports.outputs import staged_output
 
     if args.command == "make-dataset" and args.out is None:
         if args.hidden:
             raise ValueError("--hidden needs --out: the embedded default data set has no hidden effect")
-        from .virtual_rig import DEFAULT_DATASET_DIR
+        from bayes_update.models.beam.virtual_rig import DEFAULT_DATASET_DIR
         args.out = DEFAULT_DATASET_DIR
     args.final_out = Path(args.out)
     args.cache_dir = args.final_out / "cache"

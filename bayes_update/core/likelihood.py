@@ -1,4 +1,4 @@
-"""The likelihood of (eta, c, F, k_s) given e_lin and e_nlin, and the prior box.
+"""The likelihood of a model's parameters given its metrics e_lin and e_nlin.
 
 Derivation (docs/likelihood.md has the long form)
 ------------------------------------------------
@@ -40,168 +40,22 @@ estimate from K values wanders by 2x between seeds.
 
 Model error: the updating model is a discretisation (or a reduction); its
 error at the estimate, ``e_model``, is measured against a refined model
-(:meth:`refined_model`) and added as ``s^2 = s_n^2 + e_model^2``.  The bias is
+(:meth:`bayes_update.core.problem.Problem.refined_model`: the model's
+``refined()``; the beam's is a finer mesh) and added as ``s^2 = s_n^2 + e_model^2``.  The bias is
 deterministic and mostly in one direction (a frequency error moves P_eff), so
 it is budgeted as one standard deviation in *any* direction, not spread over
 nu of them: a bias of that size then shifts any parameter by at most one
 posterior sd.
-
-Parameter space: the prior is uniform on the DESIGN.md box of (eta, c, F,
-k_s).  Inference runs in the internal coordinates x = (eta [MPa s], c [N
-s/mm], P_eff [N], k_s [N/mm]), because e_lin depends on F and k_s almost only
-through the preload the beam carries, P_eff = F K_b / (K_b + k_s); the
-uniform prior then has density (K_b + k_s) / K_b (the Jacobian of F ->
-P_eff) on the image of the box.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-
 import numpy as np
 
-import fe
 import volterra
-
-from .metrics import STAGE_ORDERS, UpdatingProblem, excited_band
-from .spectral import psd
-
-MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
-
-#: Internal coordinate names and units.
-NAMES = ("eta", "c", "P_eff", "k_s")
-UNITS = {"eta": "MPa s", "c": "N s/mm", "P_eff": "N", "k_s": "N/mm", "F": "N"}
-#: SI units of the public parameters.
-SI_UNITS = {"eta": "Pa s", "c": "N s/m", "F": "N", "k_s": "N/m", "P_eff": "N"}
-#: Factors from paper units to SI.
-TO_SI = {"eta": MPA_S, "c": N_S_PER_MM, "F": 1.0, "k_s": N_PER_MM, "P_eff": 1.0}
-
-
-@dataclass(frozen=True)
-class ParameterSpace:
-    """Uniform prior box of (eta, c, F, k_s) in paper units, and the internal
-    coordinates x = (eta [MPa s], c [N s/mm], P_eff [N], k_s [N/mm])."""
-
-    rig: fe.Rig = field(default_factory=fe.Rig)
-    eta: tuple = (1.0, 6.0)       # MPa s
-    c: tuple = (0.0, 30.0)        # N s/mm
-    F: tuple = (60.0, 95.0)       # N
-    k_s: tuple = (0.0, 600.0)     # N/mm
-
-    def __post_init__(self):
-        for name in ("eta", "c", "F", "k_s"):
-            lo, hi = (float(v) for v in getattr(self, name))
-            if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
-                raise ValueError(f"prior range of {name} must be finite with low < high, got {(lo, hi)}")
-            if lo < 0 or (name in ("eta", "F") and lo <= 0):
-                raise ValueError(f"prior range of {name} must be {'positive' if name in ('eta', 'F') else 'non-negative'}, "
-                                 f"got {(lo, hi)} {UNITS[name]}")
-            object.__setattr__(self, name, (lo, hi))
-
-    @property
-    def kb(self) -> float:
-        """Axial stiffness of the beam EA/L [N/mm]."""
-        return self.rig.axial_stiffness / N_PER_MM
-
-    def box(self) -> np.ndarray:
-        """(4, 2) bounding box of the prior in internal coordinates."""
-        kb = self.kb
-        p_lo = self.F[0] * kb / (kb + self.k_s[1])
-        p_hi = self.F[1] * kb / (kb + self.k_s[0])
-        return np.array([self.eta, self.c, (p_lo, p_hi), self.k_s], float)
-
-    def F_of(self, X) -> np.ndarray:
-        X = np.atleast_2d(X)
-        return X[:, 2] * (self.kb + X[:, 3]) / self.kb
-
-    def log_prior(self, X) -> np.ndarray:
-        """Log density (up to a constant) of the uniform box prior at internal points (n, 4)."""
-        X = np.atleast_2d(np.asarray(X, float))
-        F = self.F_of(X)
-        inside = ((X[:, 0] >= self.eta[0]) & (X[:, 0] <= self.eta[1]) & (X[:, 1] >= self.c[0])
-                  & (X[:, 1] <= self.c[1]) & (X[:, 3] >= self.k_s[0]) & (X[:, 3] <= self.k_s[1])
-                  & (F >= self.F[0]) & (F <= self.F[1]))
-        with np.errstate(divide="ignore"):
-            return np.where(inside, np.log((self.kb + X[:, 3]) / self.kb), -np.inf)
-
-    def contains(self, params: fe.Parameters) -> bool:
-        return bool(np.isfinite(self.log_prior(self.to_internal(params)))[0])
-
-    def check(self, params: fe.Parameters, what: str = "parameters") -> None:
-        """Raise a ValueError naming the parameter that is outside the prior box."""
-        u = {"eta": params.eta / MPA_S, "c": params.c / N_S_PER_MM, "F": params.F, "k_s": params.k_s / N_PER_MM}
-        for name, v in u.items():
-            lo, hi = getattr(self, name)
-            if not lo <= v <= hi:
-                raise ValueError(f"{what}: {name} = {v:g} {UNITS[name]} is outside the prior box "
-                                 f"[{lo:g}, {hi:g}] {UNITS[name]}")
-
-    def to_internal(self, params: fe.Parameters) -> np.ndarray:
-        return np.array([params.eta / MPA_S, params.c / N_S_PER_MM, params.effective_preload(self.rig),
-                         params.k_s / N_PER_MM])
-
-    def to_parameters(self, x) -> fe.Parameters:
-        x = np.asarray(x, float)
-        return fe.Parameters(eta=x[0] * MPA_S, c=x[1] * N_S_PER_MM, F=float(self.F_of(x)[0]),
-                             k_s=x[3] * N_PER_MM)
-
-    def to_si(self, X) -> dict:
-        """{name: array} in SI for the public parameters and P_eff."""
-        X = np.atleast_2d(np.asarray(X, float))
-        return {"eta": X[:, 0] * MPA_S, "c": X[:, 1] * N_S_PER_MM, "F": self.F_of(X),
-                "k_s": X[:, 3] * N_PER_MM, "P_eff": X[:, 2]}
-
-    def sample_prior(self, n: int, seed=None) -> np.ndarray:
-        """``n`` internal points drawn from the prior (uniform in (eta, c, F, k_s))."""
-        rng = np.random.default_rng(seed)
-        lo = np.array([self.eta[0], self.c[0], self.F[0], self.k_s[0]])
-        hi = np.array([self.eta[1], self.c[1], self.F[1], self.k_s[1]])
-        U = lo + (hi - lo) * rng.random((int(n), 4))
-        P = U[:, 2] * self.kb / (self.kb + U[:, 3])
-        return np.column_stack([U[:, 0], U[:, 1], P, U[:, 3]])
-
-    def to_dict(self) -> dict:
-        return {"eta_MPa_s": list(self.eta), "c_N_s_per_mm": list(self.c), "F_N": list(self.F),
-                "k_s_N_per_mm": list(self.k_s)}
-
-    # -- the interface the generic pipeline uses (bayes_update.core.ParameterSet has the same) --
-    coordinate_names = NAMES                        # internal coordinates
-    units = UNITS                                   # paper units (also of F)
-    public_names = ("eta", "c", "F", "k_s")         # the declared parameters, in paper units
-    report_units = SI_UNITS                         # posterior.nc and summary values (SI) ...
-    display = {n: (UNITS[n], TO_SI[n]) for n in SI_UNITS}   # ... and their paper units, factor to SI
-    has_ridge = True                                # the linear-only posterior and the ridge plot
-
-    def report(self, X) -> dict:
-        """Variables of posterior.nc and the summary: the parameters and P_eff, SI."""
-        return self.to_si(X)
-
-    def describe(self, params: fe.Parameters) -> dict:
-        """A point in paper units, with P_eff (JSON)."""
-        return {"eta_MPa_s": params.eta / MPA_S, "c_N_s_per_mm": params.c / N_S_PER_MM,
-                "F_N": params.F, "k_s_N_per_mm": params.k_s / N_PER_MM,
-                "P_eff_N": params.effective_preload(self.rig)}
-
-    def public_box(self) -> np.ndarray:
-        """(4, 2) prior box of the declared parameters (eta, c, F, k_s), paper units."""
-        return np.array([self.eta, self.c, self.F, self.k_s], float)
-
-    def public_to_parameters(self, u) -> fe.Parameters:
-        u = np.asarray(u, float)
-        return fe.Parameters(eta=u[0] * MPA_S, c=u[1] * N_S_PER_MM, F=u[2], k_s=u[3] * N_PER_MM)
-
-    def extra_starts(self, x, n: int = 3) -> list:
-        """Points on the (c, k_s) band at the (eta, P_eff) of ``x``: an n x n grid
-        over the prior's c and k_s ranges, kept where F stays inside its range
-        (the low level pins eta and P_eff; along the band the nonlinear misfit
-        can have more than one valley)."""
-        out = []
-        for c in self.c[0] + (self.c[1] - self.c[0]) * (np.arange(n) + 0.5) / n:
-            for ks in self.k_s[0] + (self.k_s[1] - self.k_s[0]) * (np.arange(n) + 0.5) / n:
-                p = np.array([x[0], c, x[2], ks])
-                if np.isfinite(self.log_prior(p)[0]):
-                    out.append(p)
-        return out
+from bayes_update.core.problem import STAGE_ORDERS, Problem, excited_band
+from bayes_update.data.spectral import psd
 
 
 @dataclass(frozen=True)
@@ -335,23 +189,6 @@ def noise_band(force, fs: float) -> tuple[float, float]:
     return lo, hi
 
 
-def refined_model(model):
-    """A finer version of ``model`` for the model-error term.
-
-    ``fe.BeamModel``: 3x the elements and 4x the substeps; ``fe.ModalROM``:
-    the full FE at those settings (the ROM's truncation and its integration are
-    the error).  Anything else: ``model.refined()`` if it has one, else None."""
-    if hasattr(model, "refined"):
-        return model.refined()
-    if isinstance(model, fe.BeamModel):
-        import dataclasses
-        return dataclasses.replace(model, n_elements=3 * model.n_elements, substeps=4 * model.substeps)
-    if isinstance(model, fe.ModalROM):
-        return fe.BeamModel(rig=model.rig, n_elements=3 * fe.model.DEFAULT_ELEMENTS,
-                            substeps=4 * fe.model.DEFAULT_SUBSTEPS, effects=model.effects)
-    return None     # no finer model known: the model-error term is zero (the report says so)
-
-
 def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
     """(mean of e^2, nu) from replicate values of e^2, assuming e^2 = s^2 chi^2_nu:
     mean = nu s^2 and var = 2 nu s^4 give nu = 2 mean^2 / var, clipped to
@@ -365,15 +202,15 @@ def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
     return mean, nu
 
 
-def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refined=None,
+def estimate_likelihood(problem: Problem, params, *, refined=None,
                         model_error: bool = True, n_replicates: int = 32, seed=0,
-                        stages=None, space: ParameterSpace | None = None) -> Likelihood:
+                        stages=None, space=None) -> Likelihood:
     """Measure the likelihood scales at the estimate ``params`` (module docstring).
 
     n_replicates : noise replicates per stage (K model runs each); the relative
         sd of the estimated s_n is about 1/sqrt(2 K nu).
     refined : the model the model error is measured against (default
-        :func:`refined_model`); ignored with ``model_error=False`` (e.g. when
+        :meth:`Problem.refined_model`); ignored with ``model_error=False`` (e.g. when
         the data come from the updating model itself).
     """
     if int(n_replicates) != n_replicates or n_replicates < 4:
@@ -381,7 +218,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
     stages = problem.stages if stages is None else tuple(stages)
     ref_model, error_source = None, "off (model_error=False)"
     if model_error:
-        ref_model = refined if refined is not None else refined_model(problem.model)
+        ref_model = refined if refined is not None else problem.refined_model()
         error_source = (f"{type(ref_model).__name__} (refined)" if ref_model is not None else
                         f"none: {type(problem.model).__name__} has no refined(), so the model error is taken as 0")
     scales, residuals = {}, {}
@@ -409,7 +246,7 @@ def estimate_likelihood(problem: UpdatingProblem, params: fe.Parameters, *, refi
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
         mean, nu = noise_scale_from_replicates(e2, n_reg)
-        Q = sensitivity_span(problem, stage, params, space if space is not None else ParameterSpace(problem.rig))
+        Q = sensitivity_span(problem, stage, params, space if space is not None else problem.default_space())
         span_var = float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / Q.shape[1])
         e_model = e_perp = 0.0
         if ref_model is not None:
@@ -450,7 +287,7 @@ class CurvatureAdjustment:
     A: np.ndarray
     variance_ratios: np.ndarray
     sd_ratios: np.ndarray       # per coordinate: adjusted / unadjusted Laplace sd
-    names: tuple = NAMES        # the coordinates' names
+    names: tuple = ()           # the coordinates' names
 
     def __call__(self, X) -> np.ndarray:
         """The points at which to evaluate the unadjusted likelihood."""
@@ -462,11 +299,11 @@ class CurvatureAdjustment:
 
 
 def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stages=None,
-                         clip: float = 16.0, names=NAMES) -> CurvatureAdjustment | None:
+                         clip: float = 16.0, names=()) -> CurvatureAdjustment | None:
     """The :class:`CurvatureAdjustment` at the mode ``center``.
 
     jacobian : (n, d) derivative of the stages' scaled residual vectors,
-        concatenated in ``stages`` order (:class:`bayes_update.mode.ModeResult`).
+        concatenated in ``stages`` order (:class:`bayes_update.core.mode.ModeResult`).
     widths : the prior box's widths; one unit of information per width^2 is
         added to both H and M, so that a direction the data do not constrain
         is left alone (its ratio is 1, not 0/0).
@@ -509,8 +346,8 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
                                sd_ratios=np.sqrt(np.diag(cov1) / np.diag(cov0)), names=tuple(names))
 
 
-def sensitivity_span(problem: UpdatingProblem, stage: str, params: fe.Parameters,
-                     space: ParameterSpace, rel_step: float = 1e-4, tol: float = 1e-6) -> np.ndarray:
+def sensitivity_span(problem: Problem, stage: str, params,
+                     space, rel_step: float = 1e-4, tol: float = 1e-6) -> np.ndarray:
     """Orthonormal basis (n, r) of the span of d(stage output)/dx at ``params``
     (central differences in the internal coordinates, steps ``rel_step`` of
     the prior box; inwards at a bound), r = its numerical rank."""

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from .likelihood import UNITS
+from bayes_update.models.beam.space import UNITS
 
 LABELS = {"eta": "eta [MPa s]", "c": "c [N s/mm]", "F": "F [N]", "k_s": "k_s [N/mm]", "P_eff": "P_eff [N]"}
 ORDER = ("eta", "c", "F", "k_s", "P_eff")
@@ -179,7 +179,7 @@ def arviz_figures(res, truth: dict | None = None) -> dict:
 
 
 def posterior_figures(res, truth: dict | None = None) -> dict:
-    """{file stem: Figure} of a :class:`~bayes_update.posterior.PosteriorResult`:
+    """{file stem: Figure} of a :class:`~bayes_update.core.posterior.PosteriorResult`:
     the beam's own corner, traces and ridge (paper units, P_eff), ArviZ's pair
     plot and traces for any other model; predictive bands and GP checks for both."""
     if not getattr(res.space, "has_ridge", False):

@@ -1,6 +1,6 @@
 """The beam rig of a data set: the one place where the beam code reads the ``rig`` block.
 
-The data layer (:mod:`bayes_update.dataset`) knows no model and keeps the
+The data layer (:mod:`bayes_update.data.dataset`) knows no model and keeps the
 ``rig`` block of ``dataset.json`` as given (:attr:`Dataset.rig`: the raw
 block, None when absent, or an :class:`fe.Rig` the beam code built the data
 set with).  :func:`rig_of` turns it into an :class:`fe.Rig`.
@@ -13,7 +13,7 @@ from pathlib import Path
 
 import fe
 
-from .dataset import DatasetError
+from bayes_update.data.dataset import DatasetError
 
 __all__ = ["rig_of"]
 

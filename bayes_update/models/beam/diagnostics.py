@@ -30,9 +30,9 @@ from scipy import signal as ss
 import fe
 import volterra
 
-from .beam_rig import rig_of
-from .dataset import Dataset
-from .metrics import basis_from_reference, relative_error
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import Dataset
+from bayes_update.core.problem import basis_from_reference, relative_error
 
 HARMONICS = (1, 2, 3)
 

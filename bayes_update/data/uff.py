@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .dataset import (
+from bayes_update.data.dataset import (
     ROLES,
     Dataset,
     DatasetError,
@@ -234,7 +234,7 @@ def read_uff_test(path, fs: float | None = None, load_case=None):
 
     The file must hold exactly one test (one load case) unless ``load_case``
     selects one.  ``fs`` [Hz]: the declared sampling rate (checked).  Used by
-    :func:`bayes_update.dataset.read_dataset` for ``.uff``/``.unv`` test files.
+    :func:`bayes_update.data.dataset.read_dataset` for ``.uff``/``.unv`` test files.
     """
     path = Path(path)
     groups = _group_tests(path, fs)
@@ -260,7 +260,7 @@ def read_uff(path, rig=None, name: str | None = None,
     path : the ``.uff``/``.unv`` file (see the module docstring for the mapping).
     rig : the beam rig kept in :attr:`Dataset.rig` (an ``fe.Rig`` or a ``rig``
         block dict; default None, which the beam code reads as the paper's
-        geometry, factor 1.0: :func:`bayes_update.beam_rig.rig_of`).
+        geometry, factor 1.0: :func:`bayes_update.models.beam.rig.rig_of`).
     name : data-set name (default: the file name).
     sampling_rate_hz : declared rate [Hz], checked against the file (default:
         taken from the file).

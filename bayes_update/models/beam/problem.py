@@ -27,9 +27,8 @@ from __future__ import annotations
 
 import fe
 
-from .beam_rig import rig_of
-from .core.problem import (DEFAULT_N_FUNCTIONS, STAGE_ORDERS, STAGES, Problem, basis_from_reference,  # noqa: F401
-                           describe_basis, excited_band, relative_error, stage_output)
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.core.problem import DEFAULT_N_FUNCTIONS, Problem
 
 
 class UpdatingProblem(Problem):
@@ -63,6 +62,27 @@ class UpdatingProblem(Problem):
 
     def describe_model(self) -> dict:
         return _describe_model(self.model)
+
+    def default_space(self):
+        """The DESIGN.md prior box of (eta, c, F, k_s) on this rig, in P_eff coordinates."""
+        from bayes_update.models.beam.space import ParameterSpace
+
+        return ParameterSpace(self.rig)
+
+    def refined_model(self):
+        """3x the elements and 4x the substeps (:func:`bayes_update.models.beam.space.refined_model`)."""
+        from bayes_update.models.beam.space import refined_model
+
+        return refined_model(self.model)
+
+    def default_start(self, dataset, pool, progress, log):
+        """(start, model runs): the paper's deterministic updating on coarse grids."""
+        from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate
+
+        log("start: the deterministic two-stage updating on coarse grids")
+        cal = calibrate(dataset, self.model, CalibrationSettings.quick(), executor=pool, progress=progress,
+                        log=lambda *a: None)
+        return cal.final_params, cal.setup["n_model_runs"]
 
 
 def _describe_model(model) -> dict:

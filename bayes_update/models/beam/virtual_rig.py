@@ -58,9 +58,9 @@ from scipy import signal as ss
 import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
-from . import signals
-from .beam_rig import rig_of
-from .dataset import Dataset, Record, read_dataset, write_dataset
+from bayes_update.data import signals
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import Dataset, Record, read_dataset, write_dataset
 
 PAPER_EQUIVALENT_RIG = fe.Rig(bending_stiffness_factor=1.24)
 """The rig of the embedded data set: the paper's geometry with EI x 1.24."""
@@ -398,7 +398,7 @@ def make_dataset(out=None, *, seed: int = DEFAULT_SEED, snr_force_db: float | No
     return ds
 
 
-DEFAULT_DATASET_DIR = Path(__file__).resolve().parent / "data" / "default"
+DEFAULT_DATASET_DIR = Path(__file__).resolve().parent / "default_data"
 """Folder of the embedded default data set (inside the package)."""
 
 
@@ -416,7 +416,7 @@ def truth_paper_units(dataset) -> dict | None:
 
 def default_dataset_path() -> Path:
     """Path of the embedded default data set folder."""
-    res = importlib.resources.files("bayes_update").joinpath("data", "default")
+    res = importlib.resources.files("bayes_update").joinpath("models", "beam", "default_data")
     return Path(str(res))
 
 

@@ -7,8 +7,8 @@ import copy
 from tqdm.auto import tqdm
 
 import fe
-from .beam_rig import rig_of
-from .dataset import Dataset
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.dataset import Dataset
 
 
 def simulate_dataset(dataset: Dataset, model, params: fe.Parameters, progress: bool = True) -> Dataset:

@@ -3,10 +3,10 @@
 The workflow (:func:`find_missing_effect`, CLI ``bayes-update discrepancy``):
 
 1. **baseline**: the likelihood scales (noise replicates and model error,
-   :func:`bayes_update.likelihood.estimate_likelihood`) and the mode of the
+   :func:`bayes_update.core.likelihood.estimate_likelihood`) and the mode of the
    baseline model (eta, c, P_eff, k_s) by least squares
-   (:mod:`bayes_update.mode`), from the deterministic start;
-2. **diagnostics** at that mode (:func:`bayes_update.discrepancy.diagnose`):
+   (:mod:`bayes_update.core.mode`), from the deterministic start;
+2. **diagnostics** at that mode (:func:`bayes_update.models.beam.diagnostics.diagnose`):
    by test, kernel order, sine harmonic and free-decay amplitude;
 3. **candidates**: each effect of the catalogue (:data:`CANDIDATES`, the four
    of :data:`fe.EFFECTS`) is added with its own parameters under a uniform
@@ -53,15 +53,16 @@ import numpy as np
 
 import fe
 
-from .beam_rig import rig_of
+from bayes_update.models.beam.rig import rig_of
 # the naming rules, shared with the generic engine (bayes_update.core.discrepancy)
-from .core.effects import (DECISIVE, EXPLAINED_FACTOR, evidence_table, misfit_allowance,  # noqa: F401
+from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, evidence_table, misfit_allowance,  # noqa: F401
                            misfit_ratios)
-from .dataset import Dataset
-from .evaluation import default_executor
-from .likelihood import NAMES, UNITS, Likelihood, ParameterSpace, estimate_likelihood
-from .metrics import UpdatingProblem
-from .mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
+from bayes_update.data.dataset import Dataset
+from surrogates.evaluation import default_executor
+from bayes_update.models.beam.space import NAMES, UNITS, ParameterSpace
+from bayes_update.core.likelihood import Likelihood, estimate_likelihood
+from bayes_update.models.beam.problem import UpdatingProblem
+from bayes_update.core.mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
 
 
 @dataclass(frozen=True)
@@ -337,7 +338,7 @@ def _fit_dict(fit: Fit) -> dict:
 def noise_floors(dataset: Dataset, role: str = "validation") -> dict:
     """{test: the relative L2 misfit a perfect model would have} = the
     velocity's white-noise sd (read above the excited band) over its RMS."""
-    from .likelihood import noise_band, white_noise_sd
+    from bayes_update.core.likelihood import noise_band, white_noise_sd
 
     fs = dataset.sampling_rate_hz
     out = {}
@@ -380,9 +381,9 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
     start : baseline start (default: the deterministic two-stage updating on coarse grids).
     candidates : names from :data:`CANDIDATES` (default all four).
     """
-    from .calibrate import CalibrationSettings, calibrate
-    from .discrepancy import diagnose
-    from .validation import validate
+    from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate
+    from bayes_update.models.beam.diagnostics import diagnose
+    from bayes_update.models.beam.validation import validate
 
     settings = settings or DiscrepancySettings()
     model = model if model is not None else fe.BeamModel(rig=rig_of(dataset))
@@ -534,7 +535,7 @@ def gap_figure(res: DiscrepancyResult, dataset: Dataset):
     residual PSD of a validation test (or the high-level chirp)."""
     from matplotlib.figure import Figure
 
-    from .spectral import psd
+    from bayes_update.data.spectral import psd
 
     fig = Figure(figsize=(15, 4.2), constrained_layout=True)
     a1, a2, a3 = fig.subplots(1, 3)
@@ -586,7 +587,7 @@ def write_discrepancy(res: DiscrepancyResult, dataset: Dataset, out, truth: dict
     import json
     from pathlib import Path
 
-    from .discrepancy import diagnostics_figure
+    from bayes_update.models.beam.diagnostics import diagnostics_figure
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

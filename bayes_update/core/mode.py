@@ -2,7 +2,7 @@
 
 Both metrics are lengths of residual vectors, ``e = ||r||`` with
 ``r = (y_ref - y_mod(x)) / ||y_ref||`` (the stage's Volterra components, see
-:mod:`bayes_update.metrics`), so ``-log L = 1/2 sum_stage ||r_stage / s_stage||^2``
+:mod:`bayes_update.core.problem`), so ``-log L = 1/2 sum_stage ||r_stage / s_stage||^2``
 is a sum of squares and the mode is a least-squares problem.  A
 Gauss-Newton method (scipy's trust-region-reflective ``least_squares``, with
 the prior box as bounds) uses the residuals' Jacobian, which a simplex on
@@ -16,7 +16,7 @@ Laplace (Gauss-Newton) precision without another model run.
 Each evaluation is a picklable :class:`ResidualFunction`; what a point means
 (which model, which parameters) is a ``point_map``, so the same code finds
 the mode of the baseline model and of a model extended by an effect
-(:mod:`bayes_update.missing_effect`).
+(:mod:`bayes_update.models.beam.missing_effect`).
 """
 from __future__ import annotations
 
@@ -26,8 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
-from .core.problem import Problem
-from .evaluation import evaluate_many
+from bayes_update.core.problem import Problem
+from surrogates.evaluation import evaluate_many
 
 #: residual value (per entry, scaled) standing in for a failed model run
 FAILED_RESIDUAL = 1e3

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.calibrate import Calibration
+from bayes_update.core.calibrate import Calibration
 
 __all__ = ["fit_figure", "format_calibration", "write_calibration"]
 

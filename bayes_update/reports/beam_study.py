@@ -25,11 +25,12 @@ import numpy as np
 
 import fe
 
-from .beam_rig import rig_of
-from .calibrate import CalibrationSettings, calibrate, format_tables, write_result
-from .likelihood import ParameterSpace
-from .posterior import PosteriorSettings, format_summary, sample, write_posterior
-from .virtual_rig import load_default_dataset, truth_paper_units
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables, write_result
+from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.core.posterior import PosteriorSettings, sample
+from bayes_update.reports.posterior import format_summary, write_posterior
+from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
 #: The locking-free beam needs about 43 N for the data's 37 Hz, below the
 #: DESIGN.md box (F 60-95 N, set for the paper's physics): its posterior
@@ -88,7 +89,7 @@ DISCREPANCY_SEED = 0
 def discrepancy_dataset():
     """The default rig with a hidden bow (the updating is not told), the two
     updating chirps, the medium chirp and the high sine."""
-    from .virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
+    from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
 
     tests = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium", "sine_high")]
     rig = VirtualRig(effects=hidden_effects(DISCREPANCY_CASE, DISCREPANCY_SEED))
@@ -137,7 +138,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
         posteriors[factor] = post
     disc = None
     if discrepancy:
-        from .missing_effect import DiscrepancySettings, find_missing_effect, write_discrepancy
+        from bayes_update.models.beam.missing_effect import DiscrepancySettings, find_missing_effect, write_discrepancy
 
         log("[discrepancy] the workflow on the hidden-effect variant of the rig")
         t0 = time.perf_counter()
@@ -229,7 +230,7 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
                                                                   "gp_diagnostics", "traces")
                     if (out / f"posterior_{tag}" / f"{n}.png").exists()), ""]
     if disc is not None:
-        from .missing_effect import CANDIDATES, evidence_table
+        from bayes_update.models.beam.missing_effect import CANDIDATES, evidence_table
 
         hidden = json.loads((out / "discrepancy" / "discrepancy.json").read_text()).get("truth", {}).get("effects")
         b, a = disc.gap_before, disc.gap_after

@@ -4,7 +4,7 @@ The data layer knows no model: it never imports :mod:`fe`.  A data set for
 any model (``simulate(theta, force, fs) -> response``, docs/models.md) is a
 sampling rate, one or several response sensors and a list of tests; the beam
 rig's description is one optional block that only the beam code reads
-(:func:`bayes_update.beam_rig.rig_of`).
+(:func:`bayes_update.models.beam.rig.rig_of`).
 
 In memory
 ---------
@@ -26,7 +26,7 @@ A folder with ``dataset.json`` and one file per test.  A CSV file has a
 header row and the columns ``time`` [s], ``force`` [N] and one column per
 sensor, named by the sensor's name (other columns are ignored): by default
 ``velocity`` [m/s].  A test file may also be a UFF type-58 file (``.uff`` or
-``.unv``, see :mod:`bayes_update.uff`; force and velocity only).
+``.unv``, see :mod:`bayes_update.data.uff`; force and velocity only).
 ``dataset.json`` keys:
 
 ``name``
@@ -46,7 +46,7 @@ sensor, named by the sensor's name (other columns are ignored): by default
     :attr:`Record.response` is the list's order.
 ``rig``
     optional, the beam rig (read by the beam code only,
-    :func:`bayes_update.beam_rig.rig_of`: :meth:`fe.Rig.from_dict` keys
+    :func:`bayes_update.models.beam.rig.rig_of`: :meth:`fe.Rig.from_dict` keys
     ``length_m``, ``width_m``, ``thickness_m``, ``youngs_modulus_pa``,
     ``poisson_ratio``, ``density_kg_m3``, ``shaker_position_m``,
     ``sensor_position_m`` (from the clamped bottom),
@@ -109,7 +109,7 @@ message always names the file and what is wrong)
                              response is not a single velocity
 :class:`DatasetError`        anything else (missing file, bad JSON,
                              unparsable number, ...); a bad ``rig`` block is
-                             reported by :func:`bayes_update.beam_rig.rig_of`
+                             reported by :func:`bayes_update.models.beam.rig.rig_of`
 =========================  ===================================================
 
 The readers never resample, interpolate or reorder: data that do not meet
@@ -126,7 +126,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .core.problem import DatasetError
+from bayes_update.core.problem import DatasetError
 
 ROLES = ("linear", "nonlinear", "validation")
 """Roles of a test: ``linear`` (low level, fits the linear kernel: e_lin),
@@ -431,7 +431,7 @@ class Record:
 
 class RigBlock(dict):
     """The raw ``rig`` block of a ``dataset.json`` (a dict, as read).  Only the beam
-    code interprets it (:func:`bayes_update.beam_rig.rig_of`); :meth:`to_dict`
+    code interprets it (:func:`bayes_update.models.beam.rig.rig_of`); :meth:`to_dict`
     gives a plain copy, like :meth:`fe.Rig.to_dict`."""
 
     def to_dict(self) -> dict:
@@ -447,7 +447,7 @@ class Dataset:
     ``dataset.json`` (a :class:`RigBlock`, i.e. a dict), None when absent, or
     an object with ``to_dict()`` given by the caller (the beam code passes an
     :class:`fe.Rig`); read it as an ``fe.Rig`` with
-    :func:`bayes_update.beam_rig.rig_of`.  tests : list of :class:`Record`,
+    :func:`bayes_update.models.beam.rig.rig_of`.  tests : list of :class:`Record`,
     all with the same sensors; extra : other ``dataset.json`` keys, preserved
     (e.g. ``truth``, never read by the updating code); source : folder or
     file read from, or None.
@@ -596,7 +596,7 @@ def read_dataset(folder) -> Dataset:
                 raise SensorError(f"{path}: a UFF test file holds force and velocity records only, but "
                                   f"{meta_path} declares the sensors {list(sensors)}; write this test "
                                   "as a CSV file with one column per sensor")
-            from .uff import read_uff_test
+            from bayes_update.data.uff import read_uff_test
 
             time, force, response, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
         else:

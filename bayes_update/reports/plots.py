@@ -132,7 +132,7 @@ def _grid_panels(rows, key, c_values, label, best_rows, title):
 def calibration_figures(result, dataset) -> dict:
     """The paper's figures for a calibration (Fig. 4, 8, 12, 13, 14 analogues),
     plus the k_s profile along the ridge.  Returns {name: Figure}."""
-    from .spectral import psd
+    from bayes_update.data.spectral import psd
 
     figs = {}
     c_values = result.settings.c_values

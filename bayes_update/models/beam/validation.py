@@ -17,9 +17,9 @@ import numpy as np
 
 import fe
 
-from .dataset import Dataset
-from .metrics import relative_error
-from .spectral import psd
+from bayes_update.data.dataset import Dataset
+from bayes_update.core.problem import relative_error
+from bayes_update.data.spectral import psd
 
 PSD_BAND_HZ = (1.0, 140.0)
 
@@ -65,7 +65,7 @@ def validate(dataset: Dataset, model, params: fe.Parameters, roles=("validation"
     Returns ``{test name: numbers}`` plus the simulated velocities under
     ``"_velocity"`` (for plots).
     """
-    from .forward import simulate_dataset
+    from bayes_update.models.beam.forward import simulate_dataset
 
     subset = Dataset(dataset.name, dataset.sampling_rate_hz, dataset.rig,
                      [t for t in dataset.tests if t.role in roles], dict(dataset.extra), dataset.source)

@@ -16,8 +16,8 @@ import numpy as np
 
 import surrogates
 
-from .core.problem import Problem
-from .evaluation import evaluate_many
+from bayes_update.core.problem import Problem
+from surrogates.evaluation import evaluate_many
 
 
 @dataclass

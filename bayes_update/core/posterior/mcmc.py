@@ -1,0 +1,122 @@
+"""emcee runs (seeded), walker placement, ArviZ data and the summary table."""
+from __future__ import annotations
+
+import numpy as np
+from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.posterior.target import Whitening
+
+
+# -------------------------------------------------------------------- emcee
+def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize: bool,
+              pool=None, progress: bool = True):
+    """emcee's stretch move from ``x_init`` (n_walkers, d), seeded.
+
+    A vectorised log probability (the GP surrogates) runs with one BLAS thread:
+    its matrices are a few hundred wide at most, where threads cost more than
+    they bring (on a loaded 2-core machine a 72-point GP's triangular solve for
+    16 walkers took 5 ms with the default threads)."""
+    import emcee
+    from threadpoolctl import threadpool_limits
+
+    sampler = emcee.EnsembleSampler(n_walkers, x_init.shape[1], log_prob, vectorize=vectorize, pool=pool)
+    sampler.random_state = np.random.RandomState(np.random.SeedSequence(seed).generate_state(1)[0]).get_state()
+    with threadpool_limits(1 if vectorize else None):
+        sampler.run_mcmc(x_init, n_steps, progress=progress)
+    return sampler
+
+
+def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.3) -> np.ndarray:
+    """Walkers drawn from N(x_map, scale^2 cov), kept where the density is finite."""
+    rng = np.random.default_rng(seed)
+    L = np.linalg.cholesky(cov + 1e-12 * np.diag(np.diag(cov)))
+    out = []
+    for _ in range(200):
+        X = x_map + scale * rng.standard_normal((4 * n_walkers, len(x_map))) @ L.T
+        ok = np.isfinite(log_prob_vec(X))
+        out.extend(X[ok])
+        if len(out) >= n_walkers:
+            return np.array(out[:n_walkers])
+        scale *= 0.7
+    raise RuntimeError("could not place the MCMC walkers where the posterior is finite")
+
+
+def to_inference_data(chain, log_prob, space, attrs: dict):
+    """ArviZ InferenceData (chain = walker) of the space's reported variables
+    (``space.report``: the beam's in SI with P_eff, a model's in its parameters' units)."""
+    import arviz as az
+
+    X = np.swapaxes(chain, 0, 1)                    # (walker, draw, d)
+    values = space.report(X.reshape(-1, X.shape[-1]))
+    post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
+    idata = az.from_dict(posterior=post, sample_stats={"lp": np.swapaxes(log_prob, 0, 1)},
+                         attrs={**attrs, **{f"units_{k}": u for k, u in space.report_units.items()}})
+    return idata
+
+
+def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
+    """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail (in
+    ``space.report_units``) and, when ``space.display`` shows other units (the
+    beam's paper units), the same in those under ``paper_units``."""
+    import arviz as az
+
+    s = az.summary(idata, hdi_prob=hdi_prob, round_to="none")
+    lo, hi = f"hdi_{100 * (1 - hdi_prob) / 2:g}%", f"hdi_{100 * (1 + hdi_prob) / 2:g}%"
+    out = {}
+    # a space that shows other units than it reports in (the beam: SI vs paper units) shows all of them
+    shown_apart = any(space.display[v] != (u, 1.0) for v, u in space.report_units.items())
+    for var, unit in space.report_units.items():
+        row = s.loc[var]
+        out[var] = {"mean": float(row["mean"]), "sd": float(row["sd"]), "hdi_3%": float(row[lo]),
+                    "hdi_97%": float(row[hi]), "r_hat": float(row["r_hat"]),
+                    "ess_bulk": float(row["ess_bulk"]), "ess_tail": float(row["ess_tail"]),
+                    "units": unit}
+        shown, factor = space.display[var]
+        if shown_apart:
+            out[var]["paper_units"] = {"unit": shown, "mean": float(row["mean"]) / factor,
+                                       "sd": float(row["sd"]) / factor, "hdi_3%": float(row[lo]) / factor,
+                                       "hdi_97%": float(row[hi]) / factor}
+    return out
+
+
+class _XSampler:
+    """An emcee sampler run in u, read in x (chains, log probabilities, tau)."""
+
+    def __init__(self, sampler, whitening: Whitening):
+        self.sampler, self.whitening = sampler, whitening
+        self.acceptance_fraction = sampler.acceptance_fraction
+
+    def get_chain(self, **kw):
+        flat = kw.pop("flat", False)
+        c = self.sampler.get_chain(**kw)
+        x = self.whitening.to_x(c.reshape(-1, c.shape[-1])).reshape(c.shape)
+        return x.reshape(-1, x.shape[-1]) if flat else x
+
+    def get_log_prob(self, **kw):
+        return self.sampler.get_log_prob(**kw)
+
+    def get_autocorr_time(self, **kw):
+        import emcee
+        return emcee.autocorr.integrated_time(self.get_chain(discard=kw.get("discard", 0)), quiet=True)
+
+
+def _box_cut_fraction(U, box_sd: float, whitening: Whitening, space: ParameterSet) -> float:
+    """Fraction of draws within 0.25 of the u box's edge where the prior goes
+    on beyond it (pushing them 0.5 further out stays inside the prior): the
+    box, not the prior, cut the posterior there."""
+    near = np.abs(U) > box_sd - 0.25
+    cut = np.zeros(len(U), bool)
+    for i in range(U.shape[1]):
+        idx = np.flatnonzero(near[:, i])
+        if idx.size:
+            pushed = U[idx].copy()
+            pushed[:, i] += 0.5 * np.sign(pushed[:, i])
+            cut[idx] |= np.isfinite(space.log_prior(whitening.to_x(pushed)))
+    return float(cut.mean())
+
+
+def _chain_diagnostics(sampler, burn: int, names) -> dict:
+    chain = sampler.get_chain(discard=burn)
+    tau = sampler.get_autocorr_time(discard=burn, quiet=True)
+    return {"autocorr_time_steps": dict(zip(names, map(float, tau))),
+            "acceptance_fraction": float(np.mean(sampler.acceptance_fraction)),
+            "n_draws": int(chain.shape[0] * chain.shape[1])}
