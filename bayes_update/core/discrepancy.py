@@ -45,7 +45,7 @@ from bayes_update.core.mode import ModeResult, ResidualFunction, find_mode, lapl
 from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, WithNulls, candidate_effects, evidence_table,
                       misfit_ratios)
 from bayes_update.core.calibrate import problem_for
-from bayes_update.core.model import check_model
+from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.problem import DatasetError, Problem, relative_error
 
@@ -227,9 +227,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     if unknown:
         raise ValueError(f"unknown candidate effect(s) {unknown}; {type(model).__name__} offers {sorted(effects)}")
     nulls = {p.name: p.null for ps in effects.values() for p in ps}
-    lin = dataset.by_role("linear")
-    check_model(model, (lin[0] if lin else dataset.tests[0]).force, dataset.sampling_rate_hz,
-                theta={**base.center(), **nulls})
+    check_model_on(model, dataset, theta={**base.center(), **nulls})
     problem = problem_for(dataset, WithNulls(model, nulls), base, metrics)[0]
     if "nonlinear" not in problem.stages:
         raise DatasetError(f"{problem.source}: the discrepancy workflow needs the high-level test "

@@ -29,7 +29,7 @@ import numpy as np
 from bayes_update.core.parameters import Parameter, ParameterSet
 
 __all__ = ["ADAPTERS", "BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "adapter_for", "check_model",
-           "load_model"]
+           "check_model_on", "load_model"]
 
 
 @runtime_checkable
@@ -166,3 +166,12 @@ def check_model(model, force: np.ndarray, fs: float, n_sensors: int = 1, theta: 
         raise ModelSpecError(f"{kind}.simulate returned {int(np.sum(~np.isfinite(y)))} non-finite value(s) at "
                              f"theta = {theta}; raise an exception where the model cannot run instead")
     return space
+
+
+def check_model_on(model, dataset, theta: Mapping | None = None) -> ParameterSet:
+    """:func:`check_model` on a data set: one run on the force of its linear test
+    (else its first), at its sampling rate, against the number of sensors it
+    declares."""
+    lin = dataset.by_role("linear")
+    force = (lin[0] if lin else dataset.tests[0]).force
+    return check_model(model, force, dataset.sampling_rate_hz, n_sensors=len(dataset.sensors), theta=theta)

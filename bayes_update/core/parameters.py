@@ -143,7 +143,9 @@ class ParameterSet:
         x = np.asarray(x, float)
         if self._transform is not None:
             return {k: float(v) for k, v in self._transform.from_internal(x).items()}
-        return self.theta(np.where(self.is_log, np.exp(x), x))
+        t = x.copy()
+        t[self.is_log] = np.exp(x[self.is_log])     # exp of the log-scale coordinates only: no overflow elsewhere
+        return self.theta(t)
 
     def _log_jacobian(self, x: np.ndarray) -> float:
         if self._transform is not None:

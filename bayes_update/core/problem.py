@@ -330,14 +330,21 @@ class Problem:
 
     def prediction_errors(self, params, model=None) -> dict:
         """Direct output error of the model on every validation test:
-        ``{test name: ||y - y_model|| / ||y||}`` (record means removed);
-        NaN with the model's message where it cannot run."""
+        ``{test name: ||y - y_model|| / ||y||}`` (record means removed; several
+        sensors: the rms over the sensors of each one's relative error, so that
+        no sensor's unit outweighs another's); NaN where the model cannot run."""
         out = {}
         for name, t in self.validation.items():
             try:
-                out[name] = relative_error(t.response, self.run(params, t.force, model=model))
+                y = self.run(params, t.force, model=model)
             except self.failures:
                 out[name] = math.nan
+                continue
+            if t.response.ndim == 1:
+                out[name] = relative_error(t.response, y)
+            else:
+                out[name] = float(np.sqrt(np.mean([relative_error(t.response[:, j], y[:, j]) ** 2
+                                                   for j in range(t.response.shape[1])])))
         return out
 
     def evaluate(self, params, stages=STAGES) -> dict:

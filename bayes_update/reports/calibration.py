@@ -33,23 +33,31 @@ def format_calibration(cal: Calibration) -> str:
     return "\n".join(lines)
 
 
-def fit_figure(cal: Calibration):
-    """Measured and calibrated responses of every test (time, and amplitude spectra)."""
+def fit_figure(cal: Calibration, sensors=None):
+    """Measured and calibrated responses of every test and sensor (time, and amplitude spectra).
+    ``sensors``: the data set's ``[(name, kind), ...]`` for the titles."""
     import matplotlib.pyplot as plt
 
     problem = cal.problem
     tests = [(st, t) for st, t in problem.tests.items()] + [("validation", t) for t in problem.validation.values()]
-    fig, axes = plt.subplots(len(tests), 2, figsize=(11, 2.6 * len(tests)), squeeze=False)
-    for (role, t), (ax_t, ax_f) in zip(tests, axes):
+    rows = []
+    for role, t in tests:
         y_mod = problem.run(cal.theta, t.force)
-        time = np.arange(t.force.size) / problem.fs
-        ax_t.plot(time, t.velocity, lw=0.6, label="measured")
+        measured = t.response if t.response.ndim == 2 else t.response[:, None]
+        model = y_mod if y_mod.ndim == 2 else y_mod[:, None]
+        for j in range(measured.shape[1]):
+            name = f", {sensors[j][0]} ({sensors[j][1]})" if sensors and measured.shape[1] > 1 else ""
+            rows.append((f"{t.name} ({role}){name}", measured[:, j], model[:, j]))
+    fig, axes = plt.subplots(len(rows), 2, figsize=(11, 2.6 * len(rows)), squeeze=False)
+    for (title, y, y_mod), (ax_t, ax_f) in zip(rows, axes):
+        time = np.arange(y.size) / problem.fs
+        ax_t.plot(time, y, lw=0.6, label="measured")
         ax_t.plot(time, y_mod, lw=0.6, alpha=0.8, label="calibrated model")
-        ax_t.set_title(f"{t.name} ({role})", fontsize=9)
+        ax_t.set_title(title, fontsize=9)
         ax_t.set_xlabel("time [s]")
-        f = np.fft.rfftfreq(t.force.size, 1.0 / problem.fs)
-        for y, lab in ((t.velocity, "measured"), (y_mod, "model"), (t.velocity - y_mod, "difference")):
-            ax_f.semilogy(f, np.abs(np.fft.rfft(y)) + 1e-300, lw=0.6, label=lab)
+        f = np.fft.rfftfreq(y.size, 1.0 / problem.fs)
+        for z, lab in ((y, "measured"), (y_mod, "model"), (y - y_mod, "difference")):
+            ax_f.semilogy(f, np.abs(np.fft.rfft(z)) + 1e-300, lw=0.6, label=lab)
         ax_f.set_xlabel("frequency [Hz]")
         ax_f.set_xlim(0, problem.fs / 2)
     axes[0, 0].legend(fontsize=8)
@@ -58,15 +66,16 @@ def fit_figure(cal: Calibration):
     return fig
 
 
-def write_calibration(cal: Calibration, out) -> Path:
-    """calibration.json, report.txt and calibration_fit.png into ``out``."""
+def write_calibration(cal: Calibration, out, sensors=None) -> Path:
+    """calibration.json, report.txt and calibration_fit.png into ``out`` (``sensors``: the
+    data set's, for the figure's titles)."""
     import matplotlib.pyplot as plt
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "calibration.json").write_text(json.dumps(cal.calibration_json(), indent=2, default=float) + "\n")
     (out / "report.txt").write_text(format_calibration(cal) + "\n")
-    fig = fit_figure(cal)
+    fig = fit_figure(cal, sensors)
     fig.savefig(out / "calibration_fit.png", dpi=110)
     plt.close(fig)
     return out

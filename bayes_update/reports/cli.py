@@ -209,7 +209,7 @@ def cmd_calibrate(args) -> int:
 
         cal = calibrate_model(data, user, metrics=args.metrics or "full", workers=args.workers,
                               n_start=16 if args.quick else 64, seed=args.seed)
-        write_calibration(cal, args.out)
+        write_calibration(cal, args.out, sensors=data.sensors)
         print(format_calibration(cal))
         print(f"wrote {args.final_out}")
         return 0

@@ -9,7 +9,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from bayes_update.core.likelihood import Likelihood, curvature_adjustment, estimate_likelihood
-from bayes_update.core.model import ModelSpecError, adapter_for, check_model
+from bayes_update.core.model import ModelSpecError, adapter_for, check_model_on
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates
 from bayes_update.core.posterior.laplace import MapResult, capped_covariance, find_map, local_box
@@ -127,8 +127,7 @@ def make_problem(dataset: Dataset, model, space=None, metrics=None):
         return adapter(dataset, model, space, metrics)
     from bayes_update.core.calibrate import problem_for
 
-    lin = dataset.by_role("linear")
-    checked = check_model(model, (lin[0] if lin else dataset.tests[0]).force, dataset.sampling_rate_hz)
+    checked = check_model_on(model, dataset)
     space = space if space is not None else checked
     return problem_for(dataset, model, space, metrics)[0], space
 
