@@ -9,7 +9,7 @@ from pathlib import Path
 
 
 
-from bayes_update.models.beam import cli as beam_cli
+from bayes_update.reports import beam_cli
 from bayes_update.core import ModelError
 from bayes_update.data.dataset import DatasetError, read_dataset
 

@@ -371,7 +371,7 @@ def format_tables(result: CalibrationResult) -> str:
 
 def write_result(result: CalibrationResult, dataset: Dataset, out) -> Path:
     """Write tables (CSV), figures (PNG), calibration.json and report.txt to ``out``."""
-    from bayes_update import plots
+    from bayes_update.reports import plots
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
