@@ -1,7 +1,8 @@
-"""One line describing the machine, for benchmark reports."""
+"""One line describing the machine, and the timer, for benchmark reports."""
 
 import os
 import platform
+import time
 
 
 def machine() -> str:
@@ -15,3 +16,14 @@ def machine() -> str:
     except OSError:
         pass
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, {platform.system()}"
+
+
+def median_time(fn, repeats=7) -> float:
+    """Median wall time [s] of ``repeats`` calls of ``fn`` after one warm-up call."""
+    fn()
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t)
+    return sorted(times)[len(times) // 2]

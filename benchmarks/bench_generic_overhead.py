@@ -18,29 +18,19 @@ so (evaluations being almost all of it) per ``sample``.
 """
 
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).parent))
-from _machine import machine  # noqa: E402
+from _machine import machine, median_time  # noqa: E402
 
 import fe  # noqa: E402
 from bayes_update.core.posterior import Evaluate, make_problem  # noqa: E402
 from bayes_update.models.beam.rig import rig_of  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
 
-
-def median_time(fn, repeats=9):
-    fn()
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return float(np.median(times))
 
 
 def main():
@@ -74,8 +64,8 @@ def main():
         a, b = by_hand(), framework()
         assert all(abs(a[st] - b["e_lin" if st == "linear" else "e_nlin"]) < 1e-12 for st in stages), (a, b)
         with threadpool_limits(1):
-            t_hand = median_time(by_hand)
-            t_frame = median_time(framework)
+            t_hand = median_time(by_hand, repeats=9)
+            t_frame = median_time(framework, repeats=9)
         print(f"{name:>6} {1e3 * t_hand:>14.2f} {1e3 * t_frame:>15.2f} {100 * (t_frame / t_hand - 1):>8.1f} %")
 
 

@@ -42,8 +42,8 @@ import numpy as np
 
 from surrogates.evaluation import default_executor
 from bayes_update.core.mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
-from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, WithNulls, candidate_effects, evidence_table,
-                      misfit_ratios)
+from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
+                                       candidate_effects, evidence_table, misfit_ratios)
 from bayes_update.core.calibrate import problem_for
 from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
@@ -157,7 +157,7 @@ def _gap(fit: Fit, dataset, model) -> dict:
 
 
 @dataclass
-class DiscrepancyResult:
+class DiscrepancyResult(NamingVerdict):
     named: list                  # effect names, in the order they were named
     rounds: list                 # per round: {"base": [...], "candidates": [...]} (JSON-ready)
     baseline: Fit
@@ -174,26 +174,8 @@ class DiscrepancyResult:
     tentative: list = field(default_factory=list)
     gap_with_tentative: dict | None = None
 
-    @property
-    def named_effect(self):
-        return self.named[0] if self.named else None
-
-    @property
-    def verdict(self) -> str:
-        """"named", "no missing effect" or "no candidate explains the gap"."""
-        if self.named:
-            return "named"
-        return "no missing effect" if self.explains_gap else "no candidate explains the gap"
-
     def to_json(self) -> dict:
-        return {"named_effect": self.named_effect, "named_effects": list(self.named),
-                "verdict": self.verdict, "explains_gap": bool(self.explains_gap),
-                "misfit_ratio": self.misfit_ratio, "explained_factor": EXPLAINED_FACTOR,
-                "tentative_effects": list(self.tentative), "gap_with_tentative": self.gap_with_tentative,
-                "decision_rule": f"2 ln B > {DECISIVE:g} against the model without it, and the effect's "
-                                 "mode more than 2 Laplace sd from its null value; the named effects must "
-                                 f"bring e_lin and e_nlin within {EXPLAINED_FACTOR:g} x sqrt(noise mean "
-                                 "square + unabsorbed model error^2), else none is named",
+        return {**self.decision_json(),
                 "candidate_effects": {e: {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
                                                    "null": p.null} for p in ps} for e, ps in self.effects.items()},
                 "candidates": self.rounds[0]["candidates"] if self.rounds else [],

@@ -222,3 +222,31 @@ def evidence_table(res) -> str:
                  "and model error allow)")
     lines.append(f"Verdict: {res.verdict}; misfit over what noise and model error allow: {ratios}")
     return "\n".join(lines)
+
+
+class NamingVerdict:
+    """What every discrepancy result says about naming (the beam's and the generic
+    engine's): a dataclass with ``named``, ``explains_gap``, ``misfit_ratio``,
+    ``tentative`` and ``gap_with_tentative`` inherits these."""
+
+    @property
+    def named_effect(self):
+        return self.named[0] if self.named else None
+
+    @property
+    def verdict(self) -> str:
+        """"named", "no missing effect" (the baseline explains the data) or
+        "no candidate explains the gap"."""
+        if self.named:
+            return "named"
+        return "no missing effect" if self.explains_gap else "no candidate explains the gap"
+
+    def decision_json(self) -> dict:
+        return {"named_effect": self.named_effect, "named_effects": list(self.named),
+                "verdict": self.verdict, "explains_gap": bool(self.explains_gap),
+                "misfit_ratio": self.misfit_ratio, "explained_factor": EXPLAINED_FACTOR,
+                "tentative_effects": list(self.tentative), "gap_with_tentative": self.gap_with_tentative,
+                "decision_rule": f"2 ln B > {DECISIVE:g} against the model without it, and the effect's "
+                                 "mode more than 2 Laplace sd from its null value; the named effects must "
+                                 f"bring e_lin and e_nlin within {EXPLAINED_FACTOR:g} x sqrt(noise mean "
+                                 "square + unabsorbed model error^2), else none is named"}

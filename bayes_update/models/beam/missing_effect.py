@@ -55,8 +55,8 @@ import fe
 
 from bayes_update.models.beam.rig import rig_of
 # the naming rules, shared with the generic engine (bayes_update.core.discrepancy)
-from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, evidence_table, misfit_allowance,  # noqa: F401
-                           misfit_ratios)
+from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, NamingVerdict, evidence_table,  # noqa: F401
+                                       misfit_allowance, misfit_ratios)
 from bayes_update.data.dataset import Dataset
 from surrogates.evaluation import default_executor
 from bayes_update.models.beam.space import NAMES, UNITS, ParameterSpace
@@ -268,7 +268,7 @@ def _excludes_null(fit: Fit, cand: Candidate) -> bool:
 
 
 @dataclass
-class DiscrepancyResult:
+class DiscrepancyResult(NamingVerdict):
     named: list                  # candidate names, in the order they were named
     rounds: list                 # per round: {"base": [...], "candidates": [...]} (JSON-ready)
     baseline: Fit
@@ -287,27 +287,8 @@ class DiscrepancyResult:
     tentative: list = field(default_factory=list)      # decisive by evidence, but did not explain the gap
     gap_with_tentative: dict | None = None             # the gap the tentative effects would have left
 
-    @property
-    def named_effect(self):
-        return self.named[0] if self.named else None
-
-    @property
-    def verdict(self) -> str:
-        """"named", "no missing effect" (the baseline explains the data) or
-        "no candidate explains the gap"."""
-        if self.named:
-            return "named"
-        return "no missing effect" if self.explains_gap else "no candidate explains the gap"
-
     def to_json(self) -> dict:
-        return {"named_effect": self.named_effect, "named_effects": list(self.named),
-                "verdict": self.verdict, "explains_gap": bool(self.explains_gap),
-                "misfit_ratio": self.misfit_ratio, "explained_factor": EXPLAINED_FACTOR,
-                "tentative_effects": list(self.tentative), "gap_with_tentative": self.gap_with_tentative,
-                "decision_rule": f"2 ln B > {DECISIVE:g} against the model without it, and the effect's "
-                                 "mode more than 2 Laplace sd from its null value; the named effects must "
-                                 f"bring e_lin and e_nlin within {EXPLAINED_FACTOR:g} x sqrt(noise mean "
-                                 "square + unabsorbed model error^2), else none is named",
+        return {**self.decision_json(),
                 "candidates": self.rounds[0]["candidates"] if self.rounds else [],
                 "rounds": self.rounds,
                 "gap_before": self.gap_before, "gap_after": self.gap_after,
