@@ -100,6 +100,7 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     _check_explains(res)
 
 
+@pytest.mark.slow      # the suite's time; test_cli_discrepancy_writes_the_decision_and_the_evidence runs start=None too
 def test_the_real_baseline_search_from_no_start_names_the_bow():
     """start=None: the deterministic start on coarse grids, the likelihood
     scales there, then least squares from it and from the band starts."""
