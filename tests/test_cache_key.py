@@ -10,7 +10,7 @@ import numpy as np
 
 import fe
 from bayes_update.models.beam.rig import rig_of
-from bayes_update.data.dataset import read_dataset, write_dataset
+from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.space import ParameterSpace
 from bayes_update.models.beam.problem import UpdatingProblem
 from bayes_update.core.posterior import Evaluate

@@ -14,7 +14,8 @@ import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.calibrate import parabola_vertex, parameters_from, preload_for_frequency
 from bayes_update.reports.cli import main
-from bayes_update.data.dataset import DatasetError, read_dataset
+from bayes_update.data.dataset import DatasetError
+from bayes_update.data.folder import read_dataset
 from surrogates.evaluation import default_executor, evaluate_many
 from bayes_update.models.beam.problem import UpdatingProblem
 from bayes_update.core.problem import relative_error

@@ -7,20 +7,8 @@ import numpy as np
 import pytest
 
 from bayes_update.models.beam.rig import rig_of
-from bayes_update.data.dataset import (
-    Dataset,
-    DatasetError,
-    LengthMismatchError,
-    MissingColumnError,
-    NonFiniteError,
-    NonIncreasingTimeError,
-    NonUniformTimeError,
-    Record,
-    SamplingRateError,
-    UnknownRoleError,
-    read_dataset,
-    write_dataset,
-)
+from bayes_update.data.dataset import Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, NonIncreasingTimeError, NonUniformTimeError, Record, SamplingRateError, UnknownRoleError
+from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.data.uff import read_uff, write_uff
 from fe import Rig
 

@@ -8,16 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from bayes_update.data.dataset import (
-    Dataset,
-    DatasetError,
-    MissingColumnError,
-    Record,
-    SensorError,
-    UnknownResponseError,
-    read_dataset,
-    write_dataset,
-)
+from bayes_update.data.dataset import Dataset, DatasetError, MissingColumnError, Record, SensorError, UnknownResponseError
+from bayes_update.data.folder import read_dataset, write_dataset
 
 FS = 2000.0
 N = 400

@@ -42,7 +42,7 @@ def test_the_example_model_is_right():
 
 
 def test_the_example_runs(tmp_path):
-    from bayes_update.data.dataset import write_dataset
+    from bayes_update.data.folder import write_dataset
     from test_user_model import make_dataset
 
     model_code, use_code = _blocks("python")[:2]

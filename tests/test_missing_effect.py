@@ -234,7 +234,7 @@ def hidden_bow_dataset(tmp_path_factory):
 
 
 def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
-    from bayes_update.data.dataset import read_dataset
+    from bayes_update.data.folder import read_dataset
     from bayes_update.models.beam.virtual_rig import HIDDEN_EFFECT_RANGES, load_default_dataset
 
     a, b = (json.loads((hidden_bow_dataset / n / "dataset.json").read_text()) for n in ("a", "b"))

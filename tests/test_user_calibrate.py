@@ -218,7 +218,7 @@ def test_cli_calibrate_with_a_model_from_a_file(tmp_path, gain_data):
     import subprocess
     import sys
 
-    from bayes_update.data.dataset import write_dataset
+    from bayes_update.data.folder import write_dataset
 
     ds, _ = gain_data
     write_dataset(ds, tmp_path / "data")

@@ -117,7 +117,7 @@ def test_posterior_of_a_user_model_covers_the_truth(data, free):
 
 
 def test_cli_sample_with_a_model_from_a_file(tmp_path, data):
-    from bayes_update.data.dataset import write_dataset
+    from bayes_update.data.folder import write_dataset
 
     write_dataset(data, tmp_path / "data")
     out = tmp_path / "out"
@@ -134,7 +134,7 @@ def test_cli_sample_with_a_model_from_a_file(tmp_path, data):
 
 
 def test_cli_refuses_a_broken_model_before_heavy_work(tmp_path, data):
-    from bayes_update.data.dataset import write_dataset
+    from bayes_update.data.folder import write_dataset
 
     write_dataset(data, tmp_path / "data")
     bad = tmp_path / "bad.py"

@@ -116,7 +116,7 @@ def test_a_model_with_the_wrong_number_of_sensors_is_refused(data):
 
 
 def test_cli_calibrate_reads_the_sensors_from_dataset_json(tmp_path, data):
-    from bayes_update.data.dataset import write_dataset
+    from bayes_update.data.folder import write_dataset
 
     write_dataset(data, tmp_path / "data")
     meta = json.loads((tmp_path / "data" / "dataset.json").read_text())

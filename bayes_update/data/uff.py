@@ -60,20 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayes_update.data.dataset import (
-    ROLES,
-    Dataset,
-    DatasetError,
-    LengthMismatchError,
-    MissingColumnError,
-    NonFiniteError,
-    Record,
-    SamplingRateError,
-    SensorError,
-    UnknownRoleError,
-    _is_single_velocity,
-    check_time,
-)
+from bayes_update.data.dataset import ROLES, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SamplingRateError, SensorError, UnknownRoleError, _is_single_velocity, check_time
 
 FORCE_TYPE = 13  # UFF specific data type: excitation force
 VELOCITY_TYPE = 11  # UFF specific data type: velocity
@@ -234,7 +221,7 @@ def read_uff_test(path, fs: float | None = None, load_case=None):
 
     The file must hold exactly one test (one load case) unless ``load_case``
     selects one.  ``fs`` [Hz]: the declared sampling rate (checked).  Used by
-    :func:`bayes_update.data.dataset.read_dataset` for ``.uff``/``.unv`` test files.
+    :func:`bayes_update.data.folder.read_dataset` for ``.uff``/``.unv`` test files.
     """
     path = Path(path)
     groups = _group_tests(path, fs)

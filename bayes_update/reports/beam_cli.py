@@ -14,7 +14,8 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from bayes_update.data import signals
-from bayes_update.data.dataset import Dataset, Record, read_dataset, write_dataset
+from bayes_update.data.dataset import Dataset, Record
+from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.rig import rig_of
 
 #: what a beam run raises where the point cannot be run (the CLI reports it in one line)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from bayes_update.reports import beam_cli
 from bayes_update.core import ModelError
-from bayes_update.data.dataset import DatasetError, read_dataset
+from bayes_update.data.dataset import DatasetError
+from bayes_update.data.folder import read_dataset
 
 
 

@@ -60,7 +60,8 @@ from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from bayes_update.data import signals
 from bayes_update.models.beam.rig import rig_of
-from bayes_update.data.dataset import Dataset, Record, read_dataset, write_dataset
+from bayes_update.data.dataset import Dataset, Record
+from bayes_update.data.folder import read_dataset, write_dataset
 
 PAPER_EQUIVALENT_RIG = fe.Rig(bending_stiffness_factor=1.24)
 """The rig of the embedded data set: the paper's geometry with EI x 1.24."""
