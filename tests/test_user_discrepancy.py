@@ -193,6 +193,7 @@ def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
     assert {"candidates", "gap_before", "gap_after", "misfit_ratio", "tentative_effects"} <= set(doc)
     assert doc["gap_after"]["e_nlin"] <= 0.5 * doc["gap_before"]["e_nlin"]
     assert "Named: **k2**" in (out / "evidence.md").read_text()
+    assert (out / "gap_before_after.png").stat().st_size > 20_000
     # a model without candidate_effects(): one line saying what to add, nothing written
     res = subprocess.run([sys.executable, "-m", "bayes_update", "discrepancy", "--model",
                           f"{__file__}:_NoCandidates", "--data", str(tmp_path / "data"), "--out",

@@ -47,7 +47,7 @@ from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace
 from bayes_update.core.calibrate import problem_for
 from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.problem import DatasetError, Problem, relative_error
+from bayes_update.core.problem import DatasetError, Problem
 
 __all__ = ["DiscrepancySettings", "DiscrepancyResult", "find_discrepancy", "write_discrepancy"]
 
@@ -136,20 +136,11 @@ def _excludes_null(fit: Fit, k: int) -> bool:
     return bool(np.any(np.abs(x - fit.space.null_internal()[-k:]) > 2.0 * sd))
 
 
-def validation_errors(dataset, model, theta) -> dict:
-    """{validation test: ||y - y_model|| / ||y||}, record means removed from force and response."""
-    out = {}
-    for t in dataset.by_role("validation"):
-        f, y = np.array(t.force, float), np.array(t.velocity, float)
-        y_mod = np.asarray(model.simulate(theta, f - f.mean(), dataset.sampling_rate_hz), float).reshape(y.shape)
-        out[t.name] = relative_error(y - y.mean(), y_mod)
-    return out
-
-
-def _gap(fit: Fit, dataset, model) -> dict:
+def _gap(fit: Fit, problem: Problem) -> dict:
+    """e_lin, e_nlin and the direct output error on each validation test at ``fit``'s mode."""
     out = {"e_lin": fit.metrics["e_lin"], "e_nlin": fit.metrics["e_nlin"],
            "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"]}
-    val = validation_errors(dataset, model, fit.theta)
+    val = problem.prediction_errors(fit.theta)
     if val:
         out["validation"] = float(np.mean(list(val.values())))
         out["validation_tests"] = {k: {"rel_l2": v} for k, v in val.items()}
@@ -173,6 +164,7 @@ class DiscrepancyResult(NamingVerdict):
     misfit_ratio: dict = field(default_factory=dict)
     tentative: list = field(default_factory=list)
     gap_with_tentative: dict | None = None
+    problem: Problem | None = field(default=None, repr=False)    # for the figures
 
     def to_json(self) -> dict:
         return {**self.decision_json(),
@@ -290,9 +282,9 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             final, final_lik = baseline, lik
         # gap before and after -----------------------------------------------------------
         t0 = time.perf_counter()
-        gap_before = _gap(baseline, dataset, problem.model)
-        gap_after = _gap(final, dataset, problem.model) if named else gap_before
-        gap_tentative = _gap(tentative_fit, dataset, problem.model) if tentative_fit is not None else None
+        gap_before = _gap(baseline, problem)
+        gap_after = _gap(final, problem) if named else gap_before
+        gap_tentative = _gap(tentative_fit, problem) if tentative_fit is not None else None
         timing["gap"] = time.perf_counter() - t0
     finally:
         if own_pool:
@@ -302,7 +294,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
                              final_likelihood=final_lik, gap_before=gap_before, gap_after=gap_after,
                              effects={e: effects[e] for e in names}, start=start, timing=timing,
                              explains_gap=explains, misfit_ratio=misfit, tentative=tentative,
-                             gap_with_tentative=gap_tentative)
+                             gap_with_tentative=gap_tentative, problem=problem)
 
 
 def format_result(res: DiscrepancyResult) -> str:

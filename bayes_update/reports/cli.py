@@ -348,6 +348,13 @@ def _discrepancy_of_user_model(args, model) -> int:
                            metrics=args.metrics)
     truth = data.extra.get("truth")
     write_discrepancy(res, args.out, truth=truth if isinstance(truth, dict) else None)
+    import matplotlib.pyplot as plt
+
+    from bayes_update.reports.discrepancy import gap_figure
+
+    fig = gap_figure(res)
+    fig.savefig(Path(args.out) / "gap_before_after.png", dpi=110)
+    plt.close(fig)
     print(format_result(res))
     print(f"time: {res.timing['total']:.0f} s; wrote {args.final_out}")
     return 0
