@@ -26,7 +26,8 @@ import numpy as np
 import fe
 
 from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables, write_result
+from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
+from bayes_update.reports.beam_calibration import write_result
 from bayes_update.models.beam.space import ParameterSpace
 from bayes_update.core.posterior import PosteriorSettings, sample
 from bayes_update.reports.posterior import format_summary, write_posterior

@@ -197,7 +197,8 @@ def build_parser() -> argparse.ArgumentParser:
 def cmd_calibrate(args) -> int:
     import dataclasses
 
-    from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables, write_result
+    from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
+    from bayes_update.reports.beam_calibration import write_result
     from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     if args.workers is not None and args.workers < 1:
