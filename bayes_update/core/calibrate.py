@@ -191,6 +191,7 @@ def problem_for(dataset, model, space, metrics=None, executor=None) -> tuple[Pro
         n_functions = linear_n_functions(len(names))
         if n_functions != DEFAULT_N_FUNCTIONS:
             problem = Problem(dataset, model, n_functions=n_functions, metrics=problem.metrics)
+    problem.linear_parameters = tuple(names)      # the start search reuses the screen
     return problem, names, sens, runs
 
 

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from surrogates.evaluation import default_executor
-from bayes_update.core.mode import ModeResult, ResidualFunction, find_mode, laplace_log_evidence
+from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
 from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
                                        candidate_effects, evidence_table, misfit_ratios)
 from bayes_update.core.calibrate import problem_for
@@ -66,17 +66,6 @@ class DiscrepancySettings:
         base = dict(n_replicates=8, max_iterations=30)
         base.update(kw)
         return cls(**base)
-
-
-@dataclass
-class _PointMap:
-    """Picklable ``x -> (model, theta)`` of an :class:`ExtendedSpace`."""
-
-    space: ExtendedSpace
-    model: object
-
-    def __call__(self, x):
-        return self.model, self.space.to_parameters(x)
 
 
 @dataclass
@@ -108,7 +97,7 @@ class Fit:
 def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None) -> Fit:
     """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``."""
     stages = problem.stages
-    fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), _PointMap(space, problem.model))
+    fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
     box = space.box()
     lo, hi = box[:, 0], box[:, 1]
     mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations)

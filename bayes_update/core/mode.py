@@ -34,6 +34,18 @@ FAILED_RESIDUAL = 1e3
 
 
 @dataclass
+class SpacePoint:
+    """Picklable point map ``x -> (model, space.to_parameters(x))``: the internal
+    coordinates of a parameter space, on a fixed model (None: the problem's)."""
+
+    space: object
+    model: object = None
+
+    def __call__(self, x):
+        return self.model, self.space.to_parameters(x)
+
+
+@dataclass
 class ResidualFunction:
     """Picklable ``x -> r(x)``: the stages' scaled residual vectors, concatenated.
 

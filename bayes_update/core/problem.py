@@ -165,6 +165,9 @@ class Problem:
     remove_offsets: bool = True
     #: metric set when none is given (module docstring)
     default_metrics: str = "full"
+    #: names of the parameters the linear test moves, once a screen has found them
+    #: (:func:`bayes_update.core.calibrate.problem_for`); None before
+    linear_parameters: tuple | None = None
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None):
         if not hasattr(model, "simulate"):

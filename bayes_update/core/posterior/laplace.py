@@ -21,17 +21,6 @@ class MapResult:
     mode: object = field(default=None, repr=False)
 
 
-@dataclass
-class _BaseMap:
-    """Picklable ``x -> (model, parameters)`` of the baseline model."""
-
-    space: ParameterSet
-    model: object
-
-    def __call__(self, x):
-        return self.model, self.space.to_parameters(x)
-
-
 def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
              progress: bool = False) -> MapResult:
     """MAP by least squares on the residual vectors (:mod:`bayes_update.core.mode`)
@@ -42,12 +31,12 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     nonlinear misfit can have more than one valley).  The uniform prior's
     density (K_b + k_s) / K_b in these coordinates varies by < 1 % over the
     posterior and is left out of the mode, kept in ``value``."""
-    from bayes_update.core.mode import ResidualFunction, find_mode
+    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode
 
     space = evaluate.space
     stages = tuple(evaluate.stages)
     fun = ResidualFunction(evaluate.problem, stages, tuple(lik.scales[s].sd for s in stages),
-                           _BaseMap(space, evaluate.problem.model))
+                           SpacePoint(space, evaluate.problem.model))
     box = space.box()
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])

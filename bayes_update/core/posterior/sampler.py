@@ -141,7 +141,9 @@ def default_start(dataset, problem, space, pool, n_points: int, seed, progress, 
     from bayes_update.core.calibrate import screen_linear, two_stage
 
     log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
-    names, _, runs = screen_linear(problem, space, pool)
+    names, runs = getattr(problem, "linear_parameters", None), 0
+    if names is None:
+        names, _, runs = screen_linear(problem, space, pool)
     found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=pool, progress=progress)
     return space.to_parameters(found.x), runs + found.n_model_runs
 
