@@ -322,6 +322,8 @@ def strip_modes(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, preload
                 n_modes: int = 1) -> np.ndarray:
     """Frequencies [Hz] of the lowest through-thickness bending modes under axial load.
 
+    Parameters
+    ----------
     rig : geometry and material (E, nu, rho; ``bending_stiffness_factor`` is ignored).
     mesh : (nx, ny, nz) elements along length, width, thickness (uniform), or three
         increasing node arrays [m] spanning the strip.

@@ -165,7 +165,7 @@ class AmplitudeDependentDamping(Effect):
 
     * ``"coulomb"``: f = friction_force tanh(v / velocity_scale), a Coulomb
       friction regularised below ``velocity_scale`` [m/s];
-    * ``"quadratic"``: f = coefficient |v| v, a quadratic (turbulent-like)
+    * ``"quadratic"``: ``f = coefficient |v| v``, a quadratic (turbulent-like)
       damper, ``coefficient`` [N s^2/m^2].
 
     Signature in the data: nothing at the low level (the top hardly moves);

@@ -84,7 +84,7 @@ class DiscreteElement:
     """A spring, damper or friction element from one dof to ground.
 
     law: 'spring' (f = p1 u), 'damper' (f = p1 v), 'quadratic_damper'
-    (f = p1 |v| v) or 'coulomb' (f = p1 tanh(v / p2)); p1, p2 in SI.
+    (``f = p1 |v| v``) or 'coulomb' (f = p1 tanh(v / p2)); p1, p2 in SI.
     """
 
     dof: int
@@ -244,7 +244,7 @@ class BeamModel:
     input_interpolation : the force between samples, ``"bandlimited"``
         (default) or ``"linear"`` (see :mod:`fe.excitation`).
     newton_rtol : Newton tolerance on the residual, relative to
-        F + max |shaker force| [-] (plus a floor at the round-off of the
+        ``F + max |shaker force|`` [-] (plus a floor at the round-off of the
         internal forces, 8 eps EA L / L_element).
     """
 

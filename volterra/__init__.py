@@ -3,6 +3,8 @@
 Turns an input/output record into kernels, a constant h0 and the components
 y1, y2, y3 (paper eq. 11-19).  Knows nothing about beams.
 
+::
+
     basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=1024.0,
                                   n_functions=(2, 2, 6))
     model = fit_volterra(u, y, basis, ridge=0.0)   # or lists of records

@@ -156,7 +156,7 @@ class KautzPole:
 
     @property
     def b(self) -> float:
-        """Kautz parameter ``b = (Z + conj Z) / (1 + Z conj Z)`` (real, |b| < 1)."""
+        """Kautz parameter ``b = (Z + conj Z) / (1 + Z conj Z)`` (real, ``|b| < 1``)."""
         z = self.z
         return float((2.0 * z.real) / (1.0 + abs(z) ** 2))
 

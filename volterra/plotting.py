@@ -62,7 +62,7 @@ def plot_h1(model, f_hz=None, reference=None, reference_label="reference", title
 
 def plot_h2(model, f_range=None, n_points: int = 161, kind: str = "surface", title=None,
             figsize=(7, 6)) -> Figure:
-    """|H2(f1, f2)| over ``f_range`` x ``f_range`` [Hz] (default: -2 .. 2 x the
+    """``|H2(f1, f2)|`` over ``f_range`` x ``f_range`` [Hz] (default: -2 .. 2 x the
     order-2 pole frequency, so that the reliable (f, -f) region is visible), as
     a 3-D surface (``kind="surface"``) or a colour map (``kind="map"``).
     Values near f1 + f2 = +-fn are not representable (see volterra.model)."""

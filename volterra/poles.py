@@ -139,7 +139,7 @@ def pole_from_frf(u, y, fs: float, f_range=None, nperseg: int | None = None, win
     """Pole from the peak and half-power width of an averaged H1 FRF estimate.
 
     ``fn = f_peak``, ``zeta = (f_hi - f_lo) / (2 f_peak)`` where f_lo, f_hi are
-    the half-power points (|H|^2 = |H_peak|^2 / 2).  Exact for the mobility
+    the half-power points (``|H|^2 = |H_peak|^2 / 2``).  Exact for the mobility
     (velocity output) of a single mode; for displacement output the peak is at
     ``fn sqrt(1 - 2 zeta^2)`` (negligible at light damping).  Each record's
     mean is removed first.  The window and the segment length broaden the

@@ -247,6 +247,8 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
                     progress: bool = True, log=print) -> Calibration:
     """The two-stage calibration of the module docstring.
 
+    Parameters
+    ----------
     dataset : tests with roles ``linear`` and ``nonlinear`` (and optionally
         ``validation``, for :attr:`Calibration.prediction_errors`).
     model : a model of the contract (checked with one run first).

@@ -174,6 +174,8 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     with ``candidate_effects()``) on ``dataset`` (tests with roles ``linear``,
     ``nonlinear`` and optionally ``validation``).
 
+    Parameters
+    ----------
     start : {name: value} of the model's parameters (default: the best of
         ``settings.n_start`` Sobol' points over the prior).
     candidates : effect names to consider (default: all the model offers).

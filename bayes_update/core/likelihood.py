@@ -1,7 +1,7 @@
 """The likelihood of a model's parameters given its metrics e_lin and e_nlin.
 
 Derivation (docs/likelihood.md has the long form)
-------------------------------------------------
+-------------------------------------------------
 Each metric compares Volterra components of the measured and the simulated
 velocity projected on the same regressors: ``e = ||Phi (theta_ref -
 theta_mod(x))|| / ||y_ref||``, where ``Phi`` holds the p regressors of the
@@ -302,6 +302,8 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
                          clip: float = 16.0, names=()) -> CurvatureAdjustment | None:
     """The :class:`CurvatureAdjustment` at the mode ``center``.
 
+    Parameters
+    ----------
     jacobian : (n, d) derivative of the stages' scaled residual vectors,
         concatenated in ``stages`` order (:class:`bayes_update.core.mode.ModeResult`).
     widths : the prior box's widths; one unit of information per width^2 is

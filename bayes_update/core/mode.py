@@ -141,6 +141,8 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
               max_iterations: int = 40) -> ModeResult:
     """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
 
+    Parameters
+    ----------
     steps : finite-difference step per coordinate (same units as x), about a
         thousandth of the prior width (smaller for a coordinate pinned
         tightly, such as P_eff).

@@ -27,6 +27,8 @@ __all__ = ["Parameter", "ParameterSet"]
 class Parameter:
     """One uncertain parameter of a model.
 
+    Parameters
+    ----------
     name : a Python identifier (the key in ``theta``).
     low, high : the prior's bounds, in ``unit`` (finite, low < high).
     unit : free text shown in tables and plots (e.g. ``"N/mm"``).
@@ -71,7 +73,7 @@ class ParameterSet:
     parameters : the declared :class:`Parameter` objects (names unique).
     model : optional object with ``to_internal(theta) -> x``,
         ``from_internal(x) -> theta`` and ``log_jacobian(x)`` =
-        log |det d theta / d x| (a bijection on the prior box). Without it,
+        ``log |det d theta / d x|`` (a bijection on the prior box). Without it,
         x is theta, with log-scale parameters in natural log.
 
     Arrays ``X`` of shape (n, d) or (d,) hold internal coordinates in the

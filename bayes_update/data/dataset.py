@@ -23,34 +23,36 @@ integrates or differentiates.
 On disk: :mod:`bayes_update.data.folder` (the folder format, a public
 contract) and :mod:`bayes_update.data.uff`.
 
-Errors (all subclasses of :class:`DatasetError`, itself a ``ValueError``; the
+Errors
+------
+(all subclasses of :class:`DatasetError`, itself a ``ValueError``; the
 message always names the file and what is wrong)
---------------------------------------------------------------------------
-=========================  ===================================================
-:class:`MissingColumnError`  a CSV lacks ``time``, ``force`` or a sensor's
-                             column (or a UFF test lacks its force/velocity
-                             record)
-:class:`LengthMismatchError` a CSV row has a different number of values than
-                             the header, or channels of a record differ in
-                             length
-:class:`NonFiniteError`      NaN or inf in a column (the line is named)
-:class:`NonIncreasingTimeError` time not strictly increasing (line named)
-:class:`NonUniformTimeError` time steps differ by more than 1 % (line named)
-:class:`SamplingRateError`   the time column disagrees with
-                             ``sampling_rate_hz`` (by more than 1 % of a
-                             sample period anywhere in the record)
-:class:`UnknownRoleError`    a test's role is not one of :data:`ROLES`
-:class:`UnknownResponseError` a response kind is not one of
-                             :data:`RESPONSE_KINDS`
-:class:`SensorError`         a bad ``sensors`` block: duplicate or invalid
-                             names, a sensor's kind contradicting the
-                             top-level ``response``; also
-                             :attr:`Record.velocity` on a data set whose
-                             response is not a single velocity
-:class:`DatasetError`        anything else (missing file, bad JSON,
-                             unparsable number, ...); a bad ``rig`` block is
-                             reported by :func:`bayes_update.models.beam.rig.rig_of`
-=========================  ===================================================
+
+===============================  ===================================================
+:class:`MissingColumnError`      a CSV lacks ``time``, ``force`` or a sensor's
+                                 column (or a UFF test lacks its force/velocity
+                                 record)
+:class:`LengthMismatchError`     a CSV row has a different number of values than
+                                 the header, or channels of a record differ in
+                                 length
+:class:`NonFiniteError`          NaN or inf in a column (the line is named)
+:class:`NonIncreasingTimeError`  time not strictly increasing (line named)
+:class:`NonUniformTimeError`     time steps differ by more than 1 % (line named)
+:class:`SamplingRateError`       the time column disagrees with
+                                 ``sampling_rate_hz`` (by more than 1 % of a
+                                 sample period anywhere in the record)
+:class:`UnknownRoleError`        a test's role is not one of :data:`ROLES`
+:class:`UnknownResponseError`    a response kind is not one of
+                                 :data:`RESPONSE_KINDS`
+:class:`SensorError`             a bad ``sensors`` block: duplicate or invalid
+                                 names, a sensor's kind contradicting the
+                                 top-level ``response``; also
+                                 :attr:`Record.velocity` on a data set whose
+                                 response is not a single velocity
+:class:`DatasetError`            anything else (missing file, bad JSON,
+                                 unparsable number, ...); a bad ``rig`` block is
+                                 reported by :func:`bayes_update.models.beam.rig.rig_of`
+===============================  ===================================================
 
 The readers never resample, interpolate or reorder: data that do not meet
 the format are refused with one of these errors.

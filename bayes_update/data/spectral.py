@@ -1,7 +1,7 @@
 """Signal processing of the paper: H1 FRF estimate, magnitude-squared coherence, PSD.
 
 All estimators are Welch/CSD averages (``scipy.signal.csd`` and ``welch``,
-one-sided, density scaling):
+one-sided, density scaling)::
 
     H1(f) = S_uy(f) / S_uu(f),    gamma^2(f) = |S_uy|^2 / (S_uu S_yy)
 

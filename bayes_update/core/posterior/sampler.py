@@ -72,6 +72,8 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
            metrics: str | None = None, progress: bool = True, log=print) -> PosteriorResult:
     """Sample the posterior of a model's parameters given ``dataset`` (module docstring).
 
+    Parameters
+    ----------
     model : the updating model: any model of the contract
         (:mod:`bayes_update.core.model`: declared ``parameters`` and
         ``simulate(theta, force, fs)``), or the beam (``fe.BeamModel``, the

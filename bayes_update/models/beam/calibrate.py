@@ -157,6 +157,8 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
               progress: bool = True, log=print) -> CalibrationResult:
     """Run the two-stage updating on ``dataset`` (see the module docstring).
 
+    Parameters
+    ----------
     model : a model of the rig (default ``fe.BeamModel(rig=rig_of(dataset))``).
     executor : any ``concurrent.futures.Executor`` for the grids; default a
         local process pool over ``workers`` processes (all cores); ``workers=1``

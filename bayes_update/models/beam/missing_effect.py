@@ -357,6 +357,8 @@ def find_missing_effect(dataset: Dataset, model=None, *, space: ParameterSpace |
                         progress: bool = True, log=print) -> DiscrepancyResult:
     """The workflow of the module docstring on ``dataset`` (never told what is hidden).
 
+    Parameters
+    ----------
     model : the baseline updating model (default ``fe.BeamModel``; it must
         accept effects, so not the modal ROM).
     start : baseline start (default: the deterministic two-stage updating on coarse grids).

@@ -151,6 +151,8 @@ class VirtualRig:
     """A virtual test rig: FE model at true parameters, finer than the updating
     model, filtered, decimated and noisy (see the module docstring).
 
+    Parameters
+    ----------
     rig : geometry/material (default: the paper-equivalent rig, factor 1.24).
     truth : true parameters (SI; default: the paper's Table 3).
     effects : :mod:`fe` effects switched on (hidden from the updating side).
