@@ -1,6 +1,6 @@
 """3D continuum reference study: the paper's mesh against a locking-free continuum.
 
-Reproduces studies/paper-mesh-locking.md (variant B: bottom face clamped, top face
+Reproduces the planning study docs/mesh_locking_study.md (variant B: bottom face clamped, top face
 held transversely and tied axially as a rigid plate sliding along the axis) with
 fe.continuum, and prints Markdown tables:
 

@@ -40,7 +40,7 @@ Correspondence (ours -> OpenSees):
   ``HHTGeneralized(rho_inf)``, OpenSees sets alphaI = (2 - rho)/(1 + rho),
   alphaF = 1/(1 + rho), beta = 1/(1 + rho)^2, gamma = (3 - rho)/(2 (1 + rho)):
   exactly that).  Not ``GeneralizedAlpha``, which weights the inertia
-  differently (DESIGN.md, "Independent-code pitfall").  Remaining difference,
+  differently (docs/design.md#independent-code-pitfalls).  Remaining difference,
   zero for a linear problem: ours averages the internal forces,
   (1 - alpha_f) f(u_{n+1}) + alpha_f f(u_n) (the paper's eq. 4), OpenSees
   evaluates them at the averaged state f((1 - alpha_f) u_{n+1} + alpha_f u_n).
@@ -259,7 +259,7 @@ def chung_hulbert(rho_inf: float) -> tuple:
 def kelvin_voigt_beta(rig) -> float:
     """Stiffness-proportional factor beta = eta_b / E per unit paper eta [s / (Pa s)]:
     the paper's deviatoric eta mapped to uniaxial stress by dissipation
-    equivalence, eta_b = (2/3) (1 + nu)^2 eta (DESIGN.md section 2), from the rig's
+    equivalence, eta_b = (2/3) (1 + nu)^2 eta (docs/design.md#kelvin-voigt-viscosity-on-the-beam), from the rig's
     nu here, not from fe."""
     return 2.0 / 3.0 * (1.0 + rig.poisson_ratio) ** 2 / rig.youngs_modulus_pa
 
@@ -268,7 +268,7 @@ class _CorotationalBeam:
     """Numpy model of the OpenSees mirror (``elasticBeamColumn`` + ``Corotational``
     on the straight mesh of ``model``, consistent mass, top spring and damper),
     written from the element's textbook formulas (Crisfield 1991 vol. 1 ch. 7;
-    Battini 2002; research notes), with no code of ``fe``: global dofs
+    Battini 2002; docs/design.md#independent-code-checks), with no code of ``fe``: global dofs
     (u_x, u_y, theta) per node, elements along x.
 
     Local deformations of element (1, 2): stretch u_l = (Ln^2 - L^2) / (Ln + L),

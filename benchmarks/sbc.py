@@ -3,7 +3,7 @@
     python benchmarks/sbc.py [--truths 50] [--seed 0]
 
 For each of N truths drawn from the prior (uniform in eta, c, F, k_s on the
-DESIGN.md box): a data set of the two updating tests (chirp 20-50 Hz, 0.02 N
+prior box of docs/design.md): a data set of the two updating tests (chirp 20-50 Hz, 0.02 N
 and 0.2 N, 4 s at 1024 Hz) made by the modal ROM at the truth, with white
 noise at 40 dB on the force and on the velocity (the model is driven by the
 clean force, the updating sees the noisy one, as on the rig); then the whole

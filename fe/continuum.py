@@ -4,7 +4,7 @@ A linear-elastic hexahedral model of the rig's strip (length x width x
 thickness along x, y, z), linearised about a uniform axial prestress
 sigma_xx = -P / A (compression P > 0) with its geometric stiffness on all three
 displacement components.  Boundary conditions ("variant B" of
-``studies/paper-mesh-locking.md``): the bottom face x = 0 is fully fixed; on the
+``docs/mesh_locking_study.md``): the bottom face x = 0 is fully fixed; on the
 top face x = L every node has u_y = u_z = 0 and all top-face u_x are tied to one
 value, i.e. a rigid plate that slides along the axis without rotating: the
 boundary of :class:`fe.BeamModel` (transversally clamped at both ends, the top

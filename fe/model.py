@@ -23,7 +23,7 @@ from .excitation import check_interpolation, upsample
 from .rig import Parameters, Rig
 
 # Defaults of the updating model, chosen by the convergence study in
-# benchmarks/convergence_study.py (README, "Solver defaults").
+# benchmarks/convergence_study.py (docs/verification.md, "Solver defaults: a convergence study").
 DEFAULT_ELEMENTS = 10
 DEFAULT_SUBSTEPS = 4
 DEFAULT_RHO_INF = 0.9

@@ -38,7 +38,7 @@ class Rig:
     Positions are measured from the clamped bottom.  ``bending_stiffness_factor``
     multiplies the bending stiffness EI only (not EA); 1.0 is a locking-free
     model of a real beam, 1.24 reproduces the paper's shear-locking hexahedral
-    mesh (see DESIGN.md section 2).
+    mesh (see docs/design.md#mesh-locking-and-the-bending-stiffness-factor).
     """
 
     length_m: float = 0.46

@@ -56,7 +56,7 @@ def test_basis_pole_is_the_rigs_first_mode(data, problem):
 
 def test_e_lin_sees_only_p_eff_and_e_nlin_breaks_the_ridge(data, problem):
     """On the ridge (same P_eff) e_lin is unchanged to a small fraction of its
-    off-ridge change; e_nlin is not (DESIGN.md section 2)."""
+    off-ridge change; e_nlin is not (docs/design.md#the-effective-preload-and-the-ridge)."""
     rig = rig_of(data)
     on = [parameters_from(rig, 3.0, 15.0, ks, 74.06) for ks in (0.0, 180.0, 540.0)]
     off = parameters_from(rig, 3.0, 15.0, 180.0, 74.06 + 1.0)
@@ -248,9 +248,9 @@ def test_calibrate_recovers_the_truth(quick_run, data):
     # F and k_s one by one are not identified to a point: e_lin sees only P_eff
     # (the ridge, checked above through P_eff = F K_b / (K_b + k_s)), and the
     # high level leaves a band in (c, k_s), along which the refinement slides
-    # (README: full settings c = 15.73, k_s = 122; quick: 15.49, 145).  The
+    # (docs/beam_study.md: full settings c = 15.73, k_s = 122; quick: 15.49, 145).  The
     # band's slope is an independent number: the posterior's regression of k_s
-    # on c (README posterior table, GP + emcee on the same data: corr -0.96,
+    # on c (docs/posterior.md's table, GP + emcee on the same data: corr -0.96,
     # sd 172 and 2.1, slope -0.96 x 172 / 2.1 = -79 N/mm per N s/mm).  Across
     # the band the estimate must sit on the truth: measured 3.4 N/mm (quick)
     # and 0.0 (full), while the posterior sd of that combination is 48 N/mm.

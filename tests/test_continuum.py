@@ -101,7 +101,7 @@ def test_continuum_is_close_to_the_beam(continuum_coarse):
 
 def test_regression_continuum_80x4x2_matches_the_study(continuum_coarse):
     """Regression check, not an independent reference: 45.367 Hz is the planning
-    study's figure for this mesh (studies/paper-mesh-locking.md, computed with its
+    study's figure for this mesh (docs/mesh_locking_study.md, computed with its
     own scikit-fem scripts, which are not shipped), and fe.continuum reproduced
     it when it was written; at commit 5164a70 it gives 45.3665 Hz.  What would
     legitimately change it: the element (hex2), its quadrature, the mass matrix
@@ -132,7 +132,7 @@ def test_paper_mesh_is_a_beam_stiffened_by_shear_locking(paper_factor, paper_loa
     h = 2 mm).  Scaling EI by c scales f(P) to sqrt(c) f(P / c) and Pcr to c Pcr.
     Measured mesh / estimate: f0 +0.80 %, f1 at 74 N +1.38 %, Pcr +1.35 %, load
     for 37 Hz +3.3 % (the 3D continuum is 0.6-0.7 % above EB, the cross-section
-    mesh adds ~1 %: studies/paper-mesh-locking.md).  Tolerances 2 / 2.5 / 2.5 /
+    mesh adds ~1 %: docs/mesh_locking_study.md).  Tolerances 2 / 2.5 / 2.5 /
     5 %, 1.5-2.5x.  The paper's numbers (50.2 Hz, 37.1 Hz at 74 N, 161 N, 74.6 N)
     follow: its 74 N preload stands for the locking, not for the rig."""
     from scipy.optimize import brentq
@@ -158,7 +158,7 @@ def test_paper_mesh_is_a_beam_stiffened_by_shear_locking(paper_factor, paper_loa
 
 def test_regression_paper_mesh_reproduces_the_study(paper_factor, paper_load_for_37_hz):
     """Regression check, not an independent reference: the figures of the
-    planning study (studies/paper-mesh-locking.md, its own scikit-fem scripts,
+    planning study (docs/mesh_locking_study.md, its own scikit-fem scripts,
     not shipped), which fe.continuum reproduced when it was written; at commit
     5164a70 it gives 50.157 Hz, 37.118 Hz, 160.68 N and 74.56 N.  What would
     legitimately change them: the element (hex1_sri: 2x2x2 deviatoric, one-point

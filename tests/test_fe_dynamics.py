@@ -29,7 +29,7 @@ def zero_crossing_frequency(v, fs):
 
 def test_coefficients_match_chung_hulbert():
     am, af, g, b = generalized_alpha_coefficients(0.01)
-    # research notes: rho_inf = 0.01 -> -0.9703, 0.0099, 1.4802, 0.9803
+    # docs/design.md#time-integration: rho_inf = 0.01 -> -0.9703, 0.0099, 1.4802, 0.9803
     assert (am, af, g, b) == pytest.approx((-0.9703, 0.0099, 1.4802, 0.9803), abs=1e-4)
     with pytest.raises(ValueError, match="rho_inf"):
         generalized_alpha_coefficients(1.5)
@@ -145,7 +145,7 @@ def test_low_amplitude_sine_matches_linear_frf(f_drive, interpolation):
     if interpolation == "linear":
         # a force linearly interpolated between samples is the sampled one
         # seen through the triangle kernel: the continuous FRF times
-        # sinc^2(f T) (research notes), -0.20 % / -0.30 % here
+        # sinc^2(f T) (docs/design.md#time-integration), -0.20 % / -0.30 % here
         h = h * np.sinc(f_drive / FS) ** 2
     # band-limited interpolation needs no such factor: the sine between the
     # samples is the sine

@@ -88,7 +88,7 @@ def test_frequencies_agree(params):
     ours = m.modal_analysis(params, n_modes=3).frequencies_hz
     theirs = osm.opensees_frequencies(m, params, n_modes=3)
     np.testing.assert_allclose(theirs, ours, rtol=1e-7)
-    if params.F > 0:  # preloaded: the first mode near 30 Hz (research notes: 29.84 Hz at 40 elements)
+    if params.F > 0:  # preloaded: the first mode near 30 Hz (docs/design.md: 29.84 Hz at 40 elements)
         assert 29.8 < ours[0] < 30.1
 
 
@@ -190,7 +190,7 @@ def test_high_level_without_viscosity_differs_only_by_the_time_step():
 
 def test_high_level_chirp_agrees_up_to_the_kelvin_voigt_nonlinearity():
     # With viscosity, fe's Kelvin-Voigt also damps the shortening rate, which
-    # beta K_0 cannot: the codes differ by 0.84 % at 0.1 N (DESIGN: ~0.6 % in the
+    # beta K_0 cannot: the codes differ by 0.84 % at 0.1 N (docs/design.md: ~0.6 % in the
     # planning prototype).  The independent first-order prediction from the
     # missing force accounts for it: the rest (measured 2.4e-4) is below the
     # integrator difference measured without viscosity at this step (4.0e-4,

@@ -1,4 +1,4 @@
-"""What may import what (DESIGN.md section 6): each package imported alone, in a fresh process,
+"""What may import what (docs/design.md#architecture-and-layering): each package imported alone, in a fresh process,
 must not pull in the packages it is not allowed to know."""
 
 import subprocess

@@ -59,12 +59,12 @@ def run_case(name):
 
 
 def _check_named_effect(res, effect):
-    """What the README claims for a named effect: decisive evidence with the
+    """What docs/discrepancy.md claims for a named effect: decisive evidence with the
     naming fit's interval excluding "no effect", the model with it explains
     the data within noise and model error, and every hidden parameter inside
     the re-update's 2-sd interval with the mode within 10 % of the truth.
 
-    The 2-sd interval alone does not discriminate: the README's re-update sds
+    The 2-sd interval alone does not discriminate: docs/discrepancy.md's re-update sds
     (damper 59 +- 69, shaker mass 14.6 +- 8.3 g) hold zero, so "no effect"
     would pass it; the mode within 10 % of the truth does not (measured here:
     1.1-2.6 % off for the five parameters of the four single cases, 2.3 % for
@@ -93,7 +93,7 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     (effect,), data, res = run_case(name)
     assert res.named == [name] and res.verdict == "named", res.rounds[0]["candidates"]
     b, a = res.gap_before, res.gap_after
-    # the README's success criterion: e_lin + e_nlin and the validation misfit each shrink by more than 50 %
+    # docs/discrepancy.md's success criterion: e_lin + e_nlin and the validation misfit each shrink by more than 50 %
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
     assert a["validation"] <= 0.5 * b["validation"]
     _check_named_effect(res, effect)
@@ -159,7 +159,7 @@ def test_no_hidden_effect_names_none(name, tmp_path):
 
 @pytest.mark.slow   # 63-95 s: outside the default run (15-minute budget); benchmarks/discrepancy_cases.py runs it at full settings
 def test_combined_case_names_both_and_closes_the_gap():
-    """README (combined case, full settings): both named, e_lin + e_nlin
+    """docs/discrepancy.md (combined case, full settings): both named, e_lin + e_nlin
     16.13 -> 0.44 %, validation 4.20 -> 0.35 %, bow 0.146 / 0.146 +- 0.036 mm,
     damper 32 / 31 +- 29.  Measured here (reduced settings): the damper then
     the bow named (2 ln B 921, then 1965), e_lin + e_nlin 10.7 -> 0.38 %,

@@ -398,7 +398,7 @@ def test_settings_are_validated():
 
 
 def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior, data):
-    """Reduced version of benchmarks/posterior_comparison.py at the README's
+    """Reduced version of benchmarks/posterior_comparison.py at docs/posterior.md's
     thresholds, every parameter: the same start, likelihood (the surrogate
     run's, passed on) and prior, emcee on the ROM itself; posterior means
     within 0.3 direct sd, 94 % HDIs overlapping > 0.8, two-sample KS D < 0.1.

@@ -9,7 +9,7 @@ interpolated input, sampled at 1024 Hz; see test_volterra_reference.py):
 * test 7: symmetry - y2 negligible for an odd system, not with a quadratic term;
 * pole selection from data (H1 FRF peak / half-power width, residual refinement).
 
-Setup as in studies/kautz-volterra-check.md: m = 0.02 kg, fn = 30 Hz,
+Setup as in docs/kautz_basis_study.md: m = 0.02 kg, fn = 30 Hz,
 zeta = 0.01, chirp 20 -> 50 Hz for 2 s then 2 s free decay, 0.1 N at the top
 level, levels 1/3, 2/3, 1 stacked, 40 dB output noise (seeded).
 """
@@ -106,7 +106,7 @@ def test_h1_of_a_linear_record_carries_the_sinc2_factor(duffing):
 # without the sinc^2 factor in the reference the gain errors would be -0.259 %
 # and -0.190 %.  The gain tolerances (0.10 % and 0.14 %, 4.3x and 1.5x the
 # measured) are what makes a dropped sinc^2 factor fail; the max-error ones
-# (0.40 % and 0.25 %, 1.5x and 1.8x) bound the rest.  (README: "0.14-0.27 %").
+# (0.40 % and 0.25 %, 1.5x and 1.8x) bound the rest.  (docs/verification.md: "0.14-0.27 %").
 H1_LOW_TOLERANCE = {(2,): (4.0e-3, 1.0e-3), (2, 2, 6): (2.5e-3, 1.4e-3)}
 
 

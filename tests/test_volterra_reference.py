@@ -4,7 +4,8 @@ the references themselves.
 Nothing here imports the package under test:
 
 * ``kautz_ref_freq`` / ``kautz_ref_impulse``: the Kautz functions written
-  directly from the formulas of ``research-notes.md``; impulse responses by an
+  directly from the formulas of ``docs/design.md`` ("Kautz basis: form and conventions"); impulse
+  responses by an
   inverse FFT of the closed-form frequency response (time aliasing
   ``|Z|^M < 1e-17``), not by recursive filtering.
 * ``volterra_forward_ref``: a Volterra model in that basis evaluated with

@@ -15,7 +15,7 @@ Systems and constants of this module only (no other test uses them):
   band-limited Gaussian noise (4th-order Butterworth band), 40 dB noise.
 
 The pole tolerances come from what J1 = 2 needs (a pole off by a quarter of
-the half-power half-width costs 13-17 % of H1, research notes); the kernel
+the half-power half-width costs 13-17 % of H1, docs/kautz_basis_study.md); the kernel
 tolerances are the issue's targets.  Measured values are in the comments.
 """
 import math

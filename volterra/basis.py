@@ -7,7 +7,7 @@ so that their components y1, y2, y3 are comparable.
 
 Default numbers of functions, ``DEFAULT_N_FUNCTIONS = (2, 2, 6)``
 ------------------------------------------------------------------
-Chosen from the measured trade-off (``studies/kautz-volterra-check.md``):
+Chosen from the measured trade-off (``docs/kautz_basis_study.md``):
 
 * J1 = 2 when the pole is accurate (within about 0.1 zeta fn of the linearised
   mode: the FE modal analysis of the model itself, or a pole refined on a

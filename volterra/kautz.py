@@ -1,7 +1,7 @@
 """Kautz orthonormal functions: poles, exact recursive filtering, frequency responses.
 
 Two-parameter Kautz functions (Kautz 1954; Wahlberg, IEEE TAC 39(6), 1994;
-the paper's eq. 14-15 as repaired in ``research-notes.md``).  One pair of
+the paper's eq. 14-15 as repaired in ``docs/design.md#kautz-basis-form-and-conventions``).  One pair of
 complex-conjugate discrete poles ``(Z, conj Z)`` generates ``J`` (even)
 functions::
 

@@ -1,6 +1,6 @@
 """Least-squares identification of a Kautz-basis Volterra model, and the model.
 
-Conventions (see ``research-notes.md``):
+Conventions (see ``docs/design.md``, section "Kautz basis: form and conventions"):
 
 * ``y(k) = h0 + y1(k) + y2(k) + y3(k)``, y_n with NO 1/n! factor; h0 is the
   zeroth-order term, a constant [y unit] (e.g. an offset of the output

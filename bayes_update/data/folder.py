@@ -1,4 +1,5 @@
-"""The data-set folder on disk (DESIGN.md section 5, a public contract):
+"""The data-set folder on disk (a public contract, stated here; design points in
+docs/design.md#the-data-set-folder):
 :func:`read_dataset` and :func:`write_dataset`.
 
 A folder with ``dataset.json`` and one file per test.  A CSV file has a

@@ -34,7 +34,8 @@ from bayes_update.reports.posterior import format_summary, write_posterior
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
 #: The locking-free beam needs about 43 N for the data's 37 Hz, below the
-#: DESIGN.md box (F 60-95 N, set for the paper's physics): its posterior
+#: prior box of docs/design.md#parameters-units-and-the-prior-box (F 60-95 N, set for the paper's
+#: physics): its posterior
 #: uses F 20-95 N.
 LOCKING_FREE_F_RANGE = (20.0, 95.0)
 

@@ -79,7 +79,7 @@ def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = No
         ``simulate(theta, force, fs)``), or the beam (``fe.BeamModel``, the
         default, or ``fe.ModalROM``; parameters eta, c, F, k_s).
     space : the prior (default: the model's declared parameters; the beam's
-        :class:`ParameterSet` box of DESIGN.md).
+        :class:`ParameterSet` box of docs/design.md#parameters-units-and-the-prior-box).
     direct : run emcee on the model itself (no surrogate); sensible with a
         model of a few ms per run (``fe.ModalROM``: about 2 ms per evaluation).
     start : skip the start search and begin at these parameters (theta, or

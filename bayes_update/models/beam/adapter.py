@@ -3,7 +3,7 @@
 
 The beam keeps today's behaviour: the metrics on the paper's set
 (:class:`UpdatingProblem`), the (eta, c, P_eff, k_s) coordinates of
-:class:`ParameterSpace` with its prior box from DESIGN.md, the rig from the
+:class:`ParameterSpace` with its prior box (docs/design.md#parameters-units-and-the-prior-box), the rig from the
 data set's ``rig`` block, paper units in reports, the paper's grids as the
 start of ``sample`` and the effects catalogue of
 :mod:`bayes_update.models.beam.missing_effect`.

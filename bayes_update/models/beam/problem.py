@@ -64,7 +64,8 @@ class UpdatingProblem(Problem):
         return _describe_model(self.model)
 
     def default_space(self):
-        """The DESIGN.md prior box of (eta, c, F, k_s) on this rig, in P_eff coordinates."""
+        """The prior box of (eta, c, F, k_s) on this rig (docs/design.md#parameters-units-and-the-prior-box),
+        in P_eff coordinates."""
         from bayes_update.models.beam.space import ParameterSpace
 
         return ParameterSpace(self.rig)

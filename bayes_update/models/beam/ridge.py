@@ -1,5 +1,5 @@
 """The beam's linear-only posterior: what the low-level test alone says, a ridge of
-constant P_eff in (F, k_s) with c unidentified (the README's ridge figure)."""
+constant P_eff in (F, k_s) with c unidentified (the ridge figure of docs/posterior.md)."""
 from __future__ import annotations
 
 from functools import partial

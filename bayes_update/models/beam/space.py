@@ -1,7 +1,8 @@
 """The beam's parameter space: the prior box of (eta, c, F, k_s) and its internal coordinates.
 
-Parameter space: the prior is uniform on the DESIGN.md box of (eta, c, F,
-k_s).  Inference runs in the internal coordinates x = (eta [MPa s], c [N
+Parameter space: the prior is uniform on the box of (eta, c, F, k_s) of
+docs/design.md#parameters-units-and-the-prior-box.  Inference runs in the
+internal coordinates x = (eta [MPa s], c [N
 s/mm], P_eff [N], k_s [N/mm]), because e_lin depends on F and k_s almost only
 through the preload the beam carries, P_eff = F K_b / (K_b + k_s); the
 uniform prior then has density (K_b + k_s) / K_b (the Jacobian of F ->

@@ -32,7 +32,8 @@ What the virtual rig does (:class:`VirtualRig`)
 The default data set (the paper-equivalent rig)
 -----------------------------------------------
 ``Rig(bending_stiffness_factor=1.24)`` (the paper's hexahedral mesh is 24 %
-too stiff in bending, DESIGN.md section 2) at the paper's Table 3 values
+too stiff in bending, docs/design.md#mesh-locking-and-the-bending-stiffness-factor) at the
+paper's Table 3 values
 (eta = 3 MPa s, c = 15 N s/mm, F = 77 N, k_s = 180 N/mm): f1 = 37.13 Hz,
 zeta1 = 1.31 %, so the 35 Hz sine sits at 0.943 f1.  Six tests of 4 s at
 1024 Hz: chirp 20 -> 50 Hz during 2 s then free decay, and 35 Hz sine, each
