@@ -38,14 +38,11 @@ import numpy as np
 import volterra
 
 from bayes_update.core.model import ModelError
+from bayes_update.data.dataset import DatasetError
 
 __all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS",
            "basis_from_reference", "describe_basis", "excited_band", "linear_n_functions", "n_compared_regressors",
            "relative_error", "stage_output"]
-
-
-class DatasetError(ValueError):
-    """A data set is malformed or cannot be used as given; the message names the file or the test."""
 
 
 #: Kautz functions per order (J1, J2, J3): see volterra.basis for the trade-off.
@@ -148,7 +145,7 @@ class Problem:
     basis : a fixed :class:`volterra.KautzBasis`; default: from the reference
         linear test (:func:`basis_from_reference`).
     metrics : the metric set, ``"paper"`` or ``"full"`` (:data:`METRIC_SETS`);
-        default :attr:`default_metrics`.
+        default: the model's ``default_metrics``, else ``"full"``.
 
     Tests with role ``validation`` are kept for :meth:`prediction_errors`;
     the metrics never see them.
@@ -160,24 +157,30 @@ class Problem:
     #: exceptions that mean "the model cannot run at this point": the point gets
     #: NaN metrics (and a message) instead of stopping a design
     failures: tuple = (ModelError,)
-    #: a record's mean is a sensor offset, not physics: it is removed from the input
-    #: (the model never sees it) and from the response (h0 would absorb it anyway)
-    remove_offsets: bool = True
-    #: metric set when none is given (module docstring)
-    default_metrics: str = "full"
     #: names of the parameters the linear test moves, once a screen has found them
-    #: (:func:`bayes_update.core.calibrate.problem_for`); None before
+    #: (:func:`bayes_update.core.calibrate.problem_for`), and their sensitivities; None before
     linear_parameters: tuple | None = None
+    linear_sensitivity: dict | None = None
+    #: the prior the problem was built for (:func:`bayes_update.core.calibrate.problem_for`)
+    space = None
+    #: model runs the builder's screen took
+    n_screen_runs: int = 0
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None):
         if not hasattr(model, "simulate"):
             raise TypeError(f"{type(model).__name__} is not a model (no simulate method)")
+        if callable(getattr(model, "check_dataset", None)):
+            model.check_dataset(dataset)         # the model's own word on the data (the beam: its rig)
         self.fs = float(dataset.sampling_rate_hz)
-        self.rig = getattr(dataset, "rig", None)
         self.model = model
+        # a record's mean is a sensor offset, not physics: it is removed from the input
+        # (the model never sees it) and from the response, unless the model says its
+        # records carry none (the beam's virtual rig: its numbers stay the paper study's)
+        self.remove_offsets = bool(getattr(model, "remove_offsets", True))
         self.source = dataset.source or dataset.name
+        self.sensors = tuple(dataset.sensors)
         self.data_fingerprint = dataset.fingerprint()
-        metrics = self.default_metrics if metrics is None else metrics
+        metrics = getattr(model, "default_metrics", "full") if metrics is None else metrics
         if metrics not in METRIC_SETS:
             raise ValueError(f"metrics must be one of {sorted(METRIC_SETS)}, got {metrics!r}")
         self.metrics = metrics
@@ -308,6 +311,14 @@ class Problem:
         """The part of a stage's components its metric compares (:data:`METRIC_SETS`)."""
         return stage_output(stage, comps, self.metrics)
 
+    @property
+    def output_unit(self) -> str:
+        """Unit of the compared outputs: the sensor's (one sensor), else each
+        sensor's noise sd (several sensors: the outputs are noise-weighted)."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
+
     def n_regressors(self, stage: str) -> int:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
         return n_compared_regressors(self.projector(stage).basis, stage, self.metrics)
@@ -395,7 +406,9 @@ class Problem:
         return self.model.refined() if hasattr(self.model, "refined") else None
 
     def describe_model(self) -> dict:
-        """What identifies the model in a cache key and a report: its class and a
-        hash of its pickled state (its constants)."""
+        """What identifies the model in a cache key and a report: the model's own
+        ``describe()``, else its class and a hash of its pickled state (its constants)."""
+        if callable(getattr(self.model, "describe", None)):
+            return self.model.describe()
         state = hashlib.sha256(pickle.dumps(self.model)).hexdigest()[:16]
         return {"kind": type(self.model).__name__, "state_sha256": state}
