@@ -119,7 +119,10 @@ def _per_order(value, orders, name):
 
 def _modes_of(entry, order) -> tuple:
     """One order's modes: a pole, or a non-empty sequence of poles."""
-    modes = (entry,) if isinstance(entry, _POLE_TYPES) else tuple(entry) if isinstance(entry, Sequence) else None
+    if isinstance(entry, _POLE_TYPES):
+        modes = (entry,)
+    else:
+        modes = tuple(entry) if isinstance(entry, Sequence) else None
     if not modes or not all(isinstance(p, _POLE_TYPES) for p in modes):
         raise ValueError(
             f"pole for order {order} must be a KautzPole (use KautzPole.from_modal / from_z), a "
