@@ -13,8 +13,8 @@
    orders, read as a stabilisation diagram (:mod:`volterra.lscf`): a mode is
    a cluster of physical poles (0 < zeta < ``max_damping``, in the band)
    stable in frequency (1 %) and damping (10 %) from one order to the next,
-   at 30 % of the orders or more.  ``n_modes`` takes that many clusters, the
-   most stable first.  Modes with less than ``min_share`` of the response
+   at 30 % of the orders or more.  ``n_modes`` takes that many of them, the
+   most energetic first.  Modes with less than ``min_share`` of the response
    energy (their LSFD part of the FRFs, weighted by the input spectrum) are
    dropped.
 4. ``refine``: the poles that minimise the relative residual of the
@@ -179,19 +179,25 @@ def _h1_lines(us, ys, fs, f_range, period_samples, nperseg, min_coherence):
     return f[good], H[good], coh[good], upow[good]
 
 
-def _pick_modes(clusters, n_orders, n_modes):
-    """Clusters that make modes: stable at >= 30 % of the orders (>= 3), or the n_modes most stable."""
-    ranked = sorted(clusters, key=lambda c: -c[2])
-    if n_modes is not None:
-        if len(ranked) < n_modes:
-            raise PoleEstimationError(
-                f"n_modes = {n_modes}, but the stabilisation diagram holds only {len(ranked)} "
-                "stable pole cluster(s) in the band. Check the band (f_range), the coherence and the "
-                "record length (frequency resolution), or ask for fewer modes."
-            )
-        return ranked[:n_modes]
+def _pick_modes(clusters, n_orders, n_modes, energy):
+    """Clusters that make modes: stable at >= 30 % of the orders (>= 3); with
+    ``n_modes``, the n_modes of those with the most response energy (``energy``:
+    a function of a list of clusters), topped up by the most stable others."""
     need = max(3, int(math.ceil(MIN_STABLE_FRACTION * (n_orders - 1))))
-    return [c for c in ranked if c[2] >= need]
+    strong = [c for c in clusters if c[2] >= need]
+    if n_modes is None:
+        return strong
+    if len(clusters) < n_modes:
+        raise PoleEstimationError(
+            f"n_modes = {n_modes}, but the stabilisation diagram holds only {len(clusters)} "
+            "stable pole cluster(s) in the band. Check the band (f_range), the coherence and the "
+            "record length (frequency resolution), or ask for fewer modes."
+        )
+    if len(strong) >= n_modes:
+        shares = energy(strong)
+        return [strong[i] for i in np.argsort(-shares)[:n_modes]]
+    weak = sorted((c for c in clusters if c[2] < need), key=lambda c: -c[2])
+    return strong + weak[:n_modes - len(strong)]
 
 
 def _energies(f, H, upow, s):
@@ -216,8 +222,10 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     fs : sampling rate [Hz].
     f_range : (f_min, f_max) [Hz], optional; default the excited band.
     n_modes : int, optional
-        Number of modes to return (the most stable clusters); default: every
-        cluster stable at 30 % of the orders with ``min_share`` of the energy.
+        Number of modes to return: of the clusters stable at 30 % of the
+        orders, those with the most response energy (topped up by the most
+        stable other clusters when there are fewer); default: every cluster
+        stable at 30 % of the orders with ``min_share`` of the energy.
     refine : bool
         Polish the poles on the time-domain linear fit (see module docstring).
     period_samples : int, optional
@@ -244,7 +252,10 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     band = (float(f.min()), float(f.max()))
     fits = lscf_poles(f, H, orders, weights)
     clusters, diagram = stable_modes(fits, band, max_damping)
-    chosen = _pick_modes(clusters, len(fits), n_modes)
+    def energy(cands):
+        return _energies(f, H, upow, np.array([KautzPole.from_modal(fr, ze, fs).s for fr, ze, _ in cands]))
+
+    chosen = _pick_modes(clusters, len(fits), n_modes, energy)
     if not chosen:
         raise PoleEstimationError(
             f"no mode is stable over the LSCF model orders in ({band[0]:.4g}, {band[1]:.4g}) Hz "
@@ -338,7 +349,7 @@ def refine_modes(us, ys, poles, skip: int = 0, max_residual: float = MAX_RESIDUA
         raise PoleEstimationError(
             f"the refined linear fit leaves {100 * rel:.3g} % of ||y|| unexplained (more than "
             f"{100 * max_residual:.3g} %): y does not follow u linearly. Check that y is the response "
-            "to u, the noise level, slow drifts of y, and that the record is low-level (not strongly "
-            "nonlinear)."
+            "to u, the noise level, slow drifts of y, that the record is low-level (not strongly "
+            "nonlinear), and that n_modes (if given) is not below the number of modes in the band."
         )
     return refined, rel
