@@ -46,18 +46,21 @@ Chosen from the measured trade-off (``studies/kautz-volterra-check.md``):
 
 Numbers from ``tests/test_volterra_oscillators.py`` and the planning study
 (fn = 30 Hz, zeta = 0.01, chirp 20-50 Hz + free decay, 40 dB noise), measured
-without the feed-through (today's functions); the feed-through adds one
-function per order (J + 1 functions, e.g. 3 + 6 + 84 = 93 regressors at
-(2, 2, 6) instead of 61).
+without the feed-through.  The feed-through adds one function per order
+(3 + 6 + 84 = 93 regressors at (2, 2, 6) instead of 61).  Measured with it on
+the same records: H1 from stacked levels improves (0.185 -> 0.146 %), but H1
+from ONE constant-amplitude chirp at J = (2, 2, 6) degrades (0.14 -> 0.65 %,
+gain -0.58 %): there u^3 = 3/4 A^2 u + (third harmonic), so the order-3
+regressors with the feed-through nearly repeat the order-1 one.  Fit two or
+three levels jointly (as the framework does), or ``feedthrough=False``.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
-
 import numpy as np
 
+from ._validation import MAX_ORDER, _modes_of, _normalise_n_functions, _per_order
 from .gobf import gobf_filter_rows, gobf_frequency_response, n_sequence_functions, pole_sequence
-from .kautz import KautzPole, RealPole, _check_n_functions
+from .kautz import KautzPole, RealPole
 from .modes import estimate_modes
 from .regressors import index_tuples, n_terms, regressor_matrix, regressor_rows
 
@@ -67,68 +70,7 @@ __all__ = ["KautzBasis", "DEFAULT_N_FUNCTIONS", "ROBUST_LINEAR_N_FUNCTIONS", "MA
 DEFAULT_N_FUNCTIONS = (2, 2, 6)
 #: J for a linear-only fit when the pole is not accurately known.
 ROBUST_LINEAR_N_FUNCTIONS = (8,)
-#: Highest kernel order supported.
-MAX_ORDER = 3
 _POLE_TYPES = (KautzPole, RealPole)
-
-
-def _normalise_n_functions(n_functions) -> dict:
-    if isinstance(n_functions, Mapping):
-        items = list(n_functions.items())
-    elif isinstance(n_functions, (int, np.integer)) and not isinstance(n_functions, bool):
-        items = [(1, n_functions)]
-    elif isinstance(n_functions, Sequence) and not isinstance(n_functions, str):
-        items = list(enumerate(n_functions, start=1))
-    else:
-        raise ValueError(
-            "n_functions must be a tuple (J1, J2, J3), a dict {order: J} or an int (order 1 only); "
-            f"got {n_functions!r}"
-        )
-    out = {}
-    for order, J in items:
-        if isinstance(order, bool) or not isinstance(order, (int, np.integer)) or not 1 <= order <= MAX_ORDER:
-            raise ValueError(f"kernel orders must be integers 1..{MAX_ORDER}, got {order!r}")
-        if J is None or (not isinstance(J, bool) and isinstance(J, (int, np.integer)) and J == 0):
-            continue  # order omitted
-        try:
-            out[int(order)] = _check_n_functions(J)
-        except ValueError as exc:
-            raise ValueError(f"order {order}: {exc}") from None
-    if not out:
-        raise ValueError(f"no kernel order selected by n_functions = {n_functions!r}")
-    return dict(sorted(out.items()))
-
-
-def _per_order(value, orders, name):
-    """Spread a scalar / sequence (aligned with orders 1..) / dict over ``orders``."""
-    if isinstance(value, np.ndarray):
-        value = value.item() if value.ndim == 0 else list(value)
-    if isinstance(value, Mapping):
-        missing = [n for n in orders if n not in value]
-        if missing:
-            raise ValueError(f"{name}: no entry for order(s) {missing}")
-        return {n: value[n] for n in orders}
-    if isinstance(value, Sequence) and not isinstance(value, str):
-        if len(value) < max(orders):
-            raise ValueError(
-                f"{name}: a sequence must give one entry per order 1..{max(orders)}, got {len(value)}"
-            )
-        return {n: value[n - 1] for n in orders}
-    return {n: value for n in orders}
-
-
-def _modes_of(entry, order) -> tuple:
-    """One order's modes: a pole, or a non-empty sequence of poles."""
-    if isinstance(entry, _POLE_TYPES):
-        modes = (entry,)
-    else:
-        modes = tuple(entry) if isinstance(entry, Sequence) else None
-    if not modes or not all(isinstance(p, _POLE_TYPES) for p in modes):
-        raise ValueError(
-            f"pole for order {order} must be a KautzPole (use KautzPole.from_modal / from_z), a "
-            f"RealPole, or a non-empty sequence of them (one per mode), got {entry!r}"
-        )
-    return modes
 
 
 class KautzBasis:
@@ -199,7 +141,6 @@ class KautzBasis:
     def from_pole(cls, pole, n_functions=DEFAULT_N_FUNCTIONS, feedthrough: bool = True) -> "KautzBasis":
         """Basis with the same pole for every order."""
         return cls(pole, n_functions, feedthrough)
-
     @classmethod
     def from_modes(cls, modes, n_functions=DEFAULT_N_FUNCTIONS, feedthrough: bool = True,
                    nonlinear_modes=None) -> "KautzBasis":
@@ -228,23 +169,18 @@ class KautzBasis:
     def from_data(cls, u, y, fs: float, n_functions=DEFAULT_N_FUNCTIONS, f_range=None,
                   refine: bool = True, *, n_modes=None, period_samples=None,
                   feedthrough: bool = True, nonlinear_modes=1, **options) -> "KautzBasis":
-        """Basis whose modes are estimated from a low-level (essentially linear) record.
+        """Basis of every mode :func:`volterra.estimate_modes` resolves in a
+        low-level (essentially linear) record's excited, coherent band.
 
-        Every mode that :func:`volterra.estimate_modes` resolves in the
-        excited, coherent band (``f_range`` [Hz] narrows it): an LSCF fit of
-        the H1 estimate checked on a stabilisation diagram, then, if
-        ``refine``, the poles that minimise the residual of the record's
-        linear fit in this basis (J1 = 2 per mode, with the feed-through).
-        ``y`` is (n,) or (n, n_sensors): the sensors share the poles;
-        ``n_modes`` [-] overrides the count; ``period_samples`` [samples]
-        gives the period of a periodic excitation (H1 from
-        period-synchronous spectra, the first period dropped).  Modes are
-        sorted by their response energy on the record, largest first, so
-        :meth:`pole` returns the dominant one; orders 2 and 3 get the first
-        ``nonlinear_modes`` of them (default 1; None: all).  ``options`` go to
-        :func:`volterra.estimate_modes`.
-
-        Raises :class:`volterra.PoleEstimationError` when no mode can be found.
+        LSCF fit of H1 read on a stabilisation diagram, then (``refine``) the
+        poles minimising the residual of the record's linear fit in the basis.
+        ``y``: (n,) or (n, n_sensors), the sensors share the poles; ``f_range``
+        [Hz] narrows the band; ``n_modes`` [-] overrides the count;
+        ``period_samples`` [samples]: period of a periodic excitation.  Modes
+        come sorted by response energy, so :meth:`pole` is the dominant one;
+        orders 2 and 3 get the first ``nonlinear_modes`` (default 1; None:
+        all).  ``options`` go to :func:`volterra.estimate_modes`.  Raises
+        :class:`volterra.PoleEstimationError` when no mode can be found.
         """
         est = estimate_modes(u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine,
                              period_samples=period_samples, **options)
