@@ -112,6 +112,21 @@ def test_one_mode_special_case_is_todays_kautz_basis():
     assert np.abs(new[1:, 1:] - ref[:-1]).max() < 1e-12
 
 
+def test_feedthrough_per_order():
+    """The feed-through on order 1 only: orders 2-3 keep today's functions."""
+    pole = KautzPole.from_modal(44.4, 0.018, Z_FS)
+    basis = KautzBasis(pole, (2, 2, 6), feedthrough=(1,))
+    assert basis.feedthrough == (1,) and basis.has_feedthrough(1) and not basis.has_feedthrough(3)
+    assert (basis.dim(1), basis.dim(2), basis.dim(3)) == (3, 2, 6)
+    assert basis.n_params == 3 + 3 + 56
+    assert basis.subset((2, 3)).feedthrough is False and basis.subset((1,)).feedthrough is True
+    u = np.random.default_rng(77).standard_normal(700)
+    rows = basis.filter(u)
+    old = KautzBasis(pole, (2, 2, 6), feedthrough=False).filter(u)
+    assert np.array_equal(rows[3], old[3]) and np.array_equal(rows[1][:, 0], u)
+    assert basis != KautzBasis(pole, (2, 2, 6)) and "feed-through (1,)" in basis.describe()
+
+
 # ------------------------------------------------------------ exact representation
 def test_zoh_resonator_is_exact_with_the_feedthrough_only():
     """The issue's case: (b1 z^-1 + b2 z^-2) / D is outside today's span for every

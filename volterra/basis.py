@@ -87,11 +87,12 @@ class KautzBasis:
         mode's pair is repeated J / 2 times; a real pole gives J / 2
         functions).  A zero or ``None`` entry omits that order (``(2, 0, 6)``
         selects orders 1 and 3); an int selects order 1 only.
-    feedthrough : bool, default True
-        Function 0 of every order is the input itself and the others are
-        delayed by one sample (:mod:`volterra.gobf`): any proper rational
-        system with the modes' poles is in the order-1 span.  False: the
-        advanced functions without it (today's Kautz functions for one mode).
+    feedthrough : bool or iterable of orders, default True
+        Function 0 of every order (or of the orders listed, e.g. ``(1,)``) is
+        the input itself and the others are delayed by one sample
+        (:mod:`volterra.gobf`): any proper rational system with the modes'
+        poles is in the order-1 span.  False: the advanced functions without
+        it (today's Kautz functions for one mode).
 
     Examples
     --------
@@ -101,7 +102,7 @@ class KautzBasis:
     ((1, 2, 3), 93)
     """
 
-    def __init__(self, poles, n_functions=DEFAULT_N_FUNCTIONS, feedthrough: bool = True):
+    def __init__(self, poles, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True):
         nf = _normalise_n_functions(n_functions)
         orders = tuple(nf)
         if isinstance(poles, _POLE_TYPES):
@@ -112,17 +113,22 @@ class KautzBasis:
         fs_set = {p.fs for modes in pole_map.values() for p in modes}
         if len(fs_set) != 1:
             raise ValueError(f"all poles must share one sampling rate, got {sorted(fs_set)} Hz")
-        if not isinstance(feedthrough, (bool, np.bool_)):
-            raise ValueError(f"feedthrough must be True or False, got {feedthrough!r}")
+        if isinstance(feedthrough, (bool, np.bool_)):
+            ft_orders = set(orders) if feedthrough else set()
+        else:
+            try:
+                ft_orders = {int(n) for n in feedthrough}
+            except (TypeError, ValueError):
+                raise ValueError(f"feedthrough must be True, False or orders, got {feedthrough!r}") from None
         self._n_functions = nf
         self._poles = pole_map
         self._fs = fs_set.pop()
-        self._feedthrough = bool(feedthrough)
+        self._ft = {n: n in ft_orders for n in orders}
 
     # ----------------------------------------------------------- constructors
     @classmethod
     def from_modal(cls, freq_hz, damping_ratio, fs: float, n_functions=DEFAULT_N_FUNCTIONS,
-                   feedthrough: bool = True) -> "KautzBasis":
+                   feedthrough=True) -> "KautzBasis":
         """One-mode basis from modal data.
 
         ``freq_hz`` [Hz] and ``damping_ratio`` [-] are scalars (one pole for
@@ -138,11 +144,11 @@ class KautzBasis:
         return cls(poles, nf, feedthrough)
 
     @classmethod
-    def from_pole(cls, pole, n_functions=DEFAULT_N_FUNCTIONS, feedthrough: bool = True) -> "KautzBasis":
+    def from_pole(cls, pole, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True) -> "KautzBasis":
         """Basis with the same pole for every order."""
         return cls(pole, n_functions, feedthrough)
     @classmethod
-    def from_modes(cls, modes, n_functions=DEFAULT_N_FUNCTIONS, feedthrough: bool = True,
+    def from_modes(cls, modes, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True,
                    nonlinear_modes=None) -> "KautzBasis":
         """Several modes: all of ``modes`` (a sequence of poles) at order 1.
 
@@ -168,7 +174,7 @@ class KautzBasis:
     @classmethod
     def from_data(cls, u, y, fs: float, n_functions=DEFAULT_N_FUNCTIONS, f_range=None,
                   refine: bool = True, *, n_modes=None, period_samples=None,
-                  feedthrough: bool = True, nonlinear_modes=1, **options) -> "KautzBasis":
+                  feedthrough=True, nonlinear_modes=1, **options) -> "KautzBasis":
         """Basis of every mode :func:`volterra.estimate_modes` resolves in a
         low-level (essentially linear) record's excited, coherent band.
 
@@ -206,9 +212,16 @@ class KautzBasis:
         return dict(self._poles)
 
     @property
-    def feedthrough(self) -> bool:
-        """Whether function 0 of every order is the input itself."""
-        return self._feedthrough
+    def feedthrough(self):
+        """True (function 0 of every order is the input itself), False (of
+        none), or the tuple of orders that have it."""
+        on = tuple(n for n, v in self._ft.items() if v)
+        return True if len(on) == len(self._ft) else False if not on else on
+
+    def has_feedthrough(self, order: int) -> bool:
+        """Whether function 0 of ``order`` is the input itself."""
+        self._check_order(order)
+        return self._ft[order]
 
     @property
     def fs(self) -> float:
@@ -233,7 +246,7 @@ class KautzBasis:
 
     def dim(self, order: int) -> int:
         """Number of one-variable functions of an order [-] (feed-through included)."""
-        return n_sequence_functions(self.sequence(order), self._feedthrough)
+        return n_sequence_functions(self.sequence(order), self._ft[order])
 
     def n_terms(self, order: int) -> int:
         """Number of coefficients of one order: C(dim + n - 1, n)."""
@@ -254,7 +267,7 @@ class KautzBasis:
         """The same basis restricted to some orders."""
         orders = self._check_orders(orders)
         return KautzBasis({n: self._poles[n] for n in orders},
-                          {n: self._n_functions[n] for n in orders}, self._feedthrough)
+                          {n: self._n_functions[n] for n in orders}, [n for n in orders if self._ft[n]])
 
     # ------------------------------------------------------------- operations
     def filter(self, u, orders=None) -> dict:
@@ -271,11 +284,11 @@ class KautzBasis:
         u = np.asarray(u, dtype=float)
         groups: dict = {}
         for n in orders:
-            groups.setdefault(self._poles[n], []).append(n)
+            groups.setdefault((self._poles[n], self._ft[n]), []).append(n)
         out = {}
-        for modes, members in groups.items():
+        for (modes, ft), members in groups.items():
             longest = max(members, key=lambda n: self._n_functions[n])
-            filtered = gobf_filter_rows(u, self.sequence(longest), self._feedthrough)
+            filtered = gobf_filter_rows(u, self.sequence(longest), ft)
             for n in members:
                 out[n] = filtered[..., : self.dim(n), :]
         return out
@@ -301,11 +314,11 @@ class KautzBasis:
             raise ValueError(f"n_samples must be positive, got {n_samples!r}")
         d = np.zeros(n)
         d[0] = 1.0
-        return gobf_filter_rows(d, self.sequence(order), self._feedthrough).T
+        return gobf_filter_rows(d, self.sequence(order), self._ft[order]).T
 
     def frequency_response(self, order: int, f_hz) -> np.ndarray:
         """Psi_i(f) of one order at frequencies ``f_hz`` [Hz]: shape f.shape + (dim,)."""
-        return gobf_frequency_response(self.sequence(order), f_hz, self._fs, self._feedthrough)
+        return gobf_frequency_response(self.sequence(order), f_hz, self._fs, self._ft[order])
 
     # ---------------------------------------------------------------- helpers
     def _check_order(self, order):
@@ -328,14 +341,14 @@ class KautzBasis:
         if not isinstance(other, KautzBasis):
             return NotImplemented
         return (self._n_functions == other._n_functions and self._poles == other._poles
-                and self._feedthrough == other._feedthrough)
+                and self._ft == other._ft)
 
     def __hash__(self):
-        return hash((tuple(self._n_functions.items()), tuple(self._poles.items()), self._feedthrough))
+        return hash((tuple(self._n_functions.items()), tuple(self._poles.items()), tuple(self._ft.items())))
 
     def describe(self) -> str:
-        ft = "with" if self._feedthrough else "without"
-        lines = [f"Kautz basis, fs = {self._fs:g} Hz, {self.n_params} regressors, {ft} feed-through"]
+        lines = [f"Kautz basis, fs = {self._fs:g} Hz, {self.n_params} regressors, feed-through "
+                 f"{self.feedthrough}"]
         for n in self.orders:
             poles = ", ".join(f"f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}" for p in self._poles[n])
             lines.append(f"  order {n}: J = {self._n_functions[n]:2d} per mode, {self.dim(n)} functions "
@@ -348,7 +361,7 @@ class KautzBasis:
             + "; ".join(f"f={p.freq_hz:.4g} Hz, zeta={p.damping_ratio:.4g}" for p in self._poles[n]) + ")"
             for n in self.orders
         )
-        return f"KautzBasis(fs={self._fs:g} Hz, feedthrough={self._feedthrough}, {{{parts}}})"
+        return f"KautzBasis(fs={self._fs:g} Hz, feedthrough={self.feedthrough}, {{{parts}}})"
 
     def settling_samples(self, tol: float = 1e-12) -> int:
         """Largest ``settling_samples`` over the poles of every order [samples]."""

@@ -299,8 +299,8 @@ class VolterraModel:
         lines.append(h0)
         if self.input_offset:
             lines.append(f"  input offset {self.input_offset:.6e} subtracted from u")
-        ft = ", feed-through" if self.basis.feedthrough else ""
         for n in self.orders:
+            ft = ", feed-through" if self.basis.has_feedthrough(n) else ""
             poles = "; ".join(f"f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}"
                               for p in self.basis.modes(n))
             lines.append(
