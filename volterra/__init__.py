@@ -65,12 +65,13 @@ __all__ = [
     "plot_components",
     "plot_h1",
     "plot_h2",
+    "plot_stabilisation",
 ]
 
 
 def __getattr__(name):
     # plotting imports matplotlib lazily: importing volterra stays cheap
-    if name in ("plot_components", "plot_h1", "plot_h2"):
+    if name in ("plot_components", "plot_h1", "plot_h2", "plot_stabilisation"):
         from . import plotting
 
         return getattr(plotting, name)

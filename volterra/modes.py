@@ -34,9 +34,10 @@ import math
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.signal import welch
 
 from ._validation import as_record_list
-from .frf import _segment_lengths, estimate_h1, excited_band, periodic_h1
+from .frf import _segment_lengths, _welch_kw, estimate_h1, excited_band, periodic_h1
 from .gobf import gobf_filter_rows
 from .kautz import KautzPole
 from .lscf import DEFAULT_MAX_DAMPING, lscf_poles, mode_contributions, stable_modes
@@ -157,8 +158,8 @@ def _h1_lines(us, ys, fs, f_range, period_samples, nperseg, min_coherence):
         f = cols[0][0]
         H = np.stack([c[1] for c in cols], axis=1)
         coh = np.stack([c[2] for c in cols], axis=1)
-        Suu = sum(np.abs(np.fft.rfft(r, n=2 * (f.size - 1))) ** 2 for r in us)
-        upow = np.interp(f, np.arange(Suu.size) * fs / (2 * (f.size - 1)), Suu)
+        upow = sum(welch(r, **_welch_kw(fs, "hann", n, seg))[1]
+                   for r, n in zip(us, _segment_lengths(us, nperseg)))
         excited = np.ones(f.size, bool)
         lo, hi = excited_band(us, fs, nperseg=nperseg) if f_range is None else map(float, f_range)
         line_spacing = fs / seg

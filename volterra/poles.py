@@ -1,4 +1,8 @@
-"""Pole selection for the Kautz basis.
+"""One pole for the Kautz basis (the previous estimator, kept for single-mode use).
+
+:meth:`volterra.KautzBasis.from_data` now estimates every mode of a record
+with :func:`volterra.estimate_modes` (:mod:`volterra.modes`); this module
+keeps the one-pole tools:
 
 * :func:`pole_from_modal`: from a natural frequency [Hz] and damping ratio
   (e.g. the FE model's modal analysis of the linearised structure).
