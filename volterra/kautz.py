@@ -1,4 +1,4 @@
-"""Kautz orthonormal functions: poles, exact recursive filtering, frequency responses.
+"""Poles of the Kautz functions: a complex pair (:class:`KautzPole`) or a real pole (:class:`RealPole`).
 
 Two-parameter Kautz functions (Kautz 1954; Wahlberg, IEEE TAC 39(6), 1994;
 the paper's eq. 14-15 as repaired in ``research-notes.md``).  One pair of
@@ -17,8 +17,9 @@ Function ``i`` (1-based in the formulas, 0-based in arrays) has the sampled
 impulse response ``psi_i(n)``, n = 0, 1, ... samples; the set is orthonormal in
 l2: ``sum_n psi_i(n) psi_j(n) = delta_ij`` (over a horizon long enough for
 ``|Z|^n`` to vanish; see :meth:`KautzPole.settling_samples`).  ``psi_1(0)`` is
-not zero (a one-sample advance with respect to Wahlberg's form), which carries
-the feed-through of a sampled system with a linearly interpolated input.
+not zero (a one-sample advance with respect to Wahlberg's form): 2 functions
+span ``(a + b z^-1) / D``, not every proper second-order system; the basis
+with the feed-through (:mod:`volterra.gobf`) does.
 
 This module holds the poles (:class:`KautzPole`, a complex pair, and
 :class:`RealPole`); the filters, for one pole or a sequence of poles of

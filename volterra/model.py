@@ -1,4 +1,4 @@
-"""Least-squares identification of a Kautz-basis Volterra model, and the model.
+"""VolterraModel: a Volterra model of orders 1-3 in a Kautz basis (fitted by :mod:`volterra.fit`).
 
 Conventions (see ``research-notes.md``):
 
