@@ -74,8 +74,9 @@ def stage_output(stage: str, comps: dict, metrics: str = "paper") -> np.ndarray:
 
 def n_compared_regressors(basis: volterra.KautzBasis, stage: str, metrics: str = "paper") -> int:
     """Regressors behind a stage's metric: sum over its compared orders k of
-    C(J_k + k - 1, k) (the symmetric kernel's coefficients)."""
-    return sum(math.comb(basis.n_functions[k] + k - 1, k) for k in METRIC_SETS[metrics][stage])
+    C(dim_k + k - 1, k) (the symmetric kernel's coefficients; dim_k, the
+    order's functions, counts every mode and the feed-through)."""
+    return sum(basis.n_terms(k) for k in METRIC_SETS[metrics][stage])
 
 
 def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS) -> tuple:
@@ -285,7 +286,7 @@ class Problem:
     def _residual_rms(self, y, comps, stage, n_sensors: int = 1) -> float:
         """rms of y - sum(comps) per degree of freedom left by the fit (one fit per sensor)."""
         basis = self.projector(stage).basis
-        n_coef = 1 + sum(math.comb(basis.n_functions[k] + k - 1, k) for k in STAGE_ORDERS[stage])
+        n_coef = 1 + sum(basis.n_terms(k) for k in STAGE_ORDERS[stage])
         return float(np.linalg.norm(y - sum(comps.values())) / math.sqrt(max(y.size - n_sensors * n_coef, 1)))
 
     def reference_components(self, stage: str) -> dict:
