@@ -43,6 +43,8 @@ from scipy.stats import qmc
 
 from surrogates.evaluation import default_executor, evaluate_many
 from bayes_update.core.logs import info
+import volterra
+
 from bayes_update.core.mode import ResidualFunction, find_mode
 from bayes_update.core.model import check_model_on
 from bayes_update.core.problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
@@ -200,9 +202,12 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Prob
     problem.space, problem.n_screen_runs = space, 0
     if problem.metrics == "full":
         names, sens, runs = screen_linear(problem, space, executor)
-        n_functions = linear_n_functions(len(names))
-        if n_functions != DEFAULT_N_FUNCTIONS:
-            problem = Problem(dataset, model, n_functions=n_functions, metrics=problem.metrics)
+        basis = problem.basis
+        n_functions = linear_n_functions(len(names), n_modes=len(basis.modes(1)),
+                                         feedthrough=basis.has_feedthrough(1))
+        if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
+            basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
+            problem = Problem(dataset, model, basis=basis, metrics=problem.metrics)
             problem.space = space
         problem.linear_parameters, problem.linear_sensitivity, problem.n_screen_runs = tuple(names), sens, runs
     return problem
