@@ -1,6 +1,6 @@
-"""``python -m bayes_update``: the command line (:mod:`bayes_update.reports.cli`)."""
+"""``python -m bayes_update``: the command line (:mod:`bayes_update.cli`)."""
 import sys
 
-from bayes_update.reports.cli import main
+from bayes_update.cli import main
 
 sys.exit(main())

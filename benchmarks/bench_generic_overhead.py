@@ -6,9 +6,10 @@ in one run, the same evaluation of the embedded default data set two ways:
 
 * **by hand**: ``fe.simulate`` on each test's force, the projector's
   components, the relative errors (what a beam-only code would do);
-* **through the framework**: ``bayes_update.core.posterior.Evaluate`` on the
-  beam's problem and space from ``make_problem`` (the adapter, internal
-  coordinates -> parameters, ``Problem.run``, the metric set).
+* **through the framework**: ``bayes_update.core.posterior.target.Evaluate`` on
+  the beam's problem (:func:`bayes_update.core.calibrate.problem_for` with the
+  beam as a model of the contract: internal coordinates -> parameters,
+  ``Problem.run``, the metric set).
 
 Median of 9 runs after warm-up, one BLAS thread, for the modal ROM and the
 full FE.  The difference is the generic layer's overhead per evaluation, and
@@ -27,7 +28,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from _machine import machine, median_time  # noqa: E402
 
 import fe  # noqa: E402
-from bayes_update.core.posterior import Evaluate, make_problem  # noqa: E402
+from bayes_update.core.calibrate import problem_for  # noqa: E402
+from bayes_update.core.posterior.target import Evaluate  # noqa: E402
+from bayes_update.models.beam.model import Beam  # noqa: E402
 from bayes_update.models.beam.rig import rig_of  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
 
@@ -39,9 +42,10 @@ def main():
     print(f"machine: {machine()}")
     print(f"{'model':>6} {'by hand [ms]':>14} {'framework [ms]':>15} {'overhead':>9}")
     for name, model in (("rom", fe.ModalROM(rig=rig)), ("fe", fe.BeamModel(rig=rig))):
-        problem, space = make_problem(data, model)
+        problem = problem_for(data, Beam(model))
+        space = problem.space
         params = fe.Parameters(eta=3.0e6, c=15.7e3, F=76.0, k_s=122.0e3)
-        x = space.to_internal(params)
+        x = space.to_internal(Beam(model).theta_of(params))
         stages = problem.stages
         evaluate = Evaluate(problem, space, stages)
         projectors = {st: problem.projector(st) for st in stages}

@@ -41,7 +41,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 from volterra import KautzBasis, fit_volterra  # noqa: E402
-from volterra.model import _tall_qr_r  # noqa: E402
+from volterra.fit import _tall_qr_r  # noqa: E402
 
 FS, N = 1024.0, 4096
 

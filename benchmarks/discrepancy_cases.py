@@ -8,7 +8,8 @@ elements at 4096 Hz, 40 dB noise on both channels; the two updating chirps,
 the medium chirp and the high sine for validation) with magnitudes drawn
 from bayes_update.models.beam.virtual_rig.HIDDEN_EFFECT_RANGES, then the whole workflow
 (deterministic start on coarse grids, baseline, naming, re-update) on the
-default FE model.  A case succeeds when the named effects are the hidden
+default FE model (:func:`bayes_update.find_discrepancy` with the beam as a
+model of the contract).  A case succeeds when the named effects are the hidden
 ones (none for "none"; for the combined case, both or the stronger), e_lin +
 e_nlin and the validation misfit shrink by at least 50 %, and every hidden
 parameter lies within 2 Laplace sd of its fitted value.
@@ -27,7 +28,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from bayes_update.models.beam.missing_effect import CANDIDATES, DiscrepancySettings, find_missing_effect  # noqa: E402
+from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy  # noqa: E402
+from bayes_update.models.beam.model import beam_model, effect_values  # noqa: E402
 from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset  # noqa: E402
 
 from _machine import machine  # noqa: E402
@@ -58,10 +60,9 @@ def judge(case, effects, res) -> dict:
     for e in effects:
         if e.name not in final:
             continue
-        cand = CANDIDATES[e.name]
-        for p, t in zip(cand.parameters, cand.values_of(e)):
-            f = final[e.name][p.name]
-            inside.append({"effect": e.name, "parameter": p.name, "truth": t, "mode": f["mode"], "sd": f["sd"],
+        for name, t in effect_values(e).items():
+            f = final[e.name][name]
+            inside.append({"effect": e.name, "parameter": name, "truth": t, "mode": f["mode"], "sd": f["sd"],
                            "inside": abs(f["mode"] - t) <= 2 * f["sd"]})
     gap_ok = case == "none" or (shrink_e >= 0.5 and shrink_v >= 0.5)
     return {"case": case, "hidden": [dict({"name": e.name}, **e.parameters()) for e in effects], "named": named,
@@ -84,7 +85,8 @@ def main(argv=None):
         for case in args.cases:
             effects = hidden_effects(CASES[case], seed=seed)
             data = make_dataset(rig=VirtualRig(effects=effects), tests=TESTS, seed=100 + seed)
-            res = find_missing_effect(data, settings=settings, workers=2, progress=False, log=lambda *a: None)
+            res = find_discrepancy(data, beam_model(data), settings=settings, workers=2, progress=False,
+                                   log=lambda *a: None)
             row = judge(case, effects, res)
             row["seed"] = seed
             rows.append(row)

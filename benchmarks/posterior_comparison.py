@@ -25,10 +25,8 @@ from scipy import stats
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import fe  # noqa: E402
-from bayes_update.models.beam.rig import rig_of  # noqa: E402
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
-from bayes_update.reports.posterior_plots import LABELS, ORDER, paper_draws  # noqa: E402
+from bayes_update.models.beam.model import beam_model  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
 
 from _machine import machine  # noqa: E402
@@ -79,13 +77,17 @@ def figure(a: dict, b: dict, truth: dict, title: str):
     return fig
 
 
+ORDER = ("eta", "c", "F", "k_s", "P_eff")
+LABELS = {"eta": "eta [MPa s]", "c": "c [N s/mm]", "F": "F [N]", "k_s": "k_s [N/mm]", "P_eff": "P_eff [N]"}
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", choices=("rom", "fe"), default="rom")
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args(argv)
     data = load_default_dataset()
-    model = fe.ModalROM(rig_of(data)) if args.model == "rom" else fe.BeamModel(rig_of(data))
+    model = beam_model(data, args.model)
     kw = dict(n_linear=0, n_global=0)
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
     if args.model == "fe" and not args.quick:
@@ -98,7 +100,7 @@ def main(argv=None):
     start = sur.space.to_parameters(sur.map.x)
     direct = sample(data, model, settings, direct=True, start=start, likelihood=sur.likelihood, progress=True)
     t_dir = time.perf_counter() - t0
-    a, b = paper_draws(sur.space, sur.draws), paper_draws(direct.space, direct.draws)
+    a, b = sur.space.report(sur.draws), direct.space.report(direct.draws)
     truth = truth_paper_units(data)
     res = compare(a, b, np.random.default_rng(0))
     name = args.model + ("_quick" if args.quick else "")

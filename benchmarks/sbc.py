@@ -36,9 +36,9 @@ sys.path.insert(0, str(ROOT))
 import fe  # noqa: E402
 from bayes_update.data import signals
 from bayes_update.data.dataset import Dataset, Record  # noqa: E402
-from bayes_update.models.beam.space import ParameterSpace  # noqa: E402
+from bayes_update.core.parameters import ParameterSet  # noqa: E402
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
-from bayes_update.reports.posterior_plots import ORDER, paper_draws  # noqa: E402
+from bayes_update.models.beam.model import Beam  # noqa: E402
 from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
 
 from _machine import machine  # noqa: E402
@@ -47,13 +47,14 @@ LEVELS = {"chirp_low": (0.02, "linear"), "chirp_high": (0.2, "nonlinear")}
 FS = 1024.0
 SNR_DB = 40.0
 N_RANK = 99
+ORDER = ("eta", "c", "F", "k_s", "P_eff")
 
 
 def synthetic_dataset(model, params, rng) -> Dataset:
     tests = []
     for name, (amp, role) in LEVELS.items():
         f = signals.chirp(amp)
-        v = model.simulate(params, f, FS).sensor_velocity
+        v = model.simulate(params, f, FS)
         f_rec = signals.add_noise(f, SNR_DB, rng)
         v_rec = signals.add_noise(v, SNR_DB, rng)
         t = np.arange(f.size) / FS
@@ -67,8 +68,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args(argv)
     rig = PAPER_EQUIVALENT_RIG
-    model = fe.ModalROM(rig)
-    space = ParameterSpace(rig)
+    model = Beam(fe.ModalROM(rig))
+    space = ParameterSet(model.parameters, model)
     rng = np.random.default_rng(args.seed)
     truths = space.sample_prior(args.truths, seed=args.seed)
     settings = PosteriorSettings(n_initial=64, n_rounds=3, batch=24, n_walkers=24, n_steps=5000, burn=1000,
@@ -85,8 +86,8 @@ def main(argv=None):
             rows.append({"truth": x.tolist(), "error": f"{type(exc).__name__}: {exc}"})
             print(f"{k}: failed: {exc}", flush=True)
             continue
-        d = paper_draws(space, res.draws)
-        tr = paper_draws(space, x[None, :])
+        d = space.report(res.draws)
+        tr = space.report(x[None, :])
         thin = rng.choice(len(res.draws), N_RANK, replace=False)
         row = {"truth": x.tolist(), "time_s": time.perf_counter() - t0,
                "max_r_hat": res.diagnostics["max_r_hat"]}

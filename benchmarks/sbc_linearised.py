@@ -32,10 +32,11 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 import fe  # noqa: E402
-from bayes_update.models.beam.space import ParameterSpace  # noqa: E402
 from bayes_update.core.likelihood import estimate_likelihood  # noqa: E402
-from bayes_update.models.beam.problem import UpdatingProblem  # noqa: E402
-from bayes_update.core.mode import ResidualFunction  # noqa: E402
+from bayes_update.core.mode import ResidualFunction, SpacePoint  # noqa: E402
+from bayes_update.core.parameters import ParameterSet  # noqa: E402
+from bayes_update.core.problem import Problem  # noqa: E402
+from bayes_update.models.beam.model import Beam  # noqa: E402
 from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
 
 from _machine import machine  # noqa: E402
@@ -83,8 +84,8 @@ def main(argv=None):
     if args.replicates < 24:
         raise SystemExit("--replicates must be at least 24 (the small sandwich uses the first 24)")
     rig = PAPER_EQUIVALENT_RIG
-    model = fe.ModalROM(rig)
-    space = ParameterSpace(rig)
+    model = Beam(fe.ModalROM(rig))
+    space = ParameterSet(model.parameters, model)
     rng = np.random.default_rng(args.seed)
     truths = space.sample_prior(args.truths, seed=args.seed)
     widths = np.diff(space.box(), axis=1)[:, 0]
@@ -92,13 +93,13 @@ def main(argv=None):
     for k, x in enumerate(truths):
         data = synthetic_dataset(model, space.to_parameters(x), rng)
         rng.choice(SBC_DRAWS, N_RANK, replace=False)
-        problem = UpdatingProblem(data, model)
+        problem = Problem(data, model)
         lik = estimate_likelihood(problem, space.to_parameters(x), model_error=False,
                                   n_replicates=args.replicates, seed=k, space=space)
         stages = lik.stages
         scales = {st: lik.scales[st].sd for st in stages}
         fun = ResidualFunction(problem, stages, tuple(scales[st] for st in stages),
-                               lambda z: (model, space.to_parameters(z)))
+                               SpacePoint(space, model))
         r = fun(x)
         cols = []
         for i in range(len(x)):
@@ -107,7 +108,7 @@ def main(argv=None):
             cols.append((fun(x + h) - fun(x - h)) / (2 * h[i]))
         J = np.array(cols).T
         dx = np.linalg.solve(J.T @ J, J.T @ r)
-        grad_F = np.array([0.0, 0.0, (space.kb + x[3]) / space.kb, x[2] / space.kb])
+        grad_F = np.array([0.0, 0.0, (model.kb + x[3]) / model.kb, x[2] / model.kb])
         row = [statistics(dx, C, grad_F) for C in covariances(J, lik.noise_residuals, stages, scales)]
         rows.append(row)
         print(f"{k}: chi^2 plain {row[0][0]:.2f}, sandwich(24) {row[1][0]:.2f}, "

@@ -15,6 +15,8 @@ from typing import ClassVar
 
 import numpy as np
 
+from .system import DiscreteElement
+
 
 class Effect:
     """Base class.  Subclasses are frozen dataclasses with SI parameters."""
@@ -108,7 +110,6 @@ class ShakerAttachment(Effect):
         _check_non_negative("shaker_attachment", mass=self.mass, stiffness=self.stiffness)
 
     def apply(self, system, rig, params) -> None:
-        from .model import DiscreteElement
 
         dof = _shaker_dof(system)
         if self.mass > 0:
@@ -145,7 +146,6 @@ class ClampCompliance(Effect):
             raise ValueError(f"clamp_compliance stiffness must be positive (inf = rigid), got {self.stiffness}")
 
     def apply(self, system, rig, params) -> None:
-        from .model import DiscreteElement
 
         if math.isinf(self.stiffness):
             return
@@ -194,7 +194,6 @@ class AmplitudeDependentDamping(Effect):
             raise ValueError(f"amplitude_dependent_damping velocity_scale must be positive, got {self.velocity_scale}")
 
     def apply(self, system, rig, params) -> None:
-        from .model import DiscreteElement
 
         top = system.n_dof - 3                        # top node: axial dof
         if self.kind == "coulomb" and self.friction_force > 0:

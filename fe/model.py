@@ -21,9 +21,10 @@ from ._banded import band_to_dense
 from .effects import Effect
 from .excitation import check_interpolation, upsample
 from .rig import Parameters, Rig
+from .system import DiscreteElement, SystemDescription
 
 # Defaults of the updating model, chosen by the convergence study in
-# benchmarks/convergence_study.py (docs/verification.md, "Solver defaults: a convergence study").
+# benchmarks/convergence_study.py (README, "Solver defaults").
 DEFAULT_ELEMENTS = 10
 DEFAULT_SUBSTEPS = 4
 DEFAULT_RHO_INF = 0.9
@@ -77,49 +78,6 @@ def generalized_alpha_accuracy(rho_inf: float, omega_dt: float) -> tuple[float, 
     # damped phase per step -> undamped numerical frequency
     omega_num = np.hypot(phase, np.log(abs(principal)))
     return float(zeta), float(omega_dt / omega_num - 1.0)
-
-
-@dataclass
-class DiscreteElement:
-    """A spring, damper or friction element from one dof to ground.
-
-    law: 'spring' (f = p1 u), 'damper' (f = p1 v), 'quadratic_damper'
-    (``f = p1 |v| v``) or 'coulomb' (f = p1 tanh(v / p2)); p1, p2 in SI.
-    """
-
-    dof: int
-    law: str
-    p1: float
-    p2: float = 1.0
-
-    _LAWS = {"spring": K.LAW_SPRING, "damper": K.LAW_DAMPER,
-             "quadratic_damper": K.LAW_QUADRATIC_DAMPER, "coulomb": K.LAW_COULOMB}
-
-
-@dataclass
-class SystemDescription:
-    """Everything the kernels need, in editable form (effects edit this).
-
-    node_x, node_y: reference node coordinates [m] (x along the beam from the
-    clamp, y transverse); node_theta: reference rotation of the cross-section
-    [rad] (the slope angle of a bowed axis; None: that of the straight chords,
-    i.e. straight elements); fixed: boolean mask of held dofs; point_masses: list
-    of (dof, mass [kg]); discrete: list of DiscreteElement; f_const: constant
-    external load [N]; b_load: load pattern of the shaker force (per N).
-    """
-
-    node_x: np.ndarray
-    node_y: np.ndarray
-    fixed: np.ndarray
-    point_masses: list = field(default_factory=list)
-    discrete: list = field(default_factory=list)
-    f_const: np.ndarray | None = None
-    b_load: np.ndarray | None = None
-    node_theta: np.ndarray | None = None
-
-    @property
-    def n_dof(self) -> int:
-        return 3 * self.node_x.size
 
 
 @dataclass(frozen=True)
@@ -244,7 +202,7 @@ class BeamModel:
     input_interpolation : the force between samples, ``"bandlimited"``
         (default) or ``"linear"`` (see :mod:`fe.excitation`).
     newton_rtol : Newton tolerance on the residual, relative to
-        ``F + max |shaker force|`` [-] (plus a floor at the round-off of the
+        F + max ``|shaker force|`` [-] (plus a floor at the round-off of the
         internal forces, 8 eps EA L / L_element).
     """
 

@@ -308,7 +308,7 @@ def cached_evaluate(func, points, cache: EvaluationCache, executor=None, *, batc
     if isinstance(chunk_size, bool) or int(chunk_size) != chunk_size or chunk_size < 1:
         raise ValueError(f"chunk_size must be a positive integer, got {chunk_size!r}")
     chunk_size = int(chunk_size)
-    with tqdm(total=len(todo), desc=desc, unit="run", disable=not progress or not len(todo)) as bar:
+    with tqdm(total=len(todo), desc=desc, unit="run", disable=None if progress and len(todo) else True) as bar:
         for i in range(0, len(todo), chunk_size):
             chunk = X[todo[i:i + chunk_size]]
             res = evaluate_many(func, [x.copy() for x in chunk], executor, batch_size=batch_size,

@@ -67,7 +67,7 @@ def evaluate_many(func, points, executor: Executor | None = None, batch_size: in
     if not points:
         return []
     if executor is None:
-        return [func(p) for p in tqdm(points, desc=desc, unit="run", disable=not progress)]
+        return [func(p) for p in tqdm(points, desc=desc, unit="run", disable=None if progress else True)]
     if not isinstance(executor, Executor):
         raise TypeError(f"executor must be a concurrent.futures.Executor, got {type(executor).__name__}")
     if batch_size is None:
@@ -77,7 +77,7 @@ def evaluate_many(func, points, executor: Executor | None = None, batch_size: in
     futures = {executor.submit(_run_batch, func, b): i for i, b in enumerate(batches)}
     results = [None] * len(batches)
     try:
-        with tqdm(total=len(points), desc=desc, unit="run", disable=not progress) as bar:
+        with tqdm(total=len(points), desc=desc, unit="run", disable=None if progress else True) as bar:
             for fut in as_completed(futures):
                 i = futures[fut]
                 results[i] = fut.result()

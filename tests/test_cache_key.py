@@ -11,17 +11,19 @@ import numpy as np
 import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.data.folder import read_dataset, write_dataset
-from bayes_update.models.beam.space import ParameterSpace
-from bayes_update.models.beam.problem import UpdatingProblem
-from bayes_update.core.posterior import Evaluate
+from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.posterior.target import Evaluate
+from bayes_update.core.problem import Problem
+from bayes_update.models.beam.model import Beam
 from bayes_update.core.posterior.design import _cache
 from bayes_update.models.beam.virtual_rig import DEFAULT_DATASET_DIR
 
 
 def _cache_file(data_dir, cache_dir):
     data = read_dataset(data_dir)
-    problem = UpdatingProblem(data, fe.ModalROM(rig=rig_of(data)))
-    ev = Evaluate(problem, ParameterSpace(rig_of(data)), problem.stages)
+    beam = Beam(fe.ModalROM(rig=rig_of(data)))
+    problem = Problem(data, beam)
+    ev = Evaluate(problem, ParameterSet(beam.parameters, beam), problem.stages)
     return _cache(cache_dir, ev, "design").file
 
 

@@ -13,12 +13,12 @@ import pytest
 import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.calibrate import parabola_vertex, parameters_from, preload_for_frequency
-from bayes_update.reports.cli import main
+from bayes_update.cli import main
 from bayes_update.data.dataset import DatasetError
 from bayes_update.data.folder import read_dataset
 from surrogates.evaluation import default_executor, evaluate_many
-from bayes_update.models.beam.problem import UpdatingProblem
-from bayes_update.core.problem import relative_error
+from bayes_update.core.problem import Problem, relative_error
+from bayes_update.models.beam.model import Beam
 from bayes_update.models.beam.virtual_rig import default_dataset_path, load_default_dataset
 
 TRUTH = fe.PAPER_PARAMETERS
@@ -31,7 +31,7 @@ def data():
 
 @pytest.fixture(scope="module")
 def problem(data):
-    return UpdatingProblem(data, fe.BeamModel(rig=rig_of(data)))
+    return Problem(data, Beam(fe.BeamModel(rig=rig_of(data))))
 
 
 def test_relative_error_and_reference_against_itself(problem):
@@ -56,10 +56,9 @@ def test_basis_pole_is_the_rigs_first_mode(data, problem):
 
 def test_e_lin_sees_only_p_eff_and_e_nlin_breaks_the_ridge(data, problem):
     """On the ridge (same P_eff) e_lin is unchanged to a small fraction of its
-    off-ridge change; e_nlin is not (docs/design.md#the-effective-preload-and-the-ridge)."""
-    rig = rig_of(data)
-    on = [parameters_from(rig, 3.0, 15.0, ks, 74.06) for ks in (0.0, 180.0, 540.0)]
-    off = parameters_from(rig, 3.0, 15.0, 180.0, 74.06 + 1.0)
+    off-ridge change; e_nlin is not (DESIGN.md section 2)."""
+    on = [parameters_from(problem.model, 3.0, 15.0, ks, 74.06) for ks in (0.0, 180.0, 540.0)]
+    off = parameters_from(problem.model, 3.0, 15.0, 180.0, 74.06 + 1.0)
     e = [problem.evaluate(p) for p in on + [off]]
     e_lin = [r["e_lin"] for r in e]
     assert max(e_lin[:3]) - min(e_lin[:3]) < 0.05 * (e_lin[3] - e_lin[1])
@@ -71,7 +70,7 @@ def test_e_lin_is_unimodal_in_eta_with_its_minimum_at_the_truth(data, problem):
     """A linear-only fit of the low-level test: e_lin falls then rises through the
     true eta (with orders 2-3 in that fit it was erratic, see bayes_update.core.problem)."""
     etas = [2.0, 2.5, 3.0, 3.5, 4.0]
-    e = [problem.evaluate(parameters_from(rig_of(data), eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
+    e = [problem.evaluate(parameters_from(problem.model, eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
          for eta in etas]
     assert int(np.argmin(e)) == 2
     assert e[0] > e[1] > e[2] < e[3] < e[4]
@@ -79,14 +78,14 @@ def test_e_lin_is_unimodal_in_eta_with_its_minimum_at_the_truth(data, problem):
 
 
 def test_failed_run_gives_nan_and_the_message(problem, data):
-    beyond = fe.Parameters(eta=3e6, c=15e3, F=500.0, k_s=0.0)
+    beyond = {"eta": 3.0, "c": 15.0, "F": 500.0, "k_s": 0.0}
     r = problem.evaluate(beyond)
     assert np.isnan(r["e_lin"]) and np.isnan(r["e_nlin"])
     assert "buckling" in r["error"]
 
 
 def test_executors_give_identical_results(problem, data):
-    pts = [parameters_from(rig_of(data), 3.0, c, 180.0, 74.0) for c in (5.0, 15.0)]
+    pts = [parameters_from(problem.model, 3.0, c, 180.0, 74.0) for c in (5.0, 15.0)]
     func = partial(problem.evaluate, stages=("linear",))
     serial = evaluate_many(func, pts, None, progress=False)
     with ThreadPoolExecutor(2) as ex:
@@ -101,17 +100,17 @@ def test_problem_rejects_bad_data_sets(data):
 
     no_linear = dataclasses.replace(data, tests=[t for t in data.tests if t.role != "linear"])
     with pytest.raises(DatasetError, match="role 'linear'"):
-        UpdatingProblem(no_linear, fe.BeamModel(rig=rig_of(data)))
+        Problem(no_linear, Beam(fe.BeamModel(rig=rig_of(data))))
     two = dataclasses.replace(data, tests=[dataclasses.replace(t, role="linear") for t in data.tests
                                            if t.signal == "chirp"])
     with pytest.raises(DatasetError, match="exactly one"):
-        UpdatingProblem(two, fe.BeamModel(rig=rig_of(data)))
+        Problem(two, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(ValueError, match="another rig"):
-        UpdatingProblem(data, fe.BeamModel())                    # factor 1.0 against 1.24
+        Problem(data, Beam(fe.BeamModel()))                      # factor 1.0 against 1.24
     lin_only = dataclasses.replace(data, tests=[t for t in data.tests if t.role == "linear"])
-    prob = UpdatingProblem(lin_only, fe.BeamModel(rig=rig_of(data)))
+    prob = Problem(lin_only, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(DatasetError, match="e_nlin"):
-        prob.evaluate(TRUTH)
+        prob.evaluate(Beam(fe.BeamModel(rig=rig_of(data))).theta_of(TRUTH))
 
 
 def test_helpers(data):
@@ -123,7 +122,8 @@ def test_helpers(data):
     x = np.linspace(0, 4, 9)
     assert abs(parabola_vertex(x, (x - 1.3) ** 2) - 1.3) < 1e-12
     assert parabola_vertex(x, x) == 0.0
-    p = parameters_from(rig_of(data), 3.0, 15.0, 180.0, 74.0)
+    beam = Beam(fe.BeamModel(rig=rig_of(data)))
+    p = beam.fe_parameters(parameters_from(beam, 3.0, 15.0, 180.0, 74.0))
     assert abs(p.effective_preload(rig_of(data)) - 74.0) < 1e-12 and p.c == 15e3 and p.k_s == 180e3
 
 
@@ -248,9 +248,9 @@ def test_calibrate_recovers_the_truth(quick_run, data):
     # F and k_s one by one are not identified to a point: e_lin sees only P_eff
     # (the ridge, checked above through P_eff = F K_b / (K_b + k_s)), and the
     # high level leaves a band in (c, k_s), along which the refinement slides
-    # (docs/beam_study.md: full settings c = 15.73, k_s = 122; quick: 15.49, 145).  The
+    # (README: full settings c = 15.73, k_s = 122; quick: 15.49, 145).  The
     # band's slope is an independent number: the posterior's regression of k_s
-    # on c (docs/posterior.md's table, GP + emcee on the same data: corr -0.96,
+    # on c (README posterior table, GP + emcee on the same data: corr -0.96,
     # sd 172 and 2.1, slope -0.96 x 172 / 2.1 = -79 N/mm per N s/mm).  Across
     # the band the estimate must sit on the truth: measured 3.4 N/mm (quick)
     # and 0.0 (full), while the posterior sd of that combination is 48 N/mm.

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from bayes_update.reports.cli import main
+from bayes_update.cli import main
 from bayes_update.data.dataset import Dataset, DatasetError, Record
 from bayes_update.data.folder import read_dataset, write_dataset
 from fe import Rig

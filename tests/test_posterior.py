@@ -9,10 +9,11 @@ from scipy import stats
 
 import fe
 import volterra
-from bayes_update.models.beam.rig import rig_of
 from bayes_update.core.likelihood import Likelihood, StageScale, noise_scale_from_replicates, white_noise_sd
-from bayes_update.models.beam.space import ParameterSpace
-from bayes_update.core.posterior import PosteriorSettings, run_emcee, sample
+from bayes_update.core.parameters import ParameterSet
+from bayes_update.models.beam.model import Beam, beam_model
+from bayes_update.core.posterior import PosteriorSettings, sample
+from bayes_update.core.posterior.mcmc import run_emcee
 from bayes_update.models.beam.virtual_rig import load_default_dataset
 
 TRUTH = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0}
@@ -23,11 +24,16 @@ def data():
     return load_default_dataset()
 
 
+def beam_space(model: Beam) -> ParameterSet:
+    """The beam's prior in its internal coordinates (eta, c, P_eff, k_s)."""
+    return ParameterSet(model.parameters, model)
+
+
 # ----------------------------------------------------------------- prior box
 def test_prior_density_integrates_to_the_public_box_area(data):
     """The internal (P_eff, k_s) density (K_b + k_s) / K_b on the image of the
     (F, k_s) box has the box's area: the Jacobian is right."""
-    space = ParameterSpace(rig_of(data))
+    space = beam_space(beam_model(data, "rom"))
     box = space.box()
     P = np.linspace(box[2, 0], box[2, 1], 801)
     K = np.linspace(box[3, 0], box[3, 1], 801)
@@ -39,22 +45,22 @@ def test_prior_density_integrates_to_the_public_box_area(data):
 
 
 def test_prior_draws_are_uniform_in_F_and_round_trip(data):
-    space = ParameterSpace(rig_of(data))
+    space = beam_space(beam_model(data, "rom"))
     X = space.sample_prior(20000, seed=1)
-    F = space.F_of(X)
+    F = space.report(X)["F"]
     assert stats.kstest((F - 60) / 35, "uniform").pvalue > 1e-3
     assert np.all(np.isfinite(space.log_prior(X)))
-    p = fe.Parameters(eta=3e6, c=15e3, F=77.0, k_s=180e3)
+    p = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0}
     q = space.to_parameters(space.to_internal(p))
-    assert (q.eta, q.c, q.k_s) == pytest.approx((p.eta, p.c, p.k_s)) and q.F == pytest.approx(77.0)
+    assert (q["eta"], q["c"], q["k_s"]) == pytest.approx((3.0, 15.0, 180.0)) and q["F"] == pytest.approx(77.0)
 
 
 def test_bad_prior_and_parameters_outside_it_are_named(data):
     with pytest.raises(ValueError, match="prior range of c"):
-        ParameterSpace(rig_of(data), c=(10.0, 5.0))
-    space = ParameterSpace(rig_of(data))
+        beam_model(data, "rom", prior={"c": (10.0, 5.0)})
+    space = beam_space(beam_model(data, "rom"))
     with pytest.raises(ValueError, match="k_s = 700"):
-        space.check(fe.Parameters(eta=3e6, c=15e3, F=77.0, k_s=700e3))
+        space.check({"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 700.0})
 
 
 # ---------------------------------------------------------------- likelihood
@@ -184,28 +190,27 @@ def _sbc_truth(args):
     from bayes_update.data import signals
     from bayes_update.data.dataset import Dataset, Record
     from bayes_update.core.likelihood import curvature_adjustment, estimate_likelihood
-    from bayes_update.models.beam.space import refined_model
-    from bayes_update.models.beam.problem import UpdatingProblem
     from bayes_update.core.mode import ResidualFunction, find_mode
+    from bayes_update.core.problem import Problem
     from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
 
     k, x, seed, generator, snr_db = args
     rig = PAPER_EQUIVALENT_RIG
-    rom = fe.ModalROM(rig)
-    space = ParameterSpace(rig)
+    rom = Beam(fe.ModalROM(rig))
+    space = beam_space(rom)
     box = space.box()
     widths = box[:, 1] - box[:, 0]
     params = space.to_parameters(x)
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(k,)))
-    gen = rom if generator == "rom" else refined_model(rom)
+    gen = rom if generator == "rom" else rom.refined()
     tests = []
     for name, (amp, role) in SBC_CHIRPS.items():
         f = signals.chirp(amp)
-        v = gen.simulate(params, f, 1024.0).sensor_velocity
+        v = gen.simulate(params, f, 1024.0)
         tests.append(Record(f"{name}.csv", "chirp", name.split("_")[1], role, np.arange(f.size) / 1024.0,
                             signals.add_noise(f, snr_db, rng), signals.add_noise(v, snr_db, rng)))
     try:
-        problem = UpdatingProblem(Dataset("sbc", 1024.0, rig, tests), rom)
+        problem = Problem(Dataset("sbc", 1024.0, rig, tests), rom)
     except ValueError as exc:          # volterra.PoleEstimationError is one
         if isinstance(exc, volterra.PoleEstimationError) or "Kautz pole" in str(exc):
             return None
@@ -219,8 +224,9 @@ def _sbc_truth(args):
     a_inv = np.linalg.inv(adj.A)
     cov = a_inv @ mode.covariance(scale=widths) @ a_inv.T
     z = (mode.x - x) / np.sqrt(np.diag(cov))
-    grad_F = np.array([0.0, 0.0, (space.kb + mode.x[3]) / space.kb, mode.x[2] / space.kb])
-    z_F = (space.F_of(mode.x)[0] - space.F_of(x)[0]) / math.sqrt(grad_F @ cov @ grad_F)
+    kb = rom.kb
+    grad_F = np.array([0.0, 0.0, (kb + mode.x[3]) / kb, mode.x[2] / kb])
+    z_F = (space.report(mode.x)["F"][0] - space.report(x)["F"][0]) / math.sqrt(grad_F @ cov @ grad_F)
     return np.append(z, z_F)
 
 
@@ -228,7 +234,7 @@ def _sbc_z(n_truths, seed, generator, snr_db):
     from surrogates.evaluation import default_executor, evaluate_many
     from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
 
-    truths = ParameterSpace(PAPER_EQUIVALENT_RIG).sample_prior(n_truths, seed=seed)
+    truths = beam_space(Beam(fe.ModalROM(PAPER_EQUIVALENT_RIG))).sample_prior(n_truths, seed=seed)
     pool = default_executor(2)
     try:
         out = evaluate_many(_sbc_truth, [(k, x, seed, generator, snr_db) for k, x in enumerate(truths)], pool,
@@ -340,24 +346,27 @@ def test_emcee_is_reproducible_with_a_seed():
 def rom_posterior(data):
     """Surrogate posterior on the ROM with reduced settings, from a given start
     (the deterministic start is tested in test_calibrate)."""
-    start = fe.Parameters(eta=3.05e6, c=12e3, F=77.5, k_s=200e3)
+    from bayes_update.models.beam.ridge import add_linear_only
+
+    start = {"eta": 3.05, "c": 12.0, "F": 77.5, "k_s": 200.0}
     settings = PosteriorSettings.quick(n_linear=24, n_global=0, n_predictive=8)
-    return sample(data, fe.ModalROM(rig_of(data)), settings, workers=2, start=start, progress=False,
+    post = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, progress=False,
                   log=lambda *a: None)
+    add_linear_only(post, 2, None, progress=False, log=lambda *a: None)
+    return post
 
 
 def test_posterior_covers_the_truth_on_the_default_data(rom_posterior, data):
     s = rom_posterior.summary
     truth = dict(TRUTH)
-    kb = rig_of(data).axial_stiffness / 1e3
+    kb = beam_model(data, "rom").kb
     truth["P_eff"] = 77.0 * kb / (kb + 180.0)
-    si = {"eta": 1e6, "c": 1e3, "F": 1.0, "k_s": 1e3, "P_eff": 1.0}
     for name, value in truth.items():
-        assert s[name]["hdi_3%"] <= value * si[name] <= s[name]["hdi_97%"], (name, s[name])
+        assert s[name]["hdi_3%"] <= value <= s[name]["hdi_97%"], (name, s[name])
         # in posterior sds (1 % of P_eff would be 200 of them): measured |mean - truth| / sd
         # 0.39 (eta), 0.86 (c, F, k_s), 0.90 (P_eff: 74.0596 +- 0.0038 N against 74.0630); 3 sd
         # leaves 3.3x that
-        assert abs(s[name]["mean"] - value * si[name]) <= 3.0 * s[name]["sd"], (name, s[name])
+        assert abs(s[name]["mean"] - value) <= 3.0 * s[name]["sd"], (name, s[name])
     # (No check of noise_dof here: nu = 2 mean^2 / var of the replicates' e^2 is
     # clipped by the code to [1, n_regressors], so that range cannot fail; it does
     # not enter the likelihood (the scale is the variance per direction of the
@@ -366,8 +375,8 @@ def test_posterior_covers_the_truth_on_the_default_data(rom_posterior, data):
     # a factor 2-3 uncertain.  The estimator is checked on chi-square draws with
     # a known nu in test_noise_dof_from_replicates_recovers_chi_square.)
     # the linear-only posterior is the ridge: F and k_s move together
-    assert rom_posterior.linear_only["corr_F_k_s"] > 0.99
-    assert rom_posterior.linear_only["narrowing"]["c"] > 1.5
+    assert rom_posterior.extras["linear_only"]["corr_F_k_s"] > 0.99
+    assert rom_posterior.extras["linear_only"]["narrowing"]["c"] > 1.5
 
 
 def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
@@ -378,6 +387,16 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
     write_posterior(rom_posterior, tmp_path, figures=False)
     idata = az.from_netcdf(str(tmp_path / "posterior.nc"))
     assert set(idata.posterior.data_vars) >= {"eta", "c", "F", "k_s", "P_eff"}
+    # the groups ArviZ's checks need (az.plot_ppc: observed_data and posterior_predictive), one
+    # variable per test, and every variable's unit
+    assert {"posterior", "sample_stats", "observed_data", "posterior_predictive",
+            "log_likelihood"} <= set(idata.groups())
+    assert set(idata.log_likelihood.data_vars) == set(idata.observed_data.data_vars) == {"chirp_low", "chirp_high"}
+    assert idata.posterior["k_s"].attrs["units"] == "N/mm" and idata.observed_data["chirp_low"].attrs["units"] == "m/s"
+    assert idata.posterior_predictive["chirp_high"].shape[-1] == idata.observed_data["chirp_high"].shape[-1]
+    # log L of each test at each draw: the likelihood's -1/2 (e / s)^2 <= 0, highest near the mode
+    assert float(idata.log_likelihood["chirp_low"].max()) <= 0.0
+    az.plot_ppc(idata, data_pairs={"chirp_high": "chirp_high"}, num_pp_samples=4)
     summary = json.loads((tmp_path / "posterior_summary.json").read_text())
     for name in ("eta", "c", "F", "k_s", "P_eff"):
         assert set(summary["parameters"][name]) >= {"mean", "sd", "hdi_3%", "hdi_97%", "r_hat", "ess_bulk"}
@@ -385,9 +404,9 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
 
 
 def test_sample_refuses_a_start_outside_the_prior(data):
-    with pytest.raises(ValueError, match="outside the prior box"):
-        sample(data, fe.ModalROM(rig_of(data)), PosteriorSettings.quick(), workers=1,
-               start=fe.Parameters(eta=9e6, c=15e3, F=77.0, k_s=180e3), progress=False)
+    with pytest.raises(ValueError, match="outside the prior"):
+        sample(data, beam_model(data, "rom"), PosteriorSettings.quick(), workers=1,
+               start={"eta": 9.0, "c": 15.0, "F": 77.0, "k_s": 180.0}, progress=False)
 
 
 def test_settings_are_validated():
@@ -412,15 +431,13 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
     import arviz as az
     from scipy import stats
 
-    from bayes_update.reports.posterior_plots import paper_draws
-
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
     settings = PosteriorSettings.quick(n_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
                                        n_global=0, n_predictive=0)
-    direct = sample(data, fe.ModalROM(rig_of(data)), settings, workers=2, start=start, direct=True,
+    direct = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, direct=True,
                     likelihood=rom_posterior.likelihood, progress=False, log=lambda *a: None)
-    a = paper_draws(rom_posterior.space, rom_posterior.draws)
-    b = paper_draws(direct.space, direct.draws)
+    a = rom_posterior.space.report(rom_posterior.draws)
+    b = direct.space.report(direct.draws)
     for name in ("eta", "c", "F", "k_s", "P_eff"):
         x, y = a[name], b[name]
         (la, ha), (lb, hb) = az.hdi(x, hdi_prob=0.94), az.hdi(y, hdi_prob=0.94)
@@ -432,7 +449,7 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
 
 @pytest.fixture(scope="module")
 def cli_sample(tmp_path_factory):
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
 
     out = tmp_path_factory.mktemp("cli_sample") / "post"
     assert main(["sample", "--model", "rom", "--quick", "--out", str(out), "--workers", "2", "--no-cache"]) == 0
@@ -447,17 +464,17 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
     figures are PNG images."""
     import arviz as az
 
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
 
     out = cli_sample
     summary = json.loads((out / "posterior_summary.json").read_text())
     idata = az.from_netcdf(str(out / "posterior.nc"))
-    kb = rig_of(load_default_dataset()).axial_stiffness / 1e3
-    truth_si = {"eta": 3e6, "c": 15e3, "F": 77.0, "k_s": 180e3, "P_eff": 77.0 * kb / (kb + 180.0)}
+    kb = beam_model(load_default_dataset(), "rom").kb
+    truth = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0, "P_eff": 77.0 * kb / (kb + 180.0)}
     for name in ("eta", "c", "F", "k_s", "P_eff"):
         got = summary["parameters"][name]
         assert {"mean", "sd", "hdi_3%", "hdi_97%", "r_hat", "ess_bulk"} <= set(got), (name, got)
-        draws = idata.posterior[name].values                 # (walker, draw), SI
+        draws = idata.posterior[name].values                 # (walker, draw), the parameter's unit
         lo, hi = az.hdi(draws.ravel(), hdi_prob=0.94)
         for key, ref in (("mean", draws.mean()), ("sd", draws.std(ddof=1)), ("hdi_3%", lo), ("hdi_97%", hi),
                          ("r_hat", float(az.rhat(idata, var_names=[name])[name])),
@@ -465,9 +482,9 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
             assert got[key] == pytest.approx(float(ref), rel=1e-9, abs=1e-12 * abs(got["mean"])), (name, key)
         assert got["hdi_3%"] < got["mean"] < got["hdi_97%"]
         # |mean - truth| / sd measured 0.43 (eta), 0.86-0.87 (c, F, k_s), 0.90 (P_eff); 3 sd
-        assert abs(got["mean"] - truth_si[name]) <= 3.0 * got["sd"], (name, got)
+        assert abs(got["mean"] - truth[name]) <= 3.0 * got["sd"], (name, got)
     assert summary["parameters"]["P_eff"]["units"] == "N"
-    for name in ("corner.png", "traces.png", "predictive.png", "ridge.png", "gp_diagnostics.png"):
+    for name in ("corner.png", "traces.png", "predictive.png", "gp_diagnostics.png"):
         head = (out / name).read_bytes()[:8]
         assert head == b"\x89PNG\r\n\x1a\n" and (out / name).stat().st_size > 10_000, name
     assert main(["sample", "--modes", "4", "--quick", "--out", str(tmp_path)]) == 2   # --modes needs --model rom
@@ -476,10 +493,10 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
 
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
-    from bayes_update.core.posterior import Whitening
+    from bayes_update.core.posterior.target import Whitening
     from bayes_update.core.posterior.mcmc import _box_cut_fraction
 
-    space = ParameterSpace(rig_of(data))
+    space = beam_space(beam_model(data, "rom"))
     cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2
     cov[1, 3] = cov[3, 1] = -0.9 * 2.0 * 150.0
     w = Whitening.from_covariance(np.array([3.0, 15.0, 74.0, 200.0]), cov)

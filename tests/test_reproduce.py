@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from bayes_update.reports.cli import main
+from bayes_update.cli import main
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
 PNG = b"\x89PNG\r\n\x1a\n"

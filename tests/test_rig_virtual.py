@@ -14,7 +14,7 @@ import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.data import signals, spectral
 from reference import clamped_clamped_frequencies
-from bayes_update.reports.cli import main
+from bayes_update.cli import main
 from bayes_update.data.folder import read_dataset
 from bayes_update.models.beam.virtual_rig import (
     CHIRP_LEVELS_N,

@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.core.parameters import Parameter, ParameterSet
 from bayes_update.core.sensitivity import sobol_indices
 
 A, B = 7.0, 0.1
@@ -34,11 +34,11 @@ ST_EXACT = {"eta": (V1 + V13) / V, "c": V2 / V, "F": V13 / V, "k_s": 0.0}
 class IshigamiProblem:
     """e_lin = exp(Ishigami(x)); e_nlin is NaN, so only e_lin is analysed (half the GP fits)."""
 
-    def __init__(self, space: ParameterSpace):
-        self.bounds = np.array([space.eta, space.c, space.F, space.k_s], float)   # paper units
+    def __init__(self, space: ParameterSet):
+        self.bounds = np.column_stack([space.low, space.high])
 
     def evaluate(self, params):
-        u = np.array([params.eta / 1e6, params.c / 1e3, params.F, params.k_s / 1e3])
+        u = np.array([params[n] for n in ("eta", "c", "F", "k_s")])
         x = -math.pi + 2 * math.pi * (u - self.bounds[:, 0]) / (self.bounds[:, 1] - self.bounds[:, 0])
         f = math.sin(x[0]) + A * math.sin(x[1]) ** 2 + B * x[2] ** 4 * math.sin(x[0])
         return {"e_lin": math.exp(f), "e_nlin": float("nan"), "error": None}
@@ -56,7 +56,8 @@ def test_sobol_indices_of_the_ishigami_function():
     About 8 s on one core."""
     from threadpoolctl import threadpool_limits
 
-    space = ParameterSpace()
+    space = ParameterSet([Parameter("eta", 1.0, 6.0, "MPa s"), Parameter("c", 0.0, 30.0, "N s/mm"),
+                          Parameter("F", 60.0, 95.0, "N"), Parameter("k_s", 0.0, 600.0, "N/mm")])
     with threadpool_limits(1):        # a 256-point GP: BLAS threads only add contention
         out = sobol_indices(IshigamiProblem(space), space, n_design=256, n_sobol=4096, pool=None, seed=3,
                             progress=False)

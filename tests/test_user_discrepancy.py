@@ -181,7 +181,7 @@ def test_a_model_without_candidates_or_nulls_is_told_what_to_add():
 
 
 def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
     from bayes_update.data.folder import write_dataset
 
     write_dataset(make_dataset({"k2": HIDDEN_K2}), tmp_path / "data")

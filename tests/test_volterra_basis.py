@@ -94,15 +94,20 @@ def test_filter_equals_direct_convolution():
 
 # ------------------------------------------------------------ basis
 def test_basis_orders_terms_and_per_order_poles():
-    basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6))
+    """Today's Kautz functions (feedthrough=False); with the feed-through every
+    order has one function more (the input itself)."""
+    basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6),
+                                  feedthrough=False)
     assert basis.orders == (1, 2, 3)
     assert basis.n_params == 2 + 2 * 3 // 2 + 6 * 7 * 8 // 6
-    b13 = KautzBasis.from_modal(37.0, 0.01, FS, n_functions=(2, 0, 6))
+    with_ft = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6))
+    assert with_ft.feedthrough and with_ft.n_params == 3 + 3 * 4 // 2 + 7 * 8 * 9 // 6
+    b13 = KautzBasis.from_modal(37.0, 0.01, FS, n_functions=(2, 0, 6), feedthrough=False)
     assert b13.orders == (1, 3) and b13.n_params == 2 + 56
     assert KautzBasis.from_modal(37.0, 0.01, FS, {1: 4, 3: 4}).orders == (1, 3)
     assert KautzBasis.from_modal(37.0, 0.01, FS, 8).orders == (1,)
     per = KautzBasis.from_modal(freq_hz=(30.0, 25.0, 35.0), damping_ratio={1: 0.01, 2: 0.05, 3: 0.03},
-                                fs=FS, n_functions=(4, 2, 4))
+                                fs=FS, n_functions=(4, 2, 4), feedthrough=False)
     assert per.pole(2).freq_hz == pytest.approx(25.0)
     assert per.pole(3).damping_ratio == pytest.approx(0.03)
     rng = np.random.default_rng(2)
@@ -112,7 +117,7 @@ def test_basis_orders_terms_and_per_order_poles():
         ref = kautz_filter(u, KautzPole.from_modal(fn, z, FS), per.n_functions[n])
         assert np.array_equal(filt[n], ref)
     # shared pole: orders 2 and 3 filtered once and sliced
-    shared = KautzBasis.from_modal(30.0, 0.01, FS, (2, 2, 6)).filter(u)
+    shared = KautzBasis.from_modal(30.0, 0.01, FS, (2, 2, 6), feedthrough=False).filter(u)
     assert np.allclose(shared[2], shared[3][:, :2])
     # regressor matrix: (N, P) and equal to the products of filtered inputs
     G = per.regressors(u)

@@ -80,8 +80,11 @@ def quadratic():
                 ys=[add_noise(r["x"], rng) for r in recs])
 
 
-def default_basis(J=(2, 2, 6)):
-    return KautzBasis.from_modal(freq_hz=FN, damping_ratio=ZETA, fs=FS, n_functions=J)
+def default_basis(J=(2, 2, 6), feedthrough=False):
+    """The numbers of this module were measured without the feed-through
+    (today's Kautz functions); with it, see test_volterra_multimode.py."""
+    return KautzBasis.from_modal(freq_hz=FN, damping_ratio=ZETA, fs=FS, n_functions=J,
+                                 feedthrough=feedthrough)
 
 
 # ------------------------------------------------------------ test 4
@@ -177,7 +180,7 @@ def test_limit_h3_ridge_not_representable_even_by_best_projection():
     from scipy.signal import fftconvolve
 
     L = 1 << 15
-    b1 = KautzBasis.from_modal(FN, ZETA, FS, {1: 2})
+    b1 = KautzBasis.from_modal(FN, ZETA, FS, {1: 2}, feedthrough=False)
     w = np.array([1.0, 0.6])
     h = b1.impulse_responses(1, L) @ w
     Hd = lambda f: b1.frequency_response(1, f) @ w  # noqa: E731
@@ -186,7 +189,7 @@ def test_limit_h3_ridge_not_representable_even_by_best_projection():
     energy = np.sum(R ** 4)
     rows = []
     for J3 in (4, 6, 8, 12, 16):
-        b3 = KautzBasis.from_modal(FN, ZETA, FS, {3: J3})
+        b3 = KautzBasis.from_modal(FN, ZETA, FS, {3: J3}, feedthrough=False)
         psi = b3.impulse_responses(3, L)
         g = np.stack([fftconvolve(psi[:, i], h[::-1])[L - 1:] for i in range(J3)], axis=-1)
         C = -np.einsum("t,ti,tj,tm->ijm", h, g, g, g, optimize=True)
@@ -269,7 +272,7 @@ def test_pole_from_frf_and_refinement(output):
     if output == "x":
         # J1 = 2 with the refined pole: measured max error 0.086 % (0.39 % without
         # the sinc^2 factor in the reference); tolerance 0.2 %, 2.3x the measured
-        model = fit_volterra(u, y, KautzBasis(refined, (2,)))
+        model = fit_volterra(u, y, KautzBasis(refined, (2,), feedthrough=False))
         f = np.linspace(33.3 * (1 - 0.06), 33.3 * (1 + 0.06), 41)
         ref = osc.H1(f) * sinc2(f, FS)
         assert np.max(np.abs(model.H1(f) - ref) / np.abs(ref)) < 2e-3

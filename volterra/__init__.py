@@ -1,4 +1,4 @@
-"""volterra: discrete-time Volterra series (orders 1-3) in a Kautz orthonormal basis.
+"""volterra: discrete-time Volterra series (orders 1-3) in a generalized orthonormal (Kautz) basis.
 
 Turns an input/output record into kernels, a constant h0 and the components
 y1, y2, y3 (paper eq. 11-19).  Knows nothing about beams.
@@ -11,7 +11,12 @@ y1, y2, y3 (paper eq. 11-19).  Knows nothing about beams.
     y1, y2, y3 = model.components(u)               # y = model.h0 + y1 + y2 + y3
     print(model.summary())
 
-    basis = KautzBasis.from_data(u_low, y_low, fs)  # pole from a low-level record
+    basis = KautzBasis.from_data(u_low, y_low, fs)  # every mode of a low-level record
+    basis.poles[1]                                  # one KautzPole per mode, dominant first
+
+A basis has one pole pair per mode (:mod:`volterra.gobf`) and, by default,
+the input itself as function 0 of every order (``feedthrough=True``), so the
+order-1 span holds every proper rational system with the modes' poles.
 
 Conventions: y_n with no 1/n! factor; symmetric kernels are averages over
 argument permutations; frequencies in Hz, lags in samples,
@@ -20,15 +25,20 @@ what the Kautz-basis kernels can and cannot represent (H3 near
 f1 + f2 + f3 = fn is not representable).
 """
 from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
-from .kautz import KautzPole, kautz_filter, kautz_frequency_response, kautz_impulse_responses
-from .model import FitInfo, VolterraModel, fit_volterra
-from .frf import estimate_h1, excited_band
+from .kautz import KautzPole, RealPole
+from .gobf import (gobf_filter_rows, gobf_frequency_response, kautz_filter, kautz_frequency_response,
+                   kautz_impulse_responses)
+from .model import VolterraModel
+from .fit import FitInfo, fit_volterra
+from .frf import estimate_h1, excited_band, periodic_h1
+from .modes import ModalEstimate, PoleEstimationError, estimate_modes
 from .projector import VolterraProjector
-from .poles import PoleEstimationError, pole_from_frf, pole_from_modal, refine_bounds, refine_pole
+from .poles import pole_from_frf, pole_from_modal, refine_bounds, refine_pole
 from .regressors import index_tuples, multiplicity, n_terms
 
 __all__ = [
     "KautzPole",
+    "RealPole",
     "KautzBasis",
     "DEFAULT_N_FUNCTIONS",
     "ROBUST_LINEAR_N_FUNCTIONS",
@@ -41,8 +51,13 @@ __all__ = [
     "refine_pole",
     "refine_bounds",
     "PoleEstimationError",
+    "estimate_modes",
+    "ModalEstimate",
     "estimate_h1",
+    "periodic_h1",
     "excited_band",
+    "gobf_filter_rows",
+    "gobf_frequency_response",
     "kautz_filter",
     "kautz_impulse_responses",
     "kautz_frequency_response",
@@ -52,12 +67,13 @@ __all__ = [
     "plot_components",
     "plot_h1",
     "plot_h2",
+    "plot_stabilisation",
 ]
 
 
 def __getattr__(name):
     # plotting imports matplotlib lazily: importing volterra stays cheap
-    if name in ("plot_components", "plot_h1", "plot_h2"):
+    if name in ("plot_components", "plot_h1", "plot_h2", "plot_stabilisation"):
         from . import plotting
 
         return getattr(plotting, name)

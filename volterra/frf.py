@@ -8,6 +8,9 @@
 * :func:`excited_band`: the band where the input has energy, from the input's
   averaged PSD with its mean removed (so that a DC offset of the input sensor
   does not become the "peak" that collapses the band to 0 Hz).
+* :func:`periodic_h1`: H1 of a periodic excitation (multisine) from
+  period-synchronous FFTs, the transient first period dropped: no window, no
+  leakage on the excited lines.
 
 Frequencies in Hz.
 """
@@ -20,7 +23,7 @@ from scipy.signal import csd, welch
 
 from ._validation import as_record_list, paired_records
 
-__all__ = ["estimate_h1", "excited_band", "default_nperseg"]
+__all__ = ["estimate_h1", "excited_band", "default_nperseg", "periodic_h1"]
 
 #: Default number of half-overlapping segments a record is cut into (Welch).
 DEFAULT_SEGMENTS = 7
@@ -132,3 +135,63 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
         raise ValueError("the input has no energy above DC (is u constant?)")
     band = f[resolved & (total >= level * total[resolved].max())]
     return float(band.min()), float(band.max())
+
+
+def periodic_h1(u, y, fs: float, period_samples: int, skip_periods: int = 1):
+    """H1 of a periodic excitation from period-synchronous spectra.
+
+    Every record is cut into whole periods of ``period_samples`` samples; the
+    first ``skip_periods`` (the transient) are dropped, each remaining period
+    is Fourier transformed without a window (a steady-state periodic
+    response has no leakage on the period's lines) and
+    ``H1(f_k) = sum_p Y_p(k) conj U_p(k) / sum_p |U_p(k)|^2``, with the
+    coherence ``|sum Y conj U|^2 / (sum |U|^2 sum |Y|^2)`` over the periods.
+
+    Parameters
+    ----------
+    u : 1-D array or list of records (the input), sampled at ``fs`` [Hz].
+    y : matching records, each (n,) or (n, n_sensors).
+    period_samples : int
+        Period of the excitation [samples].
+    skip_periods : int
+        Leading periods dropped (default 1).
+
+    Returns
+    -------
+    f : (K,) frequencies k fs / period_samples [Hz], k = 0 .. period_samples // 2
+    H : (K, n_sensors) complex FRF (NaN where the input has no power)
+    coherence : (K, n_sensors) [-] (1 where only one period is left)
+    u_power : (K,) input power per line [u unit^2], averaged over periods
+    """
+    P = int(period_samples)
+    if P < 8:
+        raise ValueError(f"period_samples must be at least 8 samples, got {period_samples!r}")
+    us, _ = as_record_list(u, "u")
+    ys = y if isinstance(y, (list, tuple)) else [y]
+    if len(ys) != len(us):
+        raise ValueError(f"got {len(us)} input record(s) but {len(ys)} output record(s)")
+    Suy = Suu = Syy = 0.0
+    count = 0
+    for r_u, r_y in zip(us, ys):
+        r_y = np.asarray(r_y, float)
+        r_y = r_y[:, None] if r_y.ndim == 1 else r_y
+        if r_y.shape[0] != r_u.size:
+            raise ValueError(f"input and output records have unequal lengths: {r_u.size} and {r_y.shape[0]}")
+        n_per = r_u.size // P - int(skip_periods)
+        if n_per < 1:
+            raise ValueError(f"a record of {r_u.size} samples holds fewer than {skip_periods + 1} periods "
+                             f"of {P} samples")
+        start = int(skip_periods) * P
+        U = np.fft.rfft(r_u[start:start + n_per * P].reshape(n_per, P), axis=1)
+        Y = np.fft.rfft(r_y[start:start + n_per * P].T.reshape(r_y.shape[1], n_per, P), axis=2)
+        Suy = Suy + np.einsum("spk,pk->ks", Y, U.conj())
+        Suu = Suu + np.sum(np.abs(U) ** 2, axis=0)
+        Syy = Syy + np.sum(np.abs(Y) ** 2, axis=1).T
+        count += n_per
+    f = np.arange(P // 2 + 1) * fs / P
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = np.where(Suu[:, None] > 0, Suy / Suu[:, None], np.nan)
+        coh = np.where((Suu[:, None] > 0) & (Syy > 0), np.abs(Suy) ** 2 / (Suu[:, None] * Syy), 0.0)
+    if count == 1:
+        coh = np.where(Suu[:, None] > 0, 1.0, 0.0) * np.ones_like(coh)
+    return f, H, np.clip(coh, 0.0, 1.0), Suu / count

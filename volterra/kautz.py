@@ -1,4 +1,4 @@
-"""Kautz orthonormal functions: poles, exact recursive filtering, frequency responses.
+"""Poles of the Kautz functions: a complex pair (:class:`KautzPole`) or a real pole (:class:`RealPole`).
 
 Two-parameter Kautz functions (Kautz 1954; Wahlberg, IEEE TAC 39(6), 1994;
 the paper's eq. 14-15 as repaired in ``docs/design.md#kautz-basis-form-and-conventions``).  One pair of
@@ -17,12 +17,14 @@ Function ``i`` (1-based in the formulas, 0-based in arrays) has the sampled
 impulse response ``psi_i(n)``, n = 0, 1, ... samples; the set is orthonormal in
 l2: ``sum_n psi_i(n) psi_j(n) = delta_ij`` (over a horizon long enough for
 ``|Z|^n`` to vanish; see :meth:`KautzPole.settling_samples`).  ``psi_1(0)`` is
-not zero (a one-sample advance with respect to Wahlberg's form), which carries
-the feed-through of a sampled system with a linearly interpolated input.
+not zero (a one-sample advance with respect to Wahlberg's form): 2 functions
+span ``(a + b z^-1) / D``, not every proper second-order system; the basis
+with the feed-through (:mod:`volterra.gobf`) does.
 
-Inputs are filtered by the exact recursive filters (``scipy.signal.lfilter``,
-zero initial state: every record is assumed to start at rest), never by a
-truncated convolution.
+This module holds the poles (:class:`KautzPole`, a complex pair, and
+:class:`RealPole`); the filters, for one pole or a sequence of poles of
+several modes, are in :mod:`volterra.gobf` (exact recursive filtering,
+``scipy.signal.lfilter``, zero initial state, never a truncated convolution).
 """
 from __future__ import annotations
 
@@ -30,14 +32,8 @@ from dataclasses import dataclass
 import math
 
 import numpy as np
-from scipy.signal import lfilter
 
-__all__ = [
-    "KautzPole",
-    "kautz_impulse_responses",
-    "kautz_filter",
-    "kautz_frequency_response",
-]
+__all__ = ["KautzPole", "RealPole"]
 
 
 @dataclass(frozen=True)
@@ -193,6 +189,68 @@ class KautzPole:
         )
 
 
+@dataclass(frozen=True)
+class RealPole:
+    """A real discrete pole ``a`` (0 < a < 1): an overdamped / first-order mode.
+
+    Contributes one function per repeat of a pole sequence (a complex pair
+    contributes two); see :mod:`volterra.gobf`.  ``fs`` in Hz.
+    """
+
+    a: float
+    fs: float
+
+    def __post_init__(self):
+        fs = float(self.fs)
+        if not np.isfinite(fs) or fs <= 0:
+            raise ValueError(f"sampling rate fs must be a positive number of Hz, got {self.fs!r}")
+        a = float(self.a)
+        if not 0.0 < a < 1.0:
+            raise ValueError(f"a real pole needs 0 < a < 1 (stable, not at Nyquist), got a = {self.a!r}")
+        object.__setattr__(self, "a", a)
+        object.__setattr__(self, "fs", fs)
+
+    @classmethod
+    def from_s(cls, s: float, fs: float) -> "RealPole":
+        """From a continuous real pole ``s`` < 0 [rad/s]: ``a = exp(s / fs)``."""
+        s = float(s)
+        if not s < 0:
+            raise ValueError(f"unstable real pole: s = {s:g} rad/s must be negative")
+        return cls(math.exp(s / float(fs)), fs)
+
+    @property
+    def z(self) -> float:
+        """The discrete pole (dimensionless)."""
+        return self.a
+
+    @property
+    def s(self) -> float:
+        """Continuous pole ``fs log a`` [rad/s] (negative)."""
+        return math.log(self.a) * self.fs
+
+    @property
+    def freq_hz(self) -> float:
+        """Corner frequency ``|s| / 2 pi`` [Hz]."""
+        return abs(self.s) / (2.0 * math.pi)
+
+    @property
+    def damping_ratio(self) -> float:
+        """1 (a real pole is not oscillatory) [-]."""
+        return 1.0
+
+    @property
+    def radius(self) -> float:
+        """Pole modulus (decay factor per sample)."""
+        return self.a
+
+    def settling_samples(self, tol: float = 1e-12) -> int:
+        """Number of samples after which ``a^n < tol``."""
+        return int(math.ceil(math.log(tol) / math.log(self.a)))
+
+    def __str__(self) -> str:
+        return f"RealPole(a = {self.a:.8f}, corner {self.freq_hz:.4f} Hz, fs = {self.fs:g} Hz)"
+
+
 def _check_n_functions(n_functions: int) -> int:
     if isinstance(n_functions, bool) or not isinstance(n_functions, (int, np.integer)):
         raise ValueError(f"number of Kautz functions must be an even integer, got {n_functions!r}")
@@ -205,85 +263,3 @@ def _check_n_functions(n_functions: int) -> int:
     return J
 
 
-def _kautz_filter_rows(u, pole: KautzPole, J: int) -> np.ndarray:
-    """Filtered inputs with the function index before time: shape (..., J, N)."""
-    u = np.asarray(u, dtype=float)
-    b, c = pole.b, pole.c
-    den = pole.denominator()
-    num_a = pole.allpass_numerator()
-    k_odd = math.sqrt(1.0 - c * c)
-    k_even = math.sqrt((1.0 - c * c) * (1.0 - b * b))
-    out = np.empty(u.shape[:-1] + (J, u.shape[-1]))
-    r = lfilter([1.0], den, u, axis=-1)          # (1 / D) u, D in powers of z^-1
-    for g in range(J // 2):
-        if g:
-            r = lfilter(num_a, den, r, axis=-1)  # one more all-pass section A
-        odd = out[..., 2 * g, :]
-        even = out[..., 2 * g + 1, :]
-        # Psi_{2g}:   sqrt((1-c^2)(1-b^2)) z^-1 / D A^(g-1)
-        even[..., 0] = 0.0
-        np.multiply(r[..., :-1], k_even, out=even[..., 1:])
-        # Psi_{2g-1}: sqrt(1-c^2) (1 - b z^-1) / D A^(g-1)
-        np.multiply(r, k_odd, out=odd)
-        odd[..., 1:] -= (b * k_odd) * r[..., :-1]
-    return out
-
-
-def kautz_filter(u, pole: KautzPole, n_functions: int) -> np.ndarray:
-    """Filter ``u`` by the first ``n_functions`` Kautz functions of ``pole``.
-
-    Exact recursive filtering (``scipy.signal.lfilter``) from a zero initial
-    state, along the last axis of ``u``.
-
-    Parameters
-    ----------
-    u : array_like, shape (..., N)
-        Input samples (any unit); N samples at ``pole.fs`` Hz.
-    pole : KautzPole
-    n_functions : int
-        J, even.
-
-    Returns
-    -------
-    ndarray, shape (..., N, J)
-        ``l_i(k) = sum_n psi_i(n) u(k - n)`` for i = 0 .. J-1.
-    """
-    J = _check_n_functions(n_functions)
-    return np.swapaxes(_kautz_filter_rows(u, pole, J), -1, -2)
-
-
-def kautz_impulse_responses(pole: KautzPole, n_functions: int, n_samples: int) -> np.ndarray:
-    """Sampled impulse responses ``psi_i(n)``, n = 0 .. n_samples-1.
-
-    Returns an array of shape (n_samples, J).
-    """
-    n = int(n_samples)
-    if n <= 0:
-        raise ValueError(f"n_samples must be positive, got {n_samples!r}")
-    d = np.zeros(n)
-    d[0] = 1.0
-    return kautz_filter(d, pole, n_functions)
-
-
-def kautz_frequency_response(pole: KautzPole, n_functions: int, f_hz) -> np.ndarray:
-    """Frequency responses ``Psi_i(exp(j 2 pi f / fs))`` of the Kautz functions.
-
-    Convention: ``Psi_i(f) = sum_n psi_i(n) exp(-j 2 pi f n / fs)`` with f in
-    Hz (negative frequencies allowed, ``Psi(-f) = conj Psi(f)``).
-
-    Returns a complex array of shape ``np.shape(f_hz) + (J,)``.
-    """
-    J = _check_n_functions(n_functions)
-    f = np.asarray(f_hz, dtype=float)
-    z = np.exp(2j * np.pi * f / pole.fs)
-    b, c = pole.b, pole.c
-    D = z * z + b * (c - 1.0) * z - c
-    A = (-c * z * z + b * (c - 1.0) * z + 1.0) / D
-    even = math.sqrt((1.0 - c * c) * (1.0 - b * b)) * z / D
-    odd_factor = (z - b) / math.sqrt(1.0 - b * b)
-    out = np.empty(f.shape + (J,), dtype=complex)
-    for g in range(J // 2):
-        out[..., 2 * g + 1] = even
-        out[..., 2 * g] = odd_factor * even
-        even = even * A
-    return out

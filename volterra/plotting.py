@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-__all__ = ["plot_components", "plot_h1", "plot_h2"]
+__all__ = ["plot_components", "plot_h1", "plot_h2", "plot_stabilisation"]
 
 
 def plot_components(model, u, y=None, t=None, labels=("y1", "y2", "y3"), ylabel="output",
@@ -89,4 +89,26 @@ def plot_h2(model, f_range=None, n_points: int = 161, kind: str = "surface", tit
     ax.set_ylabel("f2 [Hz]")
     if title:
         ax.set_title(title)
+    return fig
+
+
+def plot_stabilisation(estimate, title=None, figsize=(8, 5)) -> Figure:
+    """Stabilisation diagram of :func:`volterra.estimate_modes`: the physical
+    LSCF poles per model order (stable ones filled), the chosen modes as
+    vertical lines, over the sensors' ``|H1|`` [y unit / u unit] (log scale)."""
+    fig = Figure(figsize=figsize, constrained_layout=True)
+    ax = fig.subplots()
+    for n, fr, _, ok in estimate.diagram:
+        ax.plot(fr[~ok], np.full((~ok).sum(), n), "o", mfc="none", color="0.6", ms=4)
+        ax.plot(fr[ok], np.full(ok.sum(), n), "o", color="C0", ms=4)
+    for p in estimate.poles:
+        ax.axvline(p.freq_hz, color="C3", lw=0.8)
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("LSCF model order")
+    ax.set_xlim(*estimate.band)
+    ax2 = ax.twinx()
+    ax2.semilogy(estimate.f, np.abs(estimate.H), color="0.3", lw=0.6)
+    ax2.set_ylabel("|H1|")
+    if title:
+        fig.suptitle(title)
     return fig

@@ -1,4 +1,8 @@
-"""Pole selection for the Kautz basis.
+"""One pole for the Kautz basis (the previous estimator, kept for single-mode use).
+
+:meth:`volterra.KautzBasis.from_data` now estimates every mode of a record
+with :func:`volterra.estimate_modes` (:mod:`volterra.modes`); this module
+keeps the one-pole tools:
 
 * :func:`pole_from_modal`: from a natural frequency [Hz] and damping ratio
   (e.g. the FE model's modal analysis of the linearised structure).
@@ -30,8 +34,10 @@ from scipy.optimize import minimize
 
 from ._validation import paired_records
 from .basis import KautzBasis
+from .fit import fit_volterra
 from .frf import _segment_lengths, estimate_h1, excited_band
 from .kautz import KautzPole
+from .modes import PoleEstimationError
 
 __all__ = ["PoleEstimationError", "pole_from_modal", "pole_from_frf", "refine_pole"]
 
@@ -49,11 +55,6 @@ MIN_FREQ_SPAN = 0.05
 #: ... and damping ratio within [zeta0 / DAMPING_FACTOR, min(zeta0 DAMPING_FACTOR, MAX_DAMPING)].
 DAMPING_FACTOR = 10.0
 MAX_DAMPING = 0.95
-
-
-class PoleEstimationError(ValueError):
-    """No trustworthy pole could be estimated from the data; the message says
-    what to check (band, coherence, offsets and drifts, level of the record)."""
 
 
 def pole_from_modal(freq_hz: float, damping_ratio: float, fs: float) -> KautzPole:
@@ -233,7 +234,7 @@ def _at_bound(x, lo, hi, tol=5e-3):
 
 def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, orders=None,
                 xatol: float = 1e-7, maxiter: int = 400,
-                max_residual: float = MAX_RESIDUAL) -> KautzPole:
+                max_residual: float = MAX_RESIDUAL, feedthrough: bool = True) -> KautzPole:
     """Refine a (common) pole by minimising the relative fit residual.
 
     Bounded Nelder-Mead over ``(log f, log zeta)`` inside the neighbourhood
@@ -248,7 +249,8 @@ def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, ord
     u, y : 1-D arrays or lists of records; sampled at ``pole.fs`` [Hz].
     pole : KautzPole
         Start, e.g. from :func:`pole_from_frf`.
-    n_functions, ridge, orders : as :class:`KautzBasis` / :func:`volterra.fit_volterra`.
+    n_functions, ridge, orders, feedthrough : as :class:`KautzBasis` /
+        :func:`volterra.fit_volterra`.
     xatol, maxiter : Nelder-Mead options (xatol on log f and log zeta).
     max_residual : float
         Largest acceptable relative residual ``||y - y_fit|| / ||y||`` of the
@@ -265,8 +267,6 @@ def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, ord
         Nyquist, or its fit leaves more than ``max_residual`` of the record
         unexplained.
     """
-    from .model import fit_volterra
-
     us, ys = _centred(u, y)
     fs = pole.fs
     n_samples = min(r.size for r in us)
@@ -276,7 +276,7 @@ def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, ord
     x0 = np.log([pole.freq_hz, pole.damping_ratio])
 
     def residual(x):
-        basis = KautzBasis(KautzPole.from_modal(math.exp(x[0]), math.exp(x[1]), fs), n_functions)
+        basis = KautzBasis(KautzPole.from_modal(math.exp(x[0]), math.exp(x[1]), fs), n_functions, feedthrough)
         return fit_volterra(us, ys, basis, ridge=ridge, orders=orders).info.relative_residual
 
     def cost(x):

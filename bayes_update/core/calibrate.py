@@ -42,11 +42,14 @@ import numpy as np
 from scipy.stats import qmc
 
 from surrogates.evaluation import default_executor, evaluate_many
+from bayes_update.core.logs import info
+import volterra
+
 from bayes_update.core.mode import ResidualFunction, find_mode
 from bayes_update.core.model import check_model_on
 from bayes_update.core.problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
 
-__all__ = ["Calibration", "TwoStage", "calibrate_model", "problem_for", "screen_linear", "two_stage",
+__all__ = ["Calibration", "TwoStage", "calibrate_model", "find_start", "problem_for", "screen_linear", "two_stage",
            "unidentified_directions"]
 
 #: a step of this fraction of a prior range probes the linear test's sensitivity
@@ -180,19 +183,54 @@ def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc):
     return [X[i] for i in order[:n_best]], len(X)
 
 
-def problem_for(dataset, model, space, metrics=None, executor=None) -> tuple[Problem, list, dict, int]:
-    """(problem, linear parameter names, their sensitivities, model runs) for a
-    model of the contract: the screen of step 1 on a default problem and,
-    under the ``full`` set, the problem rebuilt with J1 for that many linear
-    parameters (:func:`linear_n_functions`)."""
+def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Problem:
+    """The one builder of a :class:`Problem` for ``model`` on ``dataset``.
+
+    Checks the model with one run before any heavy work
+    (:func:`bayes_update.core.model.check_model_on`).  Under the ``full``
+    metric set the linear test's J1 follows the number of parameters it moves
+    (step 1's screen, d + 1 runs of the linear test; :func:`linear_n_functions`):
+    the problem is rebuilt with it and keeps the screen's result in
+    ``linear_parameters``, ``linear_sensitivity`` and ``n_screen_runs``.
+
+    space : the prior (default: the model's declared parameters), kept as
+        ``problem.space``.
+    """
+    checked = check_model_on(model, dataset)
+    space = checked if space is None else space
     problem = Problem(dataset, model, metrics=metrics)
-    names, sens, runs = screen_linear(problem, space, executor)
+    problem.space, problem.n_screen_runs = space, 0
     if problem.metrics == "full":
-        n_functions = linear_n_functions(len(names))
-        if n_functions != DEFAULT_N_FUNCTIONS:
-            problem = Problem(dataset, model, n_functions=n_functions, metrics=problem.metrics)
-    problem.linear_parameters = tuple(names)      # the start search reuses the screen
-    return problem, names, sens, runs
+        names, sens, runs = screen_linear(problem, space, executor)
+        basis = problem.basis
+        n_functions = linear_n_functions(len(names), n_modes=len(basis.modes(1)),
+                                         feedthrough=basis.has_feedthrough(1))
+        if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
+            basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
+            problem = Problem(dataset, model, basis=basis, metrics=problem.metrics)
+            problem.space = space
+        problem.linear_parameters, problem.linear_sensitivity, problem.n_screen_runs = tuple(names), sens, runs
+    return problem
+
+
+def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: int = 0, executor=None,
+               progress: bool = False, log=info) -> tuple[dict, int]:
+    """(theta, model runs): where ``sample`` and ``find_discrepancy`` start.
+
+    The model's own ``start(dataset, executor, progress)`` when it offers one
+    (the beam: the paper's grids), else the two-stage calibration of this
+    module on the problem as built (Sobol' designs of ``n_points`` points,
+    then least squares)."""
+    if callable(getattr(problem.model, "start", None)):
+        log("start: the model's own start search")
+        return problem.model.start(dataset, executor=executor, progress=progress)
+    log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
+    names, runs = problem.linear_parameters, 0
+    if names is None:
+        names, problem.linear_sensitivity, runs = screen_linear(problem, space, executor)
+        problem.linear_parameters = tuple(names)
+    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=executor, progress=progress)
+    return space.to_parameters(found.x), runs + found.n_model_runs
 
 
 @dataclass
@@ -244,7 +282,7 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
 
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,
                     max_iterations: int = 40, seed: int = 0, executor=None, workers=None,
-                    progress: bool = True, log=print) -> Calibration:
+                    progress: bool = True, log=info) -> Calibration:
     """The two-stage calibration of the module docstring.
 
     Parameters
@@ -256,11 +294,15 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
     n_start, n_best : Sobol' points per stage and how many of the best start
         a least-squares search.
     """
-    space = check_model_on(model, dataset)
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        problem, lin_names, sens, runs = problem_for(dataset, model, space, metrics, pool)
+        problem = problem_for(dataset, model, metrics=metrics, executor=pool)
+        space, runs = problem.space, 1 + problem.n_screen_runs
+        if problem.linear_parameters is None:        # the paper's set: no J1 to adapt, screen here
+            problem.linear_parameters, problem.linear_sensitivity, n = screen_linear(problem, space, pool)
+            runs += n
+        lin_names, sens = list(problem.linear_parameters), problem.linear_sensitivity
         if "nonlinear" not in problem.stages:
             raise ValueError(f"{problem.source}: calibrate needs a test with role 'nonlinear' as well "
                              "as the linear one")

@@ -2,54 +2,63 @@
 model misses, add it, re-update, show the gap shrink.
 
 The model offers its candidates through ``candidate_effects()`` alone
-(:mod:`bayes_update.core.effects`); the workflow and its rules are those of the
-beam's :func:`bayes_update.models.beam.missing_effect.find_missing_effect`:
+(:mod:`bayes_update.core.effects`: parameters with a ``null`` value that
+switches the effect off).  :func:`find_discrepancy` runs these steps:
 
-1. **baseline**: start at ``start`` or at the best of a Sobol' design over the
-   prior (:func:`bayes_update.core.posterior.default_start`), the likelihood scales
-   there (:func:`bayes_update.core.likelihood.estimate_likelihood`, with only the
-   unabsorbed model error: a model comparison counts the rest as explained),
-   the mode by least squares (:mod:`bayes_update.core.mode`) and its Laplace
-   evidence; every candidate parameter is passed at its ``null``;
-2. **candidates**: each effect's parameters are added (uniform prior on their
-   bounds, log-uniform for ``log=True``); the extended mode is searched from
-   the current mode with the effect's parameters at null and at +- a tenth of
-   the range from it; Laplace log evidence and ``2 ln B`` against the model
-   without it.  Named when ``2 ln B >`` :data:`DECISIVE` and the Laplace interval
-   (mode +- 2 sd) of one of its parameters excludes the null; then a next
-   round looks for a second effect (``max_effects``);
-3. **re-update**: the likelihood scales re-measured with the named effects
-   in the model, the extended mode and its Laplace posterior;
-4. **does it explain the gap?** the named effects must bring e_lin and e_nlin
-   within :data:`EXPLAINED_FACTOR` x :func:`misfit_allowance`; otherwise
-   nothing is named, the verdict is "no candidate explains the gap" and the
-   effects are reported as ``tentative``;
+1. **baseline**: start at ``start``, else where the model's own ``start``
+   hook or the two-stage calibration puts it
+   (:func:`bayes_update.core.calibrate.find_start`); the likelihood scales
+   there (:func:`bayes_update.core.likelihood.estimate_likelihood`, with only
+   the unabsorbed model error: a model comparison counts the rest as
+   explained); the mode by least squares (:mod:`bayes_update.core.mode`) from
+   the start and the two best of the model's ``extra_starts`` (if it offers
+   them); the scales again at that mode (``reestimate_likelihood``) and the
+   mode's Laplace evidence.  Every candidate parameter is passed at its null;
+2. **naming rounds**: each effect's parameters are added (uniform prior on
+   their bounds, log-uniform for ``log=True``); the extended mode is searched
+   from the current mode with the effect's parameters at ``effect_start`` of
+   the range on each side of the null (where the range extends that way:
+   from the null itself a symmetric effect has no gradient); Laplace log
+   evidence and ``2 ln B`` against the model without it.  Named when
+   ``2 ln B >`` :data:`~bayes_update.core.effects.DECISIVE` and the Laplace
+   interval (mode +- 2 sd) of one of its parameters excludes the null; then a
+   next round looks for a second effect (``max_effects``);
+3. **re-update**: the likelihood scales re-measured with the named effects in
+   the model, the extended mode and its Laplace posterior;
+4. **verdict**: the named effects must bring e_lin and e_nlin within
+   :data:`~bayes_update.core.effects.EXPLAINED_FACTOR` x
+   :func:`~bayes_update.core.effects.misfit_allowance`; otherwise nothing is
+   named, the verdict is "no candidate explains the gap" and the effects are
+   reported as ``tentative``;
 5. **gap** before and after: e_lin, e_nlin and, for each test with role
-   ``validation``, the direct output error ||y - y_model|| / ||y|| (record
-   means removed, as :class:`Problem` does).
+   ``validation``, the direct output error ||y - y_model|| / ||y|| and its
+   part beyond the noise; where the model offers ``diagnose`` (the beam's
+   harmonics, free decays and kernel orders), its diagnostics before and
+   after and, through ``signature``, whether the number each named effect's
+   physics should move shrank.
 
 Values are reported in each parameter's unit, under its declared name.
 """
 from __future__ import annotations
 
-import json
 import math
-import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from surrogates.evaluation import default_executor
-from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
+from bayes_update.core.logs import info
+from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
-                                       candidate_effects, evidence_table, misfit_ratios)
-from bayes_update.core.calibrate import problem_for
+                                       candidate_effects, misfit_ratios)
+from bayes_update.core.likelihood import estimate_likelihood, likelihood_runs
+from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
 from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.problem import DatasetError, Problem
+from bayes_update.core.steps import StepLog
+from surrogates.evaluation import default_executor, evaluate_many
 
-__all__ = ["DiscrepancySettings", "DiscrepancyResult", "find_discrepancy", "write_discrepancy"]
+__all__ = ["DiscrepancyResult", "DiscrepancySettings", "Fit", "find_discrepancy"]
 
 
 @dataclass(frozen=True)
@@ -58,12 +67,15 @@ class DiscrepancySettings:
     max_iterations: int = 50       # least-squares iterations per start
     max_effects: int = 2           # effects named at most (greedy, one at a time)
     n_start: int = 64              # Sobol' points of the start search (when no start is given)
-    effect_start: float = 0.1      # effect starts: null and null +- this fraction of the range
+    effect_start: float = 0.1      # effect starts: null +- this fraction of the range
+    extra_starts: bool = True      # the baseline also starts from the best of the model's extra_starts
+    reestimate_likelihood: bool = True   # the scales again at the baseline's mode (not at the start)
+    validation: bool = True        # the validation tests' output error before and after
     seed: int = 0
 
     @classmethod
     def quick(cls, **kw) -> "DiscrepancySettings":
-        base = dict(n_replicates=8, max_iterations=30)
+        base = dict(n_replicates=8, max_iterations=30, extra_starts=False, reestimate_likelihood=False)
         base.update(kw)
         return cls(**base)
 
@@ -94,6 +106,42 @@ class Fit:
                 "e_lin": self.metrics["e_lin"], "e_nlin": self.metrics["e_nlin"], "log_evidence": self.log_evidence}
 
 
+@dataclass
+class DiscrepancyResult(NamingVerdict):
+    named: list                  # effect names, in the order they were named
+    rounds: list                 # per round: {"base": [...], "candidates": [...]} (JSON-ready)
+    baseline: Fit
+    final: Fit
+    likelihood: object           # of the baseline (unabsorbed model error)
+    final_likelihood: object
+    gap_before: dict
+    gap_after: dict
+    effects: dict                # the model's candidate_effects() considered, checked
+    start: dict
+    timing: dict
+    n_model_runs: dict = field(default_factory=dict)
+    explains_gap: bool = True
+    misfit_ratio: dict = field(default_factory=dict)
+    tentative: list = field(default_factory=list)
+    gap_with_tentative: dict | None = None
+    diagnostics_before: dict | None = field(default=None, repr=False)   # the model's diagnose(), if any
+    diagnostics_after: dict | None = field(default=None, repr=False)
+    signature: dict = field(default_factory=dict)
+    problem: Problem | None = field(default=None, repr=False)    # for the figures
+
+    def to_json(self) -> dict:
+        return {**self.decision_json(),
+                "candidate_effects": {e: {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
+                                                   "null": p.null} for p in ps} for e, ps in self.effects.items()},
+                "candidates": self.rounds[0]["candidates"] if self.rounds else [],
+                "rounds": self.rounds, "gap_before": self.gap_before, "gap_after": self.gap_after,
+                "signature_check": self.signature, "start": self.start,
+                "baseline_mode": self.baseline.to_json(self.effects), "final_mode": self.final.to_json(self.effects),
+                "likelihood": self.likelihood.to_dict(), "final_likelihood": self.final_likelihood.to_dict(),
+                "timing_s": self.timing, "n_model_runs": self.n_model_runs}
+
+
+# ------------------------------------------------------------------ pieces
 def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None) -> Fit:
     """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``."""
     stages = problem.stages
@@ -110,14 +158,14 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
 
 
 def _effect_starts(space: ExtendedSpace, k: int, fraction: float) -> list:
-    """Starts of the last ``k`` coordinates: the null, and null +- ``fraction`` of
-    the range towards each bound (where the range extends that way)."""
+    """Starts of the last ``k`` coordinates: null +- ``fraction`` of the range
+    towards each bound (where the range extends that way); the null itself
+    when the range is a point."""
     box, null = space.box()[-k:], space.null_internal()[-k:]
     up = null + fraction * (box[:, 1] - null)
     down = null - fraction * (null - box[:, 0])
-    out = [null]
-    out += [v for v in (up, down) if not np.allclose(v, null)]
-    return out
+    out = [v for v in (up, down) if not np.allclose(v, null)]
+    return out or [null]
 
 
 def _excludes_null(fit: Fit, k: int) -> bool:
@@ -125,125 +173,128 @@ def _excludes_null(fit: Fit, k: int) -> bool:
     return bool(np.any(np.abs(x - fit.space.null_internal()[-k:]) > 2.0 * sd))
 
 
-def _gap(fit: Fit, problem: Problem) -> dict:
-    """e_lin, e_nlin and the direct output error on each validation test at ``fit``'s mode."""
+def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
+                       n_best: int = 2) -> tuple[list, int]:
+    """(the ``n_best`` lowest-cost of the model's ``extra_starts(x0)``, model runs);
+    none if it offers none."""
+    extra = getattr(problem.model, "extra_starts", None)
+    grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
+    if not grid:
+        return [], 0
+    fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
+                           SpacePoint(space, problem.model))
+    cost = [0.5 * float(r @ r) for r in evaluate_many(fun, grid, executor, progress=False)]
+    return [grid[i] for i in np.argsort(cost)[:n_best]], len(grid) * len(problem.stages)
+
+
+def noise_floor(problem: Problem, test) -> float | None:
+    """The relative output error a perfect model would have on ``test``: its
+    response's noise sd over its rms (several sensors: rms over them), or None
+    where the record offers no noise estimate."""
+    from bayes_update.core.likelihood import noise_band, white_noise_sd
+
+    y = test.response if test.response.ndim == 2 else test.response[:, None]
+    try:
+        band = noise_band(test.force, problem.fs)
+        ratios = [white_noise_sd(y[:, j], problem.fs, band) / np.sqrt(np.mean(y[:, j] ** 2))
+                  for j in range(y.shape[1])]
+    except ValueError:
+        return None
+    return float(np.sqrt(np.mean(np.square(ratios))))
+
+
+def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
+    """e_lin, e_nlin and the validation tests' output error at ``fit``'s mode:
+    ``validation`` is the error beyond the noise, sqrt(rel^2 - floor^2),
+    averaged over the tests (the noise alone gives rel = floor, which no model
+    removes); ``validation_rel`` the raw mean."""
     out = {"e_lin": fit.metrics["e_lin"], "e_nlin": fit.metrics["e_nlin"],
            "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"]}
     val = problem.prediction_errors(fit.theta)
     if val:
-        out["validation"] = float(np.mean(list(val.values())))
-        out["validation_tests"] = {k: {"rel_l2": v} for k, v in val.items()}
+        excess = [math.sqrt(max(v ** 2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
+        out["validation"] = float(np.mean(excess))
+        out["validation_rel"] = float(np.mean(list(val.values())))
+        out["validation_tests"] = {k: {"rel": v, "noise_floor": floors.get(k)} for k, v in val.items()}
     return out
 
 
-@dataclass
-class DiscrepancyResult(NamingVerdict):
-    named: list                  # effect names, in the order they were named
-    rounds: list                 # per round: {"base": [...], "candidates": [...]} (JSON-ready)
-    baseline: Fit
-    final: Fit
-    likelihood: object           # of the baseline (unabsorbed model error)
-    final_likelihood: object
-    gap_before: dict
-    gap_after: dict
-    effects: dict                # the model's candidate_effects(), checked
-    start: dict
-    timing: dict
-    explains_gap: bool = True
-    misfit_ratio: dict = field(default_factory=dict)
-    tentative: list = field(default_factory=list)
-    gap_with_tentative: dict | None = None
-    problem: Problem | None = field(default=None, repr=False)    # for the figures
-
-    def to_json(self) -> dict:
-        return {**self.decision_json(),
-                "candidate_effects": {e: {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
-                                                   "null": p.null} for p in ps} for e, ps in self.effects.items()},
-                "candidates": self.rounds[0]["candidates"] if self.rounds else [],
-                "rounds": self.rounds, "gap_before": self.gap_before, "gap_after": self.gap_after,
-                "start": self.start,
-                "baseline_mode": self.baseline.to_json(self.effects), "final_mode": self.final.to_json(self.effects),
-                "likelihood": self.likelihood.to_dict(), "final_likelihood": self.final_likelihood.to_dict(),
-                "timing_s": self.timing}
+def _signature_check(model, named, d0, d1, gap0, gap1) -> dict:
+    """For each named effect, the number its physics should move (the model's
+    ``signature(effect, diagnostics, gap)``), before and after."""
+    sig = getattr(model, "signature", None)
+    out = {}
+    for name in named if callable(sig) and d0 is not None else ():
+        got = sig(name, d0, gap0)
+        if got is None:
+            continue
+        key, meaning, before = got
+        after = sig(name, d1, gap1)[2]
+        out[name] = {"signature": key, "meaning": meaning, "before": before, "after": after,
+                     "shrank": bool(before is not None and after is not None and after < before)}
+    return out
 
 
-def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: DiscrepancySettings | None = None,
-                     metrics: str | None = None, executor=None, workers=None, progress: bool = False,
-                     log=print) -> DiscrepancyResult:
-    """The workflow of the module docstring for ``model`` (any model of the contract
-    with ``candidate_effects()``) on ``dataset`` (tests with roles ``linear``,
-    ``nonlinear`` and optionally ``validation``).
+# ---------------------------------------------------------------- the workflow
+class _Workflow:
+    """The steps of :func:`find_discrepancy` over one problem (module docstring)."""
 
-    Parameters
-    ----------
-    start : {name: value} of the model's parameters (default: the best of
-        ``settings.n_start`` Sobol' points over the prior).
-    candidates : effect names to consider (default: all the model offers).
-    metrics : the metric set (default ``full``; :mod:`bayes_update.core.problem`).
-    """
-    from bayes_update.core.likelihood import estimate_likelihood  # the likelihood's scales (its module also serves the beam)
-    from bayes_update.core.posterior import default_start
+    def __init__(self, dataset, problem, base: ParameterSet, effects: dict, settings, pool, steps: StepLog, log):
+        self.dataset, self.problem, self.base, self.effects = dataset, problem, base, effects
+        self.settings, self.pool, self.steps, self.log = settings, pool, steps, log
 
-    settings = settings or DiscrepancySettings()
-    base = ParameterSet(model.parameters, model)
-    effects = candidate_effects(model, base.names)
-    names = list(effects) if candidates is None else list(candidates)
-    unknown = [n for n in names if n not in effects]
-    if unknown:
-        raise ValueError(f"unknown candidate effect(s) {unknown}; {type(model).__name__} offers {sorted(effects)}")
-    nulls = {p.name: p.null for ps in effects.values() for p in ps}
-    check_model_on(model, dataset, theta={**base.center(), **nulls})
-    problem = problem_for(dataset, WithNulls(model, nulls), base, metrics)[0]
-    if "nonlinear" not in problem.stages:
-        raise DatasetError(f"{problem.source}: the discrepancy workflow needs the high-level test "
-                           "(role 'nonlinear') as well as the linear one")
-    own_pool = executor is None and (workers or 2) > 1
-    pool = default_executor(workers) if own_pool else executor
-    timing, t_all = {}, time.perf_counter()
-    seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(3)]
-
-    def likelihood(space, theta, seed, unabsorbed=True):
-        lik = estimate_likelihood(problem, theta, n_replicates=settings.n_replicates, seed=seed, space=space)
+    def likelihood(self, space, theta, seed, unabsorbed=True):
+        lik = estimate_likelihood(self.problem, theta, n_replicates=self.settings.n_replicates, seed=seed,
+                                  space=space)
+        self.steps.add_runs(likelihood_runs(self.problem, self.settings.n_replicates, space))
         return lik.unabsorbed() if unabsorbed else lik
 
-    def fit(added, lik, starts):
-        space = ExtendedSpace(base, [p for e in added for p in effects[e]])
-        return fit_model(problem, space, added, lik, starts, settings, pool)
+    def fit(self, added, lik, starts) -> Fit:
+        space = ExtendedSpace(self.base, [p for e in added for p in self.effects[e]])
+        f = fit_model(self.problem, space, added, lik, starts, self.settings, self.pool)
+        self.steps.add_runs(f.mode.n_evaluations * len(self.problem.stages))
+        return f
 
-    try:
-        # baseline ---------------------------------------------------------------------
-        t0 = time.perf_counter()
-        if start is None:
-            start, _ = default_start(dataset, problem, base, pool, settings.n_start, seeds[0], progress, log)
-        else:
-            base.check(start, "start")
-        start = {n: float(start[n]) for n in base.names}
-        space0 = ExtendedSpace(base)
-        lik = likelihood(space0, start, seeds[1])
-        b = base.box()
-        x0 = np.clip(base.to_internal(start), b[:, 0], b[:, 1])
-        current = baseline = fit([], lik, [x0])
-        timing["baseline"] = time.perf_counter() - t0
-        log(f"baseline: e_lin {100 * baseline.metrics['e_lin']:.3f} %, e_nlin {100 * baseline.metrics['e_nlin']:.3f} %")
-        # rounds of naming -------------------------------------------------------------
-        t0 = time.perf_counter()
-        rounds, named, remaining = [], [], list(names)
-        for _ in range(settings.max_effects):
-            rows, fits = [], {}
-            for e in remaining:
-                k = len(effects[e])
-                trial = ExtendedSpace(base, list(current.space.added) + list(effects[e]))
-                starts = [np.concatenate([current.mode.x, s]) for s in _effect_starts(trial, k, settings.effect_start)]
-                f = fits[e] = fit(current.names + [e], lik, starts)
-                two_ln_b = 2.0 * (f.log_evidence - current.log_evidence)
-                values = {p.name: f.space.values(f.mode.x, f.covariance)[p.name] for p in effects[e]}
-                rows.append({"name": e, "two_ln_B": two_ln_b,
-                             "delta_log_likelihood": float(current.mode.cost - f.mode.cost),
-                             "n_parameters": k, "parameters": values, "excludes_null": _excludes_null(f, k),
-                             "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"]})
-                log(f"  {e}: 2 ln B = {two_ln_b:.1f}, " + ", ".join(
-                    f"{n} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for n, v in values.items()))
-            rows.sort(key=lambda r: -r["two_ln_B"])
+    def baseline(self, start) -> tuple[Fit, object]:
+        s = self.settings
+        b = self.base.box()
+        x0 = np.clip(self.base.to_internal(start), b[:, 0], b[:, 1])
+        space0 = ExtendedSpace(self.base)
+        lik = self.likelihood(space0, self.base.to_parameters(x0), s.seed)
+        starts = [x0]
+        if s.extra_starts:
+            extra, n = _best_extra_starts(self.problem, space0, lik, x0, self.pool)
+            starts += extra
+            self.steps.add_runs(n)
+        fit = self.fit([], lik, starts)
+        if s.reestimate_likelihood:        # the scales at the baseline's mode, not at the start
+            lik = self.likelihood(space0, fit.theta, s.seed)
+            fit = self.fit([], lik, [fit.mode.x])
+        return fit, lik
+
+    def round(self, current: Fit, remaining, lik) -> tuple[list, dict]:
+        rows, fits = [], {}
+        for e in remaining:
+            k = len(self.effects[e])
+            trial = ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e]))
+            starts = [np.concatenate([current.mode.x, v])
+                      for v in _effect_starts(trial, k, self.settings.effect_start)]
+            f = fits[e] = self.fit(current.names + [e], lik, starts)
+            two_ln_b = 2.0 * (f.log_evidence - current.log_evidence)
+            values = {p.name: f.space.values(f.mode.x, f.covariance)[p.name] for p in self.effects[e]}
+            rows.append({"name": e, "two_ln_B": two_ln_b,
+                         "delta_log_likelihood": float(current.mode.cost - f.mode.cost),
+                         "n_parameters": k, "parameters": values, "excludes_null": _excludes_null(f, k),
+                         "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"]})
+            self.log(f"  {e}: 2 ln B = {two_ln_b:.1f}, " + ", ".join(
+                f"{n} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for n, v in values.items()))
+        rows.sort(key=lambda r: -r["two_ln_B"])
+        return rows, fits
+
+    def name_effects(self, baseline: Fit, lik, names) -> tuple[Fit, list, list]:
+        current, rounds, named, remaining = baseline, [], [], list(names)
+        for _ in range(self.settings.max_effects):
+            rows, fits = self.round(current, remaining, lik)
             rounds.append({"base": list(current.names), "candidates": rows})
             best = rows[0] if rows else None
             if best is None or best["two_ln_B"] <= DECISIVE or not best["excludes_null"]:
@@ -251,18 +302,75 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             named.append(best["name"])
             remaining.remove(best["name"])
             current = fits[best["name"]]
-            if len(named) < settings.max_effects and remaining:    # polish before the next round
-                current = fit(current.names, lik, [current.mode.x])
-            log(f"named: {best['name']}")
-        timing["naming"] = time.perf_counter() - t0
-        # re-update with the named effects' own likelihood scales ------------------------
-        t0 = time.perf_counter()
-        final, final_lik = baseline, lik
-        if named:
-            final_lik = likelihood(current.space, current.theta, seeds[2], unabsorbed=False)
-            final = fit(current.names, final_lik, [current.mode.x])
-        timing["re_update"] = time.perf_counter() - t0
-        # do the named effects explain the gap? ------------------------------------------
+            if len(named) < self.settings.max_effects and remaining:
+                # polish the named fit (it started from the baseline's mode): the next round must
+                # not name a second effect for what this one's unfinished fit left over
+                current = self.fit(current.names, lik, [current.mode.x])
+            self.log(f"named: {best['name']}")
+        return current, rounds, named
+
+    def diagnose(self, theta) -> dict | None:
+        diagnose = getattr(self.problem.model, "diagnose", None)
+        return diagnose(self.dataset, theta, self.problem.basis) if callable(diagnose) else None
+
+
+def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: DiscrepancySettings | None = None,
+                     metrics: str | None = None, executor=None, workers=None, progress: bool = False,
+                     log=info) -> DiscrepancyResult:
+    """The workflow of the module docstring for ``model`` (any model of the contract
+    with ``candidate_effects()``) on ``dataset`` (tests with roles ``linear``,
+    ``nonlinear`` and optionally ``validation``), never told what is hidden.
+
+    Parameters
+    ----------
+    start : {name: value} of the model's parameters (default: the model's own
+        ``start`` hook, else the two-stage calibration).
+    candidates : effect names to consider (default: all the model offers).
+    metrics : the metric set (default: the model's ``default_metrics``, else
+        ``full``; :mod:`bayes_update.core.problem`).
+    """
+    settings = settings or DiscrepancySettings()
+    steps = StepLog()
+    base = ParameterSet(model.parameters, model)
+    effects = candidate_effects(model, base.names)
+    names = list(effects) if candidates is None else list(candidates)
+    unknown = [n for n in names if n not in effects]
+    if unknown:
+        raise ValueError(f"unknown candidate effect(s) {unknown}; {type(model).__name__} offers {sorted(effects)}")
+    nulls = {p.name: p.null for ps in effects.values() for p in ps}
+    own_pool = executor is None and (workers or 2) > 1
+    pool = default_executor(workers) if own_pool else executor
+    try:
+        with steps("check_and_screen"):
+            check_model_on(model, dataset, theta={**base.center(), **nulls})
+            problem = problem_for(dataset, WithNulls(model, nulls), base, metrics, executor=pool)
+            steps.add_runs(2 + problem.n_screen_runs)
+        if "nonlinear" not in problem.stages:
+            raise DatasetError(f"{problem.source}: the discrepancy workflow needs the high-level test "
+                               "(role 'nonlinear') as well as the linear one")
+        flow = _Workflow(dataset, problem, base, effects, settings, pool, steps, log)
+        with steps("start"):
+            if start is None:
+                seed = int(np.random.SeedSequence(settings.seed).spawn(1)[0].generate_state(1)[0])
+                start, n = find_start(dataset, problem, base, n_points=settings.n_start, seed=seed,
+                                      executor=pool, progress=progress, log=log)
+                steps.add_runs(n)
+            else:
+                base.check(start, "start")
+            start = {n: float(start[n]) for n in base.names}
+        with steps("baseline"):
+            baseline, lik = flow.baseline(start)
+        log(f"baseline: e_lin {100 * baseline.metrics['e_lin']:.3f} %, e_nlin "
+            f"{100 * baseline.metrics['e_nlin']:.3f} %")
+        with steps("naming"):
+            current, rounds, named = flow.name_effects(baseline, lik, names)
+        with steps("re_update"):
+            final, final_lik = baseline, lik
+            if named:
+                final_lik = flow.likelihood(current.space, current.theta, settings.seed + 1, unabsorbed=False)
+                final = flow.fit(current.names, final_lik, [current.mode.x])
+        # does the model with the named effects explain the gap? (the naming fit, comparison scales,
+        # against what noise and the extended model's own unabsorbed error leave)
         misfit = misfit_ratios(current if named else baseline, final_lik if named else lik)
         explains = all(r <= EXPLAINED_FACTOR for r in misfit.values())
         tentative, tentative_fit = [], None
@@ -271,57 +379,24 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
                 + " what noise and model error allow: no candidate explains the gap")
             tentative, tentative_fit, named = named, final, []
             final, final_lik = baseline, lik
-        # gap before and after -----------------------------------------------------------
-        t0 = time.perf_counter()
-        gap_before = _gap(baseline, problem)
-        gap_after = _gap(final, problem) if named else gap_before
-        gap_tentative = _gap(tentative_fit, problem) if tentative_fit is not None else None
-        timing["gap"] = time.perf_counter() - t0
+        with steps("gap"):
+            floors = {t.name: noise_floor(problem, t) for t in problem.validation.values()}
+            gap_before = gap(baseline, problem, floors)
+            gap_after = gap(final, problem, floors) if named else gap_before
+            gap_tentative = gap(tentative_fit, problem, floors) if tentative_fit is not None else None
+            steps.add_runs(len(problem.validation) * (1 + bool(named) + (tentative_fit is not None)))
+            d0 = flow.diagnose(baseline.theta)
+            d1 = flow.diagnose(final.theta) if named else d0
+            steps.add_runs(len(dataset.tests) * ((d0 is not None) + (d0 is not None and bool(named))))
+            signature = _signature_check(problem.model, named, d0, d1, gap_before, gap_after)
     finally:
         if own_pool:
             pool.shutdown()
-    timing["total"] = time.perf_counter() - t_all
+    steps.finish()
+    log("discrepancy: " + steps.line())
     return DiscrepancyResult(named=named, rounds=rounds, baseline=baseline, final=final, likelihood=lik,
                              final_likelihood=final_lik, gap_before=gap_before, gap_after=gap_after,
-                             effects={e: effects[e] for e in names}, start=start, timing=timing,
-                             explains_gap=explains, misfit_ratio=misfit, tentative=tentative,
-                             gap_with_tentative=gap_tentative, problem=problem)
-
-
-def format_result(res: DiscrepancyResult) -> str:
-    b, a, t = res.gap_before, res.gap_after, res.gap_with_tentative
-    lines = [evidence_table(res), "",
-             "gap          before      after" + ("   with " + " + ".join(res.tentative) if t else "")]
-    for k in ("e_lin", "e_nlin", "validation"):
-        if b.get(k) is not None:
-            lines.append(f"{k:<12} {100 * b[k]:8.3f} %  {100 * a[k]:8.3f} %"
-                         + (f"  {100 * t[k]:8.3f} %" if t and t.get(k) is not None else ""))
-    for e in res.named:
-        for n, v in res.final.to_json(res.effects)["effects"][e].items():
-            lines.append(f"{e}: {n} = {v['mode']:.5g} {v['unit']} (Laplace interval "
-                         f"{v['interval'][0]:.5g} to {v['interval'][1]:.5g}; null {v['null']:g})")
-    return "\n".join(lines)
-
-
-def write_discrepancy(res: DiscrepancyResult, out, truth: dict | None = None) -> dict:
-    """Write discrepancy.json and evidence.md to folder ``out``; returns the JSON document."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    doc = res.to_json()
-    if truth is not None:
-        doc["truth"] = truth
-    (out / "discrepancy.json").write_text(json.dumps(doc, indent=1, default=_json_default))
-    (out / "evidence.md").write_text(evidence_table(res) + "\n")
-    return doc
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.bool_):
-        return bool(o)
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, float) and not math.isfinite(o):
-        return None
-    return str(o)
+                             effects={e: effects[e] for e in names}, start=start, timing=steps.timing,
+                             n_model_runs=steps.runs, explains_gap=explains, misfit_ratio=misfit,
+                             tentative=tentative, gap_with_tentative=gap_tentative, diagnostics_before=d0,
+                             diagnostics_after=d1, signature=signature, problem=problem)

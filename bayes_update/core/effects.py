@@ -8,9 +8,8 @@ reads that declaration (:func:`candidate_effects`), runs a model with every
 effect not under test at its null (:class:`WithNulls`), and spans the
 parameters of the baseline plus the added effects (:class:`ExtendedSpace`).
 
-The naming rules are shared by the generic engine
-(:mod:`bayes_update.core.discrepancy`) and the beam's
-(:mod:`bayes_update.models.beam.missing_effect`): :data:`DECISIVE`,
+The naming rules of the discrepancy workflow
+(:mod:`bayes_update.core.discrepancy`) live here too: :data:`DECISIVE`,
 :data:`EXPLAINED_FACTOR`, :func:`misfit_allowance`, :func:`misfit_ratios` and
 the evidence table.
 """
@@ -109,8 +108,9 @@ def candidate_effects(model, base_names=()) -> dict:
 
 class WithNulls:
     """A model that passes every candidate parameter not in ``theta`` at its
-    null value: the baseline is the model with all effects off.  ``refined()``
-    is offered when the wrapped model has one (the model-error term)."""
+    null value: the baseline is the model with all effects off.  Every other
+    member is the wrapped model's (its hooks, units, metric set), and
+    ``refined()`` wraps the wrapped model's refined one."""
 
     def __init__(self, model, nulls: Mapping):
         self.model, self.nulls = model, dict(nulls)
@@ -120,9 +120,11 @@ class WithNulls:
 
     def __getattr__(self, name):
         model = self.__dict__.get("model")
-        if name == "refined" and model is not None and hasattr(model, "refined"):
+        if model is None or name.startswith("__"):
+            raise AttributeError(name)
+        if name == "refined" and hasattr(model, "refined"):
             return lambda: WithNulls(model.refined(), self.nulls)
-        raise AttributeError(name)
+        return getattr(model, name)
 
 
 class ExtendedSpace:
@@ -168,10 +170,11 @@ class ExtendedSpace:
         return self.effects.to_internal({p.name: p.null for p in self.added})
 
     def log_prior_density(self, x) -> float:
-        """Log prior density at x: the baseline's (``ParameterSet.log_prior`` over
-        its box's volume) and a uniform density per added coordinate."""
+        """Normalised log prior density at internal point x: the baseline's
+        (:meth:`ParameterSet.log_normalised_prior`) and a uniform density per
+        added coordinate."""
         x = np.asarray(x, float)
-        lp = float(self.base.log_prior(x[:self.n_base])[0]) - float(np.sum(np.log(self.widths()[:self.n_base])))
+        lp = self.base.log_normalised_prior(x[:self.n_base])
         return lp - float(np.sum(np.log(self.widths()[self.n_base:])))
 
     def values(self, x, cov) -> dict:
@@ -225,9 +228,9 @@ def evidence_table(res) -> str:
 
 
 class NamingVerdict:
-    """What every discrepancy result says about naming (the beam's and the generic
-    engine's): a dataclass with ``named``, ``explains_gap``, ``misfit_ratio``,
-    ``tentative`` and ``gap_with_tentative`` inherits these."""
+    """What a discrepancy result says about naming: a dataclass with ``named``,
+    ``explains_gap``, ``misfit_ratio``, ``tentative`` and ``gap_with_tentative``
+    inherits these."""
 
     @property
     def named_effect(self):

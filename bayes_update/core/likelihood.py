@@ -266,6 +266,17 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     return Likelihood(scales, residuals)
 
 
+def likelihood_runs(problem: Problem, n_replicates: int, space=None, model_error: bool = True,
+                    stages=None) -> int:
+    """Model runs :func:`estimate_likelihood` takes: per stage one at the
+    estimate, ``n_replicates``, 2 d for the sensitivity span and one of the
+    refined model (when there is one)."""
+    stages = problem.stages if stages is None else tuple(stages)
+    d = len(space if space is not None else problem.default_space())
+    refined = model_error and problem.refined_model() is not None
+    return len(stages) * (1 + int(n_replicates) + 2 * d + int(refined))
+
+
 @dataclass(frozen=True)
 class CurvatureAdjustment:
     """``log L_adj(x) = log L(center + A (x - center))``: the likelihood with

@@ -16,7 +16,7 @@ Laplace (Gauss-Newton) precision without another model run.
 Each evaluation is a picklable :class:`ResidualFunction`; what a point means
 (which model, which parameters) is a ``point_map``, so the same code finds
 the mode of the baseline model and of a model extended by an effect
-(:mod:`bayes_update.models.beam.missing_effect`).
+(:mod:`bayes_update.core.discrepancy`).
 """
 from __future__ import annotations
 

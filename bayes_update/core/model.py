@@ -9,8 +9,26 @@ A model is any picklable object with
   run, it raises an exception (never returns NaN).
 
 Optional members, each used when present (docs/models.md says what happens
-when absent): ``refined()``, ``candidate_effects()``, ``to_internal`` /
-``from_internal`` / ``log_jacobian``, ``linear_pole(theta)``.
+when absent):
+
+* ``refined()``: a finer model of the same physics (the model-error term);
+* ``candidate_effects()``: effects the model may miss (the discrepancy workflow);
+* ``to_internal`` / ``from_internal`` / ``log_jacobian`` (and
+  ``internal_names``, ``internal_units``): a reparameterisation the
+  inference samples in (:class:`~bayes_update.core.parameters.ParameterSet`);
+* ``default_metrics``: the metric set when none is asked for (``"full"``);
+* ``response_kind``, ``response_unit``: what the sensors measure, when the
+  data set does not say;
+* ``start(dataset, executor, progress) -> (theta, model runs)``: the model's
+  own start search (default: :mod:`bayes_update.core.calibrate`);
+* ``extra_starts(x) -> [x, ...]``: more internal points the mode search
+  starts from;
+* ``diagnose(dataset, theta, basis) -> dict`` and ``signature_values(diagnostics,
+  gap) -> {effect: value}``: model-specific diagnostics of the discrepancy
+  workflow, with the number each effect's physics should shrink;
+* ``describe() -> dict``: what identifies the model in a cache key and a report;
+* ``check_dataset(dataset)``: raise ``ValueError`` (saying what to fix) for a
+  data set the model cannot be compared with (the beam: another rig).
 """
 
 from __future__ import annotations
@@ -28,8 +46,7 @@ import numpy as np
 
 from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["ADAPTERS", "BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "adapter_for", "check_model",
-           "check_model_on", "load_model"]
+__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "check_model", "check_model_on", "load_model"]
 
 
 @runtime_checkable
@@ -54,21 +71,6 @@ class ModelSpecError(ValueError):
 
 # built-in names of --model: "module:NAME" specs, filled in as models ship
 BUILTIN_MODELS: dict[str, str] = {}
-
-#: Adapters of models from other packages, by the package of the model's class:
-#: "module:function", the function taking (dataset, model, space, metrics) and
-#: returning (problem, space).  Named, not imported: the core knows no model.
-ADAPTERS: dict[str, str] = {"fe": "bayes_update.models.beam.adapter:problem_and_space"}
-
-
-def adapter_for(model):
-    """The adapter function of ``model``'s package (:data:`ADAPTERS`), or None."""
-    spec = ADAPTERS.get(type(model).__module__.split(".")[0])
-    if spec is None:
-        return None
-    module, name = spec.split(":")
-    return getattr(importlib.import_module(module), name)
-
 
 def load_model(spec):
     """A model from ``spec``: a model object (returned as is), a built-in name

@@ -168,8 +168,26 @@ class ParameterSet:
                 continue
             t = self.theta_array(self.from_internal(x))
             if np.all((t >= self.low) & (t <= self.high)):
-                out[i] = self._log_jacobian(x) - float(np.sum(np.log(t[self.is_log])))
+                out[i] = self._log_density(x, t)
         return out
+
+    def _log_density(self, x, t) -> float:
+        """The prior's log density in x, up to its normaliser, without the support check."""
+        return self._log_jacobian(x) - float(np.sum(np.log(t[self.is_log])))
+
+    def log_normalised_prior(self, x) -> float:
+        """The prior's normalised log density at internal point x (the density
+        formula, also just outside the support: a Laplace evidence integrates a
+        Gaussian there, and a least-squares mode in the internal box may sit
+        where a reparameterised parameter, the beam's F, is a hair outside its
+        range): :meth:`log_prior`'s density minus the log of the box's volume in
+        theta (in log theta for a log-scale parameter)."""
+        x = np.asarray(x, float)
+        widths = np.where(self.is_log, np.log(self.high / np.where(self.is_log, self.low, 1.0)),
+                          self.high - self.low)
+        t = self.theta_array(self.from_internal(x))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self._log_density(x, t) - float(np.sum(np.log(widths)))
 
     def box(self, n_probe: int = 256) -> np.ndarray:
         """(d, 2) bounding box of the prior in internal coordinates: exact for a
@@ -208,7 +226,7 @@ class ParameterSet:
         return {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
                          **({"null": p.null} if p.null is not None else {})} for p in self.parameters}
 
-    # -- what the inference pipeline reads (the beam's ParameterSpace has the same) --
+    # -- names and units of what the inference reports ------------------------
     @property
     def coordinate_names(self) -> tuple:
         """Names of the internal coordinates: the parameters' (``log_<name>`` for a
@@ -219,9 +237,11 @@ class ParameterSet:
 
     @property
     def units(self) -> dict:
-        """Unit of each internal coordinate (a log-scale one's is the log of its unit)."""
+        """Unit of each internal coordinate (a log-scale one's is the log of its
+        unit; a reparameterising model's from its ``internal_units``)."""
         if self._transform is not None:
-            return dict.fromkeys(self.coordinate_names, "")
+            given = getattr(self._transform, "internal_units", {})
+            return {c: given.get(c, "") for c in self.coordinate_names}
         return {c: (f"log({p.unit})" if p.unit else "") if p.log else p.unit
                 for c, p in zip(self.coordinate_names, self.parameters)}
 
@@ -229,32 +249,24 @@ class ParameterSet:
         """theta at internal point x: what the model's ``simulate`` receives."""
         return self.from_internal(x)
 
+    @property
+    def derived_names(self) -> tuple:
+        """Internal coordinates of a reparameterising model that are not parameters
+        (the beam's P_eff): reported beside the parameters."""
+        return tuple(c for c in self.coordinate_names if c not in self.names) if self._transform is not None else ()
+
     def report(self, X) -> dict:
-        """{name: values} of the parameters (their units) at internal points X (n, d)."""
-        T = np.array([self.theta_array(self.from_internal(x)) for x in np.atleast_2d(X)])
-        return {n: T[:, i] for i, n in enumerate(self.names)}
+        """{name: values} at internal points X (n, d): every parameter in its unit,
+        then the :attr:`derived_names` coordinates."""
+        X = np.atleast_2d(np.asarray(X, float))
+        T = np.array([self.theta_array(self.from_internal(x)) for x in X])
+        out = {n: T[:, i] for i, n in enumerate(self.names)}
+        for c in self.derived_names:
+            out[c] = X[:, self.coordinate_names.index(c)]
+        return out
 
     @property
     def report_units(self) -> dict:
-        return {p.name: p.unit for p in self.parameters}
-
-    @property
-    def display(self) -> dict:
-        return {p.name: (p.unit, 1.0) for p in self.parameters}
-
-    def describe(self, theta) -> dict:
-        return {k: float(v) for k, v in dict(theta).items()}
-
-    @property
-    def public_names(self) -> tuple:
-        return self.names
-
-    def public_box(self) -> np.ndarray:
-        return np.column_stack([self.low, self.high])
-
-    def public_to_parameters(self, values) -> dict:
-        return self.theta(values)
-
-    def extra_starts(self, x, n: int = 3) -> list:
-        """Other points worth starting a mode search from: none in general."""
-        return []
+        """Unit of each variable of :meth:`report`."""
+        units = self.units
+        return {**{p.name: p.unit for p in self.parameters}, **{c: units[c] for c in self.derived_names}}

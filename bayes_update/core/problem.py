@@ -38,14 +38,11 @@ import numpy as np
 import volterra
 
 from bayes_update.core.model import ModelError
+from bayes_update.data.dataset import DatasetError
 
 __all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS",
-           "basis_from_reference", "describe_basis", "excited_band", "linear_n_functions", "n_compared_regressors",
+           "FEEDTHROUGH", "basis_from_reference", "describe_basis", "excited_band", "linear_n_functions", "n_compared_regressors",
            "relative_error", "stage_output"]
-
-
-class DatasetError(ValueError):
-    """A data set is malformed or cannot be used as given; the message names the file or the test."""
 
 
 #: Kautz functions per order (J1, J2, J3): see volterra.basis for the trade-off.
@@ -77,17 +74,22 @@ def stage_output(stage: str, comps: dict, metrics: str = "paper") -> np.ndarray:
 
 def n_compared_regressors(basis: volterra.KautzBasis, stage: str, metrics: str = "paper") -> int:
     """Regressors behind a stage's metric: sum over its compared orders k of
-    C(J_k + k - 1, k) (the symmetric kernel's coefficients)."""
-    return sum(math.comb(basis.n_functions[k] + k - 1, k) for k in METRIC_SETS[metrics][stage])
+    C(dim_k + k - 1, k) (the symmetric kernel's coefficients; dim_k, the
+    order's functions, counts every mode and the feed-through)."""
+    return sum(basis.n_terms(k) for k in METRIC_SETS[metrics][stage])
 
 
-def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS) -> tuple:
+def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS, n_modes: int = 1,
+                       feedthrough: bool = False) -> tuple:
     """(J1, J2, J3) for a linear test that must identify ``n_linear``
-    parameters: J1 the smallest even number above ``n_linear`` (at least
-    ``base``'s), so that y1's coefficients outnumber the parameters.  With
-    J1 = 2, three linear parameters (frequency, damping, gain) zero e_lin
-    along a whole curve."""
-    j1 = max(base[0], 2 * (n_linear // 2 + 1))
+    parameters: J1 (functions per mode, even, at least ``base``'s) the
+    smallest for which y1's coefficients, J1 x ``n_modes`` (+ 1 with the
+    feed-through), outnumber the parameters.  With one mode and J1 = 2,
+    three linear parameters (frequency, damping, gain) zero e_lin along a
+    whole curve."""
+    j1 = base[0]
+    while j1 * n_modes + int(feedthrough) <= n_linear:
+        j1 += 2
     return (j1,) + tuple(base[1:])
 
 
@@ -100,21 +102,40 @@ def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
                                  nperseg=min(len(force), int(4 * fs)))
 
 
-def basis_from_reference(force, velocity, fs: float, n_functions=DEFAULT_N_FUNCTIONS) -> volterra.KautzBasis:
-    """The data set's Kautz basis: one pole from the reference linear record
-    (peak and half-power width of its H1 estimate inside the excited band,
-    refined by minimising a J1 = 2 linear fit's residual), shared by all orders."""
+#: Orders whose functions include the input itself (the feed-through), per metric set.
+#: ``full``: order 1, so that y1 spans every proper (sampled, e.g. behind a zero-order
+#: hold) linear system with the data's poles exactly.  ``paper``: none: the paper's
+#: metric compares y2 + y3 alone, and on a single constant-amplitude chirp the input's
+#: own term is nearly collinear with the cubic ones (u^3 = 3/4 A^2 u + a third
+#: harmonic), which blurs the y1 / y3 split (the beam's e_nlin at Table 3's point
+#: 0.51 % without it, 1.12 % with it on order 1).
+FEEDTHROUGH = {"full": (1,), "paper": ()}
+
+
+def basis_from_reference(force, response, fs: float, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=(1,),
+                         n_modes=None, period_samples=None) -> volterra.KautzBasis:
+    """The data set's basis from the reference linear record: every mode of its
+    excited, coherent band (LSCF fit of H1 on a stabilisation diagram, refined on
+    the record's linear fit; :meth:`volterra.KautzBasis.from_data`), all of them
+    at order 1, the dominant one at orders 2 and 3.  ``response``: (n,) or
+    (n, n_sensors), the sensors share the poles."""
     f_lo, f_hi = excited_band(force, fs)
-    return volterra.KautzBasis.from_data(force, velocity, fs, n_functions=n_functions,
-                                         f_range=(f_lo, f_hi), refine=True)
+    return volterra.KautzBasis.from_data(force, response, fs, n_functions=n_functions, f_range=(f_lo, f_hi),
+                                         refine=True, feedthrough=feedthrough, n_modes=n_modes,
+                                         period_samples=period_samples)
 
 
 def describe_basis(basis: volterra.KautzBasis) -> dict:
-    """JSON-ready record of a basis (poles [Hz, -] and J per order)."""
+    """JSON-ready record of a basis (its first pole [Hz, -], every mode, J per mode,
+    the feed-through and the number of coefficients, per order)."""
     return {"fs_hz": basis.fs,
             "orders": {str(n): {"n_functions": basis.n_functions[n],
                                 "pole_freq_hz": basis.pole(n).freq_hz,
-                                "pole_damping_ratio": basis.pole(n).damping_ratio}
+                                "pole_damping_ratio": basis.pole(n).damping_ratio,
+                                "modes": [{"freq_hz": p.freq_hz, "damping_ratio": p.damping_ratio}
+                                          for p in basis.modes(n)],
+                                "feedthrough": basis.has_feedthrough(n),
+                                "n_coefficients": basis.n_terms(n)}
                        for n in basis.orders}}
 
 
@@ -148,7 +169,7 @@ class Problem:
     basis : a fixed :class:`volterra.KautzBasis`; default: from the reference
         linear test (:func:`basis_from_reference`).
     metrics : the metric set, ``"paper"`` or ``"full"`` (:data:`METRIC_SETS`);
-        default :attr:`default_metrics`.
+        default: the model's ``default_metrics``, else ``"full"``.
 
     Tests with role ``validation`` are kept for :meth:`prediction_errors`;
     the metrics never see them.
@@ -160,24 +181,30 @@ class Problem:
     #: exceptions that mean "the model cannot run at this point": the point gets
     #: NaN metrics (and a message) instead of stopping a design
     failures: tuple = (ModelError,)
-    #: a record's mean is a sensor offset, not physics: it is removed from the input
-    #: (the model never sees it) and from the response (h0 would absorb it anyway)
-    remove_offsets: bool = True
-    #: metric set when none is given (module docstring)
-    default_metrics: str = "full"
     #: names of the parameters the linear test moves, once a screen has found them
-    #: (:func:`bayes_update.core.calibrate.problem_for`); None before
+    #: (:func:`bayes_update.core.calibrate.problem_for`), and their sensitivities; None before
     linear_parameters: tuple | None = None
+    linear_sensitivity: dict | None = None
+    #: the prior the problem was built for (:func:`bayes_update.core.calibrate.problem_for`)
+    space = None
+    #: model runs the builder's screen took
+    n_screen_runs: int = 0
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None):
         if not hasattr(model, "simulate"):
             raise TypeError(f"{type(model).__name__} is not a model (no simulate method)")
+        if callable(getattr(model, "check_dataset", None)):
+            model.check_dataset(dataset)         # the model's own word on the data (the beam: its rig)
         self.fs = float(dataset.sampling_rate_hz)
-        self.rig = getattr(dataset, "rig", None)
         self.model = model
+        # a record's mean is a sensor offset, not physics: it is removed from the input
+        # (the model never sees it) and from the response, unless the model says its
+        # records carry none (the beam's virtual rig: its numbers stay the paper study's)
+        self.remove_offsets = bool(getattr(model, "remove_offsets", True))
         self.source = dataset.source or dataset.name
+        self.sensors = tuple(dataset.sensors)
         self.data_fingerprint = dataset.fingerprint()
-        metrics = self.default_metrics if metrics is None else metrics
+        metrics = getattr(model, "default_metrics", "full") if metrics is None else metrics
         if metrics not in METRIC_SETS:
             raise ValueError(f"metrics must be one of {sorted(METRIC_SETS)}, got {metrics!r}")
         self.metrics = metrics
@@ -190,14 +217,15 @@ class Problem:
             if found:
                 self.tests[role] = self._test(found[0])
         self.validation = {t.name: self._test(t) for t in dataset.by_role("validation")}
+        found_linear = dataset.by_role("linear")
         if "linear" not in self.tests:
             raise DatasetError(f"{self.source}: no test has role 'linear' (the low-level test "
                                "that e_lin and the Kautz pole come from); set it in dataset.json")
         lin = self.tests["linear"]
         if basis is None:
-            # the pole is the structure's: any sensor shows it (the first one is taken)
-            first = lin.response if lin.response.ndim == 1 else lin.response[:, 0]
-            basis = basis_from_reference(lin.force, first, self.fs, n_functions)
+            # the poles are the structure's: every sensor shows them, fitted jointly
+            basis = basis_from_reference(lin.force, lin.response, self.fs, n_functions, FEEDTHROUGH[metrics],
+                                         period_samples=getattr(found_linear[0], "period_samples", None))
         if not isinstance(basis, volterra.KautzBasis):
             raise TypeError("basis must be a volterra.KautzBasis")
         if basis.fs != self.fs:
@@ -282,7 +310,7 @@ class Problem:
     def _residual_rms(self, y, comps, stage, n_sensors: int = 1) -> float:
         """rms of y - sum(comps) per degree of freedom left by the fit (one fit per sensor)."""
         basis = self.projector(stage).basis
-        n_coef = 1 + sum(math.comb(basis.n_functions[k] + k - 1, k) for k in STAGE_ORDERS[stage])
+        n_coef = 1 + sum(basis.n_terms(k) for k in STAGE_ORDERS[stage])
         return float(np.linalg.norm(y - sum(comps.values())) / math.sqrt(max(y.size - n_sensors * n_coef, 1)))
 
     def reference_components(self, stage: str) -> dict:
@@ -307,6 +335,14 @@ class Problem:
     def output(self, stage: str, comps: dict) -> np.ndarray:
         """The part of a stage's components its metric compares (:data:`METRIC_SETS`)."""
         return stage_output(stage, comps, self.metrics)
+
+    @property
+    def output_unit(self) -> str:
+        """Unit of the compared outputs: the sensor's (one sensor), else each
+        sensor's noise sd (several sensors: the outputs are noise-weighted)."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
 
     def n_regressors(self, stage: str) -> int:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
@@ -395,7 +431,9 @@ class Problem:
         return self.model.refined() if hasattr(self.model, "refined") else None
 
     def describe_model(self) -> dict:
-        """What identifies the model in a cache key and a report: its class and a
-        hash of its pickled state (its constants)."""
+        """What identifies the model in a cache key and a report: the model's own
+        ``describe()``, else its class and a hash of its pickled state (its constants)."""
+        if callable(getattr(self.model, "describe", None)):
+            return self.model.describe()
         state = hashlib.sha256(pickle.dumps(self.model)).hexdigest()[:16]
         return {"kind": type(self.model).__name__, "state_sha256": state}

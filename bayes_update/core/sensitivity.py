@@ -26,24 +26,24 @@ class _EvaluatePublic:
     space: object
 
     def __call__(self, u):
-        return self.problem.evaluate(self.space.public_to_parameters(np.asarray(u, float)))
+        return self.problem.evaluate(self.space.theta(np.asarray(u, float)))
 
 
 def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, seed, progress: bool = True) -> dict:
     """{metric: {"S1": {...}, "ST": {...}, "S1_conf", "ST_conf", "gp_holdout"}} (SALib),
-    over the prior box of the declared parameters (``space.public_box()``, their units)."""
+    over the prior box of the declared parameters (their units)."""
     from SALib.analyze import sobol as sobol_analyze
     from SALib.sample import sobol as sobol_sample
 
-    PUBLIC = tuple(space.public_names)
-    bounds = space.public_box()
+    PUBLIC = tuple(space.names)
+    bounds = np.column_stack([space.low, space.high])
     X = surrogates.design(bounds, n_design, "sobol", seed=seed)
     res = evaluate_many(_EvaluatePublic(problem, space), list(X), pool, progress=progress,
                         desc="global design")
     salib_problem = {"num_vars": len(PUBLIC), "names": list(PUBLIC), "bounds": bounds.tolist()}
     S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2 ** 31)
     out = {"n_design": int(n_design), "n_sobol": int(n_sobol),
-           "units": {n: space.display[n][0] for n in PUBLIC}, "output": "log e"}
+           "units": {p.name: p.unit for p in space.parameters}, "output": "log e"}
     for key in ("e_lin", "e_nlin"):
         y = np.array([r.get(key, np.nan) for r in res], float)
         ok = np.isfinite(y) & (y > 0)

@@ -65,7 +65,6 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 import numpy as np
-from bayes_update.core.problem import DatasetError
 
 
 ROLES = ("linear", "nonlinear", "validation")
@@ -108,6 +107,10 @@ DEFAULT_SIGNAL = DEFAULT_LEVEL = "unknown"
 
 # Tolerance of the time-column checks, as a fraction of the sample period.
 TIME_TOLERANCE = 0.01
+
+
+class DatasetError(ValueError):
+    """A data set is malformed or cannot be used as given; the message names the file or the test."""
 
 
 class MissingColumnError(DatasetError):

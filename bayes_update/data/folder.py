@@ -72,7 +72,7 @@ import copy
 import json
 from pathlib import Path
 import numpy as np
-from bayes_update.core.problem import DatasetError
+from bayes_update.data.dataset import DatasetError
 from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, _is_single_velocity, _where, check_sensors, check_time
 
 

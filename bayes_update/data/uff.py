@@ -80,8 +80,9 @@ RATE_TOLERANCE = 1e-5  # relative, the precision of the E13.5 abscissa increment
 def _pyuff():
     try:
         import pyuff
-    except ImportError as exc:  # pragma: no cover - pyuff is a dependency
-        raise ImportError("reading or writing UFF files needs pyuff (pip install pyuff)") from exc
+    except ImportError as exc:  # pragma: no cover - pyuff is an extra
+        raise ImportError("reading or writing UFF files needs pyuff: pip install 'bayes-update[uff]' "
+                          "(or pip install pyuff)") from exc
     return pyuff
 
 

@@ -25,18 +25,19 @@ import numpy as np
 
 import fe
 
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
-from bayes_update.reports.beam_calibration import write_result
-from bayes_update.models.beam.space import ParameterSpace
+from bayes_update.core.logs import info
 from bayes_update.core.posterior import PosteriorSettings, sample
-from bayes_update.reports.posterior import format_summary, write_posterior
+from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
+from bayes_update.models.beam.model import EFFECT_PARAMETERS, Beam, effect_values
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.ridge import add_linear_only
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
+from bayes_update.reports.beam_calibration import write_result
+from bayes_update.reports.posterior import format_summary, write_posterior
 
 #: The locking-free beam needs about 43 N for the data's 37 Hz, below the
-#: prior box of docs/design.md#parameters-units-and-the-prior-box (F 60-95 N, set for the paper's
-#: physics): its posterior
-#: uses F 20-95 N.
+#: beam's prior box (F 60-95 N, set for the paper's physics; docs/design.md):
+#: its posterior uses F 20-95 N.
 LOCKING_FREE_F_RANGE = (20.0, 95.0)
 
 #: Reference points of the 3D continuum study (benchmarks/continuum_study.py,
@@ -98,7 +99,7 @@ def discrepancy_dataset():
     return make_dataset(rig=rig, tests=tests, name="buckled-beam-hidden-effect")
 
 
-def reproduce(out, quick: bool = False, workers: int | None = None, log=print, discrepancy: bool = True,
+def reproduce(out, quick: bool = False, workers: int | None = None, log=info, discrepancy: bool = True,
               cache_dir=None) -> dict:
     """Run the study and write ``out/report.md``; returns the headline numbers.
 
@@ -121,7 +122,8 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
         tag = f"factor_{factor:g}"
         rig = dataclasses.replace(rig_of(data), bending_stiffness_factor=factor)
         d = dataclasses.replace(data, rig=rig)
-        model = fe.ModalROM(rig=rig) if quick else fe.BeamModel(rig=rig)
+        prior = {} if factor == stated else {"F": LOCKING_FREE_F_RANGE}
+        model = Beam(fe.ModalROM(rig=rig) if quick else fe.BeamModel(rig=rig), prior)
         log(f"[{tag}] deterministic updating ({'coarse' if quick or factor != stated else 'full'} grids)")
         t0 = time.perf_counter()
         # the locking-free comparison needs only the optimum: coarse grids
@@ -132,24 +134,26 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=print, d
         calibrations[factor] = cal
         log(f"[{tag}] posterior")
         t0 = time.perf_counter()
-        space = ParameterSpace(rig) if factor == stated else ParameterSpace(rig, F=LOCKING_FREE_F_RANGE)
-        post = sample(d, model, post_settings, workers=workers, start=cal.final_params, space=space,
+        post = sample(d, model, post_settings, workers=workers, start=cal.final_theta,
                       cache_dir=cache_dir / tag, log=log)
+        if post_settings.n_linear:
+            add_linear_only(post, workers, cache_dir / tag, log=log)
         write_posterior(post, out / f"posterior_{tag}", truth=truth if factor == stated else None)
         timing[f"posterior_{tag}"] = time.perf_counter() - t0
         posteriors[factor] = post
     disc = None
     if discrepancy:
-        from bayes_update.models.beam.missing_effect import DiscrepancySettings, find_missing_effect, write_discrepancy
+        from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
+        from bayes_update.reports.discrepancy import write_discrepancy
 
         log("[discrepancy] the workflow on the hidden-effect variant of the rig")
         t0 = time.perf_counter()
         dd = discrepancy_dataset()
-        disc = find_missing_effect(dd, fe.BeamModel(rig=rig_of(dd)),
-                                   settings=DiscrepancySettings.quick() if quick else DiscrepancySettings(),
-                                   workers=workers, log=log)
+        disc = find_discrepancy(dd, Beam(fe.BeamModel(rig=rig_of(dd))),
+                                settings=DiscrepancySettings.quick() if quick else DiscrepancySettings(),
+                                workers=workers, log=log)
         hidden = dd.extra["truth"]["effects"]
-        write_discrepancy(disc, dd, out / "discrepancy", truth={"effects": hidden})
+        write_discrepancy(disc, out / "discrepancy", truth={"effects": hidden})
         timing["discrepancy"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     curves = f1_against_preload((1.0, stated))
@@ -173,9 +177,8 @@ def _headline(cals, posts, stated, timing) -> dict:
     for f, cal in cals.items():
         head[f"calibrate_factor_{f:g}"] = cal.table3
         p = posts[f]
-        head[f"posterior_factor_{f:g}"] = {k: {"mean": v["paper_units"]["mean"], "sd": v["paper_units"]["sd"],
-                                               "hdi": [v["paper_units"]["hdi_3%"], v["paper_units"]["hdi_97%"]],
-                                               "unit": v["paper_units"]["unit"]} for k, v in p.summary.items()}
+        head[f"posterior_factor_{f:g}"] = {k: {"mean": v["mean"], "sd": v["sd"], "hdi": [v["hdi_3%"], v["hdi_97%"]],
+                                               "unit": v["units"]} for k, v in p.summary.items()}
         head[f"posterior_factor_{f:g}"]["max_r_hat"] = p.diagnostics["max_r_hat"]
         head[f"posterior_factor_{f:g}"]["min_ess_bulk"] = p.diagnostics["min_ess_bulk"]
     return head
@@ -213,15 +216,17 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
         d = p.diagnostics
         prior = p.space.to_dict()
         L += [f"## Posterior, factor {f:g}", "",
-              "Prior: uniform on " + ", ".join(f"{k} {v[0]:g}-{v[1]:g}" for k, v in prior.items()) + ".", "",
+              "Prior: uniform on " + ", ".join(f"{k} {v['low']:g}-{v['high']:g} {v['unit']}"
+                                                for k, v in prior.items()) + ".", "",
               format_summary(p), "",
               f"max R-hat {d['max_r_hat']:.4f}, min bulk ESS {d['min_ess_bulk']:.0f}; "
               f"{p.n_model_runs['total']} model runs, {p.timing['total']:.0f} s. Likelihood scales: "
               + ", ".join(f"{st} s = {100 * sc.sd:.3f} % (noise {100 * sc.noise_sd:.3f} %, model error "
                           f"{100 * sc.model_error:.3f} %)" for st, sc in p.likelihood.scales.items()), ""]
-        if p.linear_only:
-            n = p.linear_only["narrowing"]
-            L.append(f"Low level alone: corr(F, k_s) = {p.linear_only['corr_F_k_s']:.4f}; adding the high level "
+        lo = p.extras.get("linear_only")
+        if lo:
+            n = lo["narrowing"]
+            L.append(f"Low level alone: corr(F, k_s) = {lo['corr_F_k_s']:.4f}; adding the high level "
                      f"narrows c {n['c']:.1f}x and k_s {n['k_s']:.1f}x (posterior sd ratio) and the joint "
                      f"(c, k_s) spread {n['c_k_s_area']:.1f}x (square root of the covariance determinant).")
         chk = {k: v for k, v in p.predictive.items() if k.endswith("median_rel_error")}
@@ -232,7 +237,7 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
                                                                   "gp_diagnostics", "traces")
                     if (out / f"posterior_{tag}" / f"{n}.png").exists()), ""]
     if disc is not None:
-        from bayes_update.models.beam.missing_effect import CANDIDATES, evidence_table
+        from bayes_update.core.effects import evidence_table
 
         hidden = json.loads((out / "discrepancy" / "discrepancy.json").read_text()).get("truth", {}).get("effects")
         b, a = disc.gap_before, disc.gap_after
@@ -249,14 +254,15 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
         final = disc.to_json()["final_mode"]["effects"]
         for h in hidden:
             if h["name"] in final:
-                cand = CANDIDATES[h["name"]]
-                truth = cand.values_of(fe.EFFECTS[h["name"]](**{k: v for k, v in h.items() if k != "name"}))
+                truth = effect_values(fe.EFFECTS[h["name"]](**{k: v for k, v in h.items() if k != "name"}))
+                fitted = final[h["name"]]
                 L.append(f"\nRe-updated {h['name']} (Laplace at the extended mode, likelihood with the extended "
                          "model's own error): " + ", ".join(
-                             f"{p.name} = {final[h['name']][p.name]['mode']:.3g} +- "
-                             f"{final[h['name']][p.name]['sd']:.2g} {p.unit} (truth {t:.3g})"
-                             for p, t in zip(cand.parameters, truth)) + ".")
+                             f"{n} = {fitted[n]['mode']:.3g} +- {fitted[n]['sd']:.2g} {unit} (truth {truth[n]:.3g})"
+                             for n, unit, *_ in EFFECT_PARAMETERS[h["name"]]) + ".")
         for name, sig in disc.signature.items():
+            if sig["before"] is None or sig["after"] is None:
+                continue
             L.append(f"\nSignature check of {name}: {sig['meaning']}: {sig['before']:.3g} -> {sig['after']:.3g} "
                      f"({'shrank' if sig['shrank'] else 'did not shrink'}).")
         L += ["", "![gap before and after](discrepancy/gap_before_after.png)",

@@ -1,13 +1,77 @@
-"""The figure ``bayes-update discrepancy --model ...`` draws: where the data and the
-model disagree, before and after the named effects (the generic engine's result,
-:mod:`bayes_update.core.discrepancy`)."""
+"""What ``bayes-update discrepancy`` writes: discrepancy.json, evidence.md, the gap
+figure (where the data and the model disagree, before and after the named
+effects) and the model's own diagnostics figures, and the text summary
+(:mod:`bayes_update.core.discrepancy` finds them)."""
 from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
 
 import numpy as np
 
+from bayes_update.core.effects import evidence_table
 from bayes_update.core.problem import excited_band
 
-__all__ = ["gap_figure"]
+__all__ = ["format_result", "gap_figure", "write_discrepancy"]
+
+
+def format_result(res) -> str:
+    """The evidence table, the gap before and after, the named effects' values and
+    the signature check, as text."""
+    b, a, t = res.gap_before, res.gap_after, res.gap_with_tentative
+    lines = [evidence_table(res), "",
+             "gap          before      after" + ("   with " + " + ".join(res.tentative) if t else "")]
+    for k in ("e_lin", "e_nlin", "validation"):
+        if b.get(k) is not None:
+            lines.append(f"{k:<12} {100 * b[k]:8.3f} %  {100 * a[k]:8.3f} %"
+                         + (f"  {100 * t[k]:8.3f} %" if t and t.get(k) is not None else ""))
+    for e in res.named:
+        for n, v in res.final.to_json(res.effects)["effects"][e].items():
+            lines.append(f"{e}: {n} = {v['mode']:.5g} {v['unit']} (Laplace interval "
+                         f"{v['interval'][0]:.5g} to {v['interval'][1]:.5g}; null {v['null']:g})")
+    for name, s in res.signature.items():
+        if s["before"] is not None and s["after"] is not None:
+            lines.append(f"signature of {name} ({s['signature']}): {s['before']:.4g} -> {s['after']:.4g} "
+                         f"({'shrank' if s['shrank'] else 'did NOT shrink'})")
+    return "\n".join(lines)
+
+
+def write_discrepancy(res, out, truth: dict | None = None, figures: bool = True) -> dict:
+    """Write discrepancy.json, evidence.md and the figures (gap_before_after.png;
+    diagnostics_before/after.png where the model draws its own diagnostics) to
+    folder ``out``; returns the JSON document."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    doc = res.to_json()
+    if truth is not None:
+        doc["truth"] = truth
+    (out / "discrepancy.json").write_text(json.dumps(doc, indent=1, default=_json_default))
+    (out / "evidence.md").write_text(evidence_table(res) + "\n")
+    if figures:
+        import matplotlib.pyplot as plt
+
+        fig = gap_figure(res)
+        fig.savefig(out / "gap_before_after.png", dpi=110)
+        plt.close(fig)
+        draw = getattr(res.problem.model, "diagnostics_figure", None)
+        if callable(draw) and res.diagnostics_before is not None:
+            draw(res.diagnostics_before).savefig(out / "diagnostics_before.png", dpi=100)
+            if res.named:
+                draw(res.diagnostics_after).savefig(out / "diagnostics_after.png", dpi=100)
+    return doc
+
+
+def _json_default(o):
+    if isinstance(o, (np.floating, np.integer)):
+        return o.item()
+    if isinstance(o, np.bool_):
+        return bool(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return str(o)
 
 
 def gap_figure(res):

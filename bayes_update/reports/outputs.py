@@ -25,10 +25,13 @@ STAGING_PREFIX = ".partial-"
 def staged_output(out):
     """Yield a fresh staging folder inside ``out``; on success move its files
     into ``out`` (same relative paths, one atomic rename each), on any
-    exception (including ``KeyboardInterrupt``) delete it and re-raise."""
+    exception (including ``KeyboardInterrupt``) delete it (and ``out`` itself
+    if this call created it and nothing else, e.g. a cache, is in it) and
+    re-raise."""
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a folder")
+    created = not out.exists()
     out.mkdir(parents=True, exist_ok=True)
     staging = out / f"{STAGING_PREFIX}{os.getpid()}"
     shutil.rmtree(staging, ignore_errors=True)
@@ -37,6 +40,8 @@ def staged_output(out):
         yield staging
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
+        if created and not any(out.iterdir()):      # a failed command leaves no empty OUT behind
+            out.rmdir()
         raise
     _publish(staging, out)
     shutil.rmtree(staging, ignore_errors=True)

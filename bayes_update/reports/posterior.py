@@ -25,10 +25,6 @@ def write_posterior(res, out, truth: dict | None = None, figures: bool = True):
 
 
 def format_summary(res) -> str:
-    """Markdown table of the posterior (the beam's in paper units)."""
-    lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
-    for var, v in res.summary.items():
-        p = v.get("paper_units", {**v, "unit": v["units"]})
-        lines.append(f"| {var} [{p['unit']}] | {p['mean']:.5g} | {p['sd']:.3g} | "
-                     f"{p['hdi_3%']:.5g} - {p['hdi_97%']:.5g} | {v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
-    return "\n".join(lines)
+    """Markdown table of the posterior (each variable in its unit):
+    :meth:`~bayes_update.core.posterior.PosteriorResult.summary_table`."""
+    return res.summary_table()

@@ -7,73 +7,10 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from bayes_update.models.beam.space import UNITS
 
-LABELS = {"eta": "eta [MPa s]", "c": "c [N s/mm]", "F": "F [N]", "k_s": "k_s [N/mm]", "P_eff": "P_eff [N]"}
-ORDER = ("eta", "c", "F", "k_s", "P_eff")
-
-
-def paper_draws(space, X) -> dict:
-    """{name: draws in paper units} from internal-coordinate draws (n, 4)."""
-    return {"eta": X[:, 0], "c": X[:, 1], "F": space.F_of(X), "k_s": X[:, 3], "P_eff": X[:, 2]}
-
-
-def corner(space, X, truth: dict | None = None, map_point: dict | None = None, title: str = "posterior",
-           max_points: int = 4000, seed: int = 0):
-    """Pair plot: histograms on the diagonal, draws below it; ``truth`` and
-    ``map_point`` (paper units) marked."""
-    d = paper_draws(space, X)
-    rng = np.random.default_rng(seed)
-    pick = rng.choice(len(X), size=min(max_points, len(X)), replace=False)
-    n = len(ORDER)
-    fig = Figure(figsize=(11, 11), constrained_layout=True)
-    axes = fig.subplots(n, n)
-    for i, a in enumerate(ORDER):
-        for j, b in enumerate(ORDER):
-            ax = axes[i, j]
-            if j > i:
-                ax.axis("off")
-                continue
-            if i == j:
-                ax.hist(d[a], bins=40, color="C0", alpha=0.8)
-                lo, hi = np.percentile(d[a], [3, 97])
-                ax.axvline(lo, color="C0", ls=":", lw=0.8)
-                ax.axvline(hi, color="C0", ls=":", lw=0.8)
-                if truth and a in truth:
-                    ax.axvline(truth[a], color="C3", lw=1.2)
-                ax.set_yticks([])
-            else:
-                ax.plot(d[b][pick], d[a][pick], ".", ms=1.5, alpha=0.3, color="C0")
-                if truth and a in truth and b in truth:
-                    ax.plot(truth[b], truth[a], "x", color="C3", ms=8, mew=2)
-                if map_point and a in map_point and b in map_point:
-                    ax.plot(map_point[b], map_point[a], "+", color="k", ms=8, mew=1.5)
-            if i == n - 1:
-                ax.set_xlabel(LABELS[b])
-            else:
-                ax.set_xticklabels([])
-            if j == 0 and i > 0:
-                ax.set_ylabel(LABELS[a])
-            elif j > 0:
-                ax.set_yticklabels([])
-            ax.tick_params(labelsize=7)
-    fig.suptitle(f"{title}: draws, 94 % HDI (dotted: 3-97 % quantiles); x = truth, + = MAP")
-    return fig
-
-
-def traces(sampler_chain, space, title: str = "traces"):
-    """Walker traces in paper units (chain: (steps, walkers, 4))."""
-    steps, walkers, _ = sampler_chain.shape
-    flat = sampler_chain.reshape(-1, 4)
-    d = {k: v.reshape(steps, walkers) for k, v in paper_draws(space, flat).items()}
-    fig = Figure(figsize=(9, 9), constrained_layout=True)
-    axes = fig.subplots(len(ORDER), 1, sharex=True)
-    for ax, name in zip(axes, ORDER):
-        ax.plot(d[name], lw=0.3, alpha=0.5)
-        ax.set_ylabel(LABELS[name], fontsize=8)
-    axes[-1].set_xlabel("step (after burn-in)")
-    axes[0].set_title(title)
-    return fig
+def _label(space, name: str) -> str:
+    unit = space.report_units.get(name, "")
+    return f"{name} [{unit}]" if unit else name
 
 
 def predictive_bands(bands: dict, fs: float, names: dict | None = None):
@@ -104,25 +41,25 @@ def predictive_bands(bands: dict, fs: float, names: dict | None = None):
 
 
 def ridge(space, X_linear, X_full, truth: dict | None = None, max_points: int = 4000, seed: int = 0):
-    """(k_s, F) of the linear-only posterior (the ridge of constant P_eff) and
-    of the full posterior."""
+    """The beam's (k_s, F) of the linear-only posterior (the ridge of constant
+    P_eff) and of the full posterior; X: internal-coordinate draws (n, d)."""
     rng = np.random.default_rng(seed)
     fig = Figure(figsize=(11, 4.5), constrained_layout=True)
     ax1, ax2 = fig.subplots(1, 2)
     for X, color, label in ((X_linear, "C0", "low level only"), (X_full, "C3", "low + high level")):
         pick = rng.choice(len(X), size=min(max_points, len(X)), replace=False)
-        d = paper_draws(space, X[pick])
+        d = space.report(X[pick])
         ax1.plot(d["k_s"], d["F"], ".", ms=1.5, alpha=0.3, color=color, label=label)
         ax2.plot(d["c"], d["k_s"], ".", ms=1.5, alpha=0.3, color=color, label=label)
     if truth:
         ax1.plot(truth["k_s"], truth["F"], "x", color="k", ms=9, mew=2)
         ax1.annotate("truth", (truth["k_s"], truth["F"]), xytext=(8, -12), textcoords="offset points")
         ax2.plot(truth["c"], truth["k_s"], "x", color="k", ms=9, mew=2)
-    ax1.set_xlabel(LABELS["k_s"])
-    ax1.set_ylabel(LABELS["F"])
+    ax1.set_xlabel(_label(space, "k_s"))
+    ax1.set_ylabel(_label(space, "F"))
     ax1.set_title("the linear-only ridge: F = P_eff (K_b + k_s) / K_b")
-    ax2.set_xlabel(LABELS["c"])
-    ax2.set_ylabel(LABELS["k_s"])
+    ax2.set_xlabel(_label(space, "c"))
+    ax2.set_ylabel(_label(space, "k_s"))
     ax2.set_title("c and k_s: unidentified by the low level")
     ax1.legend(markerscale=6, fontsize=8)
     return fig
@@ -166,44 +103,34 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
 
 
 def arviz_figures(res, truth: dict | None = None) -> dict:
-    """Pair plot (with the truth, if given) and traces of any model's posterior, drawn by ArviZ."""
+    """Pair plot (with the truth, if given) and traces of a posterior, drawn by
+    ArviZ, each variable labelled with its unit."""
     import arviz as az
 
     names = list(res.space.report_units)
+    labeller = az.labels.MapLabeller(var_name_map={n: _label(res.space, n) for n in names})
     axes = az.plot_pair(res.idata, var_names=names, kind="kde" if len(names) <= 3 else "scatter",
-                        marginals=True, reference_values=truth or None,
+                        marginals=True, reference_values=truth or None, labeller=labeller,
                         figsize=(2.6 * len(names), 2.6 * len(names)))
     pair = np.ravel(axes)[0].figure
-    trace = np.ravel(az.plot_trace(res.idata, var_names=names, compact=True))[0].figure
+    trace = np.ravel(az.plot_trace(res.idata, var_names=names, compact=True, labeller=labeller))[0].figure
     return {"corner": pair, "traces": trace}
 
 
 def posterior_figures(res, truth: dict | None = None) -> dict:
     """{file stem: Figure} of a :class:`~bayes_update.core.posterior.PosteriorResult`:
-    the beam's own corner, traces and ridge (paper units, P_eff), ArviZ's pair
-    plot and traces for any other model; predictive bands and GP checks for both."""
-    if not getattr(res.space, "has_ridge", False):
-        figs = arviz_figures(res, truth)
-        if res.predictive.get("_bands"):
-            names = {st: t.name for st, t in res.problem.tests.items()}
-            figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names)
-        if res.surrogates or res.sensitivity:
-            figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
-        return figs
-    mp = dict(zip(("eta", "c", "P_eff", "k_s"), res.map.x))
-    mp["F"] = float(res.space.F_of(res.map.x)[0])
-    kind = "direct" if res.direct else "surrogate"
-    figs = {"corner": corner(res.space, res.draws, truth, mp, title=f"posterior ({kind})")}
-    chain = res.draws.reshape(-1, res.settings.n_walkers, 4)
-    figs["traces"] = traces(chain, res.space, title=f"emcee walkers ({kind})")
+    ArviZ's pair plot and traces, the predictive bands and the GP checks, and
+    the beam's ridge when the result carries its linear-only posterior."""
+    figs = arviz_figures(res, truth)
     if res.predictive.get("_bands"):
         names = {st: t.name for st, t in res.problem.tests.items()}
         figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names)
-    if res.linear_only.get("_draws") is not None:
-        figs["ridge"] = ridge(res.space, res.linear_only["_draws"], res.draws, truth)
+    linear_only = res.extras.get("linear_only", {})
+    if linear_only.get("_draws") is not None:
+        figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
     if res.surrogates or res.sensitivity:
         figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
     return figs
 
 
-__all__ = ["UNITS", "arviz_figures", "corner", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge", "traces"]
+__all__ = ["arviz_figures", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge"]

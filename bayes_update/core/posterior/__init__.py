@@ -2,13 +2,14 @@
 
 Pipeline of :func:`sample` (each step's numbers go to the result):
 
-1. start: the two-stage calibration (:mod:`bayes_update.core.calibrate`; the
-   beam's: the paper's grids), unless a start point is given;
+1. start: the model's own ``start`` hook (the beam's: the paper's grids),
+   else the two-stage calibration (:mod:`bayes_update.core.calibrate`),
+   unless a start point is given;
 2. likelihood scales at the start (:func:`bayes_update.core.likelihood.estimate_likelihood`:
    noise replicates and the model error against a refined model);
 3. MAP by least squares on the metrics' residual vectors (trust-region
    Gauss-Newton on direct model runs, :mod:`bayes_update.core.mode`; from the
-   start and from the space's ``extra_starts``, e.g. the beam's c-k_s band) and the
+   start and from the model's ``extra_starts``, e.g. the beam's c-k_s band) and the
    Laplace covariance from the residuals' Jacobian there;
 4. surrogate path: coordinates whitened by the Laplace covariance, a Sobol'
    design in the box of +-``box_sd`` in them (points inside the prior), Gaussian processes of
@@ -16,8 +17,8 @@ Pipeline of :func:`sample` (each step's numbers go to the result):
    posterior has mass (:func:`surrogates.refine`, candidates from short MCMC
    runs on the current surrogate); direct path: no surrogate;
 5. emcee (stretch move, seeded) on the surrogate's (or the model's)
-   posterior, restricted to the local box; ArviZ data (the space's ``report``:
-   a model's parameters in their units; the beam's in SI with P_eff).
+   posterior, restricted to the local box; ArviZ data (the parameters in their
+   units, and derived coordinates such as the beam's P_eff).
 
 Why a local box: a posterior can be far narrower than its prior (the beam's P_eff is ~0.03 % wide, 1e-4 of the prior
 range), so a design over the whole prior box would put no point in it.  The
@@ -33,15 +34,7 @@ Modules: :mod:`.settings` (sizes), :mod:`.target` (log posteriors), :mod:`.lapla
 :mod:`bayes_update.reports.posterior`.
 """
 
-from bayes_update.core.posterior.laplace import MapResult, capped_covariance, find_map, local_box
-from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee, summarize, to_inference_data
-from bayes_update.core.posterior.predictive import posterior_predictive
-from bayes_update.core.posterior.sampler import PosteriorResult, default_start, make_problem, sample
+from bayes_update.core.posterior.sampler import PosteriorResult, sample
 from bayes_update.core.posterior.settings import PosteriorSettings
-from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, SurrogateLogPosterior, Whitening,
-                                                WhitenedEvaluate, WhitenedLogPosterior)
 
-__all__ = ["DirectLogPosterior", "Evaluate", "MapResult", "PosteriorResult", "PosteriorSettings",
-           "SurrogateLogPosterior", "Whitening", "WhitenedEvaluate", "WhitenedLogPosterior", "capped_covariance",
-           "default_start", "find_map", "initial_walkers", "local_box", "make_problem", "posterior_predictive",
-           "run_emcee", "sample", "summarize", "to_inference_data"]
+__all__ = ["PosteriorResult", "PosteriorSettings", "sample"]

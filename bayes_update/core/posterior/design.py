@@ -81,7 +81,6 @@ def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = Non
     config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
               "basis": describe_basis(ev.problem.basis), "metric_set": ev.problem.metrics,
               "data": ev.problem.data_fingerprint,
-              "rig": ev.problem.rig.to_dict() if ev.problem.rig is not None else None,
               "coordinates": list(ev.space.coordinate_names)}
     if whitening is not None:     # points are stored in the whitened coordinates
         config["whitening"] = {"center": whitening.center.tolist(), "L": whitening.L.tolist()}

@@ -26,11 +26,12 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     """MAP by least squares on the residual vectors (:mod:`bayes_update.core.mode`)
     and its Gauss-Newton Laplace covariance.
 
-    Starts: ``x0`` and the two best of a 3 x 3 grid on the (c, k_s) band at
-    x0's (eta, P_eff) (the low level pins eta and P_eff; along the band the
-    nonlinear misfit can have more than one valley).  The uniform prior's
-    density (K_b + k_s) / K_b in these coordinates varies by < 1 % over the
-    posterior and is left out of the mode, kept in ``value``."""
+    Starts: ``x0`` and the two best of the model's ``extra_starts(x0)`` when it
+    offers them (the beam: a 3 x 3 grid on the (c, k_s) band at x0's
+    (eta, P_eff): the low level pins eta and P_eff, and along the band the
+    nonlinear misfit can have more than one valley).  The prior's density in
+    the internal coordinates is left out of the mode (the beam's
+    (K_b + k_s) / K_b varies by < 1 % over its posterior) and kept in ``value``."""
     from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode
 
     space = evaluate.space
@@ -41,7 +42,8 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])
     starts = [x0]
-    grid = space.extra_starts(x0)
+    extra = getattr(evaluate.problem.model, "extra_starts", None)
+    grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
     if grid and len(stages) > 1:
         cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
         starts += [grid[i] for i in np.argsort(cost)[:2]]

@@ -8,7 +8,7 @@ from bayes_update.core.posterior.target import Whitening
 
 # -------------------------------------------------------------------- emcee
 def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize: bool,
-              pool=None, progress: bool = True):
+              pool=None, progress: bool = True, desc: str = "MCMC (emcee)"):
     """emcee's stretch move from ``x_init`` (n_walkers, d), seeded.
 
     A vectorised log probability (the GP surrogates) runs with one BLAS thread:
@@ -21,7 +21,8 @@ def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize
     sampler = emcee.EnsembleSampler(n_walkers, x_init.shape[1], log_prob, vectorize=vectorize, pool=pool)
     sampler.random_state = np.random.RandomState(np.random.SeedSequence(seed).generate_state(1)[0]).get_state()
     with threadpool_limits(1 if vectorize else None):
-        sampler.run_mcmc(x_init, n_steps, progress=progress)
+        # a labelled bar on a terminal only (tqdm's disable=None): a log file gets no carriage returns
+        sampler.run_mcmc(x_init, n_steps, progress=progress, progress_kwargs={"desc": desc, "disable": None})
     return sampler
 
 
@@ -40,41 +41,61 @@ def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.
     raise RuntimeError("could not place the MCMC walkers where the posterior is finite")
 
 
-def to_inference_data(chain, log_prob, space, attrs: dict):
+def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None,
+                      observed: dict | None = None):
     """ArviZ InferenceData (chain = walker) of the space's reported variables
-    (``space.report``: the beam's in SI with P_eff, a model's in its parameters' units)."""
+    (:meth:`ParameterSet.report`: the parameters in their units, then derived
+    coordinates such as the beam's P_eff), each with its ``units`` attribute;
+    ``sample_stats`` with the log posterior ``lp``; ``log_likelihood`` (one
+    variable per test: log L of its metric at each draw, shape like ``log_prob``)
+    and ``observed_data`` (one variable per test: the output its metric compares,
+    {name: (values, units)}) when given."""
     import arviz as az
 
     X = np.swapaxes(chain, 0, 1)                    # (walker, draw, d)
     values = space.report(X.reshape(-1, X.shape[-1]))
     post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
-    idata = az.from_dict(posterior=post, sample_stats={"lp": np.swapaxes(log_prob, 0, 1)},
-                         attrs={**attrs, **{f"units_{k}": u for k, u in space.report_units.items()}})
+    groups = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}}
+    if log_likelihood:
+        groups["log_likelihood"] = {k: np.swapaxes(v, 0, 1) for k, v in log_likelihood.items()}
+    if observed:
+        groups["observed_data"] = {k: v for k, (v, _) in observed.items()}
+        groups["dims"] = {k: [f"{k}_sample"] for k in observed}
+    idata = az.from_dict(**groups, attrs=dict(attrs))
+    for var, unit in space.report_units.items():
+        idata.posterior[var].attrs["units"] = unit
+    for k, (_, unit) in (observed or {}).items():
+        idata.observed_data[k].attrs["units"] = unit
     return idata
 
 
+def add_posterior_predictive(idata, draws: dict, units: dict) -> None:
+    """Add the ``posterior_predictive`` group: {test: (n draws, n samples)} of the
+    model's compared output at posterior draws (one chain), on the same sample
+    dimension as ``observed_data``."""
+    import arviz as az
+
+    pp = az.from_dict(posterior_predictive={k: v[None] for k, v in draws.items()},
+                      dims={k: [f"{k}_sample"] for k in draws})
+    idata.add_groups({"posterior_predictive": pp.posterior_predictive})
+    for k in draws:
+        idata.posterior_predictive[k].attrs["units"] = units.get(k, "")
+
+
 def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
-    """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail (in
-    ``space.report_units``) and, when ``space.display`` shows other units (the
-    beam's paper units), the same in those under ``paper_units``."""
+    """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail and its
+    ``units`` (:attr:`ParameterSet.report_units`)."""
     import arviz as az
 
     s = az.summary(idata, hdi_prob=hdi_prob, round_to="none")
     lo, hi = f"hdi_{100 * (1 - hdi_prob) / 2:g}%", f"hdi_{100 * (1 + hdi_prob) / 2:g}%"
     out = {}
-    # a space that shows other units than it reports in (the beam: SI vs paper units) shows all of them
-    shown_apart = any(space.display[v] != (u, 1.0) for v, u in space.report_units.items())
     for var, unit in space.report_units.items():
         row = s.loc[var]
         out[var] = {"mean": float(row["mean"]), "sd": float(row["sd"]), "hdi_3%": float(row[lo]),
                     "hdi_97%": float(row[hi]), "r_hat": float(row["r_hat"]),
                     "ess_bulk": float(row["ess_bulk"]), "ess_tail": float(row["ess_tail"]),
                     "units": unit}
-        shown, factor = space.display[var]
-        if shown_apart:
-            out[var]["paper_units"] = {"unit": shown, "mean": float(row["mean"]) / factor,
-                                       "sd": float(row["sd"]) / factor, "hdi_3%": float(row[lo]) / factor,
-                                       "hdi_97%": float(row[hi]) / factor}
     return out
 
 

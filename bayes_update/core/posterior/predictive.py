@@ -55,4 +55,5 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
             pred[f"{Likelihood.key(st)}_gp_max_rel_error"] = float(np.max(rel))
             pred[f"_{st}_pairs"] = (e_model, e_gp)
     pred["_bands"] = bands
+    pred["_draws"] = {st: np.array([out[i][st] for i in ok]) for st in res.problem.stages}
     return pred

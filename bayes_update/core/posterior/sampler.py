@@ -1,25 +1,29 @@
 """The pipeline of :func:`sample` (the package docstring) and its result."""
 from __future__ import annotations
 
-import time
 import warnings
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from bayes_update.core.likelihood import Likelihood, curvature_adjustment, estimate_likelihood
-from bayes_update.core.model import ModelSpecError, adapter_for, check_model_on
+from bayes_update.core.logs import info
+from bayes_update.core.likelihood import Likelihood, curvature_adjustment, estimate_likelihood, likelihood_runs
+from bayes_update.core.calibrate import find_start, problem_for
+from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates
 from bayes_update.core.posterior.laplace import MapResult, capped_covariance, find_map, local_box
-from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler, initial_walkers,
-                                              run_emcee, summarize, to_inference_data)
+from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
+                                              add_posterior_predictive, initial_walkers, run_emcee, summarize,
+                                              to_inference_data)
 from bayes_update.core.posterior.predictive import posterior_predictive
 from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
                                                 WhitenedLogPosterior, _ExecutorPool)
-from bayes_update.core.problem import Problem
+from bayes_update.core.problem import DatasetError, Problem
+from bayes_update.core.sensitivity import sobol_indices
+from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
 from surrogates.evaluation import default_executor
 
@@ -42,7 +46,8 @@ class PosteriorResult:
     surrogates: dict = field(repr=False, default_factory=dict)
     design: dict = field(repr=False, default_factory=dict)
     draws: np.ndarray = field(repr=False, default=None)     # flat internal-coordinate draws
-    linear_only: dict = field(repr=False, default_factory=dict)
+    extras: dict = field(repr=False, default_factory=dict)     # what a study adds (the beam: linear_only)
+    seeds: list = field(repr=False, default_factory=list)     # the pipeline's spawned seeds
     predictive: dict = field(repr=False, default_factory=dict)
     sensitivity: dict = field(repr=False, default_factory=dict)
     n_model_runs_reused: dict = field(default_factory=dict)  # found in the cache instead of run
@@ -54,9 +59,20 @@ class PosteriorResult:
                 "laplace_box": dict(zip(self.space.coordinate_names, self.box.tolist())),
                 "start": self.start, "diagnostics": self.diagnostics, "direct": self.direct,
                 "settings": asdict(self.settings),
-                "linear_only": {k: v for k, v in self.linear_only.items() if not k.startswith("_")},
+                **{name: {k: v for k, v in extra.items() if not k.startswith("_")}
+                   for name, extra in self.extras.items()},
                 "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
                 "sensitivity": self.sensitivity}
+
+    def summary_table(self) -> str:
+        """Markdown table of the posterior: mean, sd, 94 % HDI, R-hat and bulk ESS of
+        every reported variable, in its unit."""
+        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
+        for var, v in self.summary.items():
+            unit = f" [{v['units']}]" if v["units"] else ""
+            lines.append(f"| {var}{unit} | {v['mean']:.5g} | {v['sd']:.3g} | "
+                         f"{v['hdi_3%']:.5g} - {v['hdi_97%']:.5g} | {v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
+        return "\n".join(lines)
 
     def run_json(self) -> dict:
         """How the run went (not what it found): wall time per step [s] and model
@@ -66,204 +82,226 @@ class PosteriorResult:
                 "n_model_runs_reused": self.n_model_runs_reused}
 
 
-def sample(dataset: Dataset, model=None, settings: PosteriorSettings | None = None, *,
+def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
            start=None, space=None, likelihood: Likelihood | None = None, cache_dir=None,
-           metrics: str | None = None, progress: bool = True, log=print) -> PosteriorResult:
+           metrics: str | None = None, progress: bool = True, log=info) -> PosteriorResult:
     """Sample the posterior of a model's parameters given ``dataset`` (module docstring).
 
     Parameters
     ----------
-    model : the updating model: any model of the contract
-        (:mod:`bayes_update.core.model`: declared ``parameters`` and
-        ``simulate(theta, force, fs)``), or the beam (``fe.BeamModel``, the
-        default, or ``fe.ModalROM``; parameters eta, c, F, k_s).
-    space : the prior (default: the model's declared parameters; the beam's
-        :class:`ParameterSet` box of docs/design.md#parameters-units-and-the-prior-box).
+    model : any model of the contract (:mod:`bayes_update.core.model`: declared
+        ``parameters`` and ``simulate(theta, force, fs)``), e.g. the beam
+        (:func:`bayes_update.models.beam.beam_model`).
+    space : the prior (default: the model's declared parameters).
     direct : run emcee on the model itself (no surrogate); sensible with a
-        model of a few ms per run (``fe.ModalROM``: about 2 ms per evaluation).
-    start : skip the start search and begin at these parameters (theta, or
-        ``fe.Parameters`` for the beam).
+        model of a few ms per run.
+    start : skip the start search and begin at this theta (each parameter in its unit).
     likelihood : use these scales instead of measuring them at the start
         (e.g. to compare a direct and a surrogate posterior under one likelihood).
     cache_dir : folder of the netCDF evaluation cache (an interrupted run resumes).
     metrics : the metric set, ``"paper"`` or ``"full"`` (:mod:`bayes_update.core.problem`;
-        default ``full`` for a model of the contract, ``paper`` for the beam).
+        default: the model's ``default_metrics``, else ``full``).
     """
+    if model is None:
+        raise ModelSpecError("no model given: pass a model of the contract (docs/models.md), e.g. "
+                             "bayes_update.models.beam.beam_model(data)")
     settings = settings or PosteriorSettings()
-    problem, space = make_problem(dataset, model, space, metrics)
-    if "nonlinear" not in problem.stages:
-        raise ValueError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
-                         "(the high-level chirp) as well as the 'linear' one")
-    stages = problem.stages
-    timing, runs, reused = {}, {}, {}
-    t_all = time.perf_counter()
+    steps = StepLog()
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        return _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress,
-                       log, stages, timing, runs, reused, t_all)
+        with steps("check_and_screen"):
+            problem = problem_for(dataset, model, space, metrics, executor=pool)
+            steps.add_runs(1 + problem.n_screen_runs)
+        if "nonlinear" not in problem.stages:
+            raise DatasetError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
+                               "(the high-level test) as well as the 'linear' one")
+        seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
+        run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
+        start, start_info = _start(run, start)
+        lik = _likelihood(run, start, likelihood)
+        mp, box, adj = _mode(run, lik, start)
+        chain = _direct_chain(run, lik, mp, adj) if direct else _surrogate_chain(run, lik, mp, adj)
+        res = _result(run, chain, lik, mp, box, adj, start_info, direct)
+        _extras(run, res)
     finally:
         if own_pool:
             pool.shutdown()
+    steps.finish()
+    res.timing, res.n_model_runs = steps.timing, steps.runs
+    log("sample: " + steps.line())
+    return res
 
 
-def make_problem(dataset: Dataset, model, space=None, metrics=None):
-    """(problem, space) for ``model`` on ``dataset``.
+# ------------------------------------------------------------------ the steps
+@dataclass
+class _Run:
+    """What every step of one :func:`sample` reads: the problem, its prior, the
+    settings, the executor, where to cache and log, the step log and the seeds
+    (one per step, spawned from ``settings.seed``)."""
 
-    A model of the contract (declared ``parameters``; checked with one run
-    here, before any heavy work) gets a :class:`bayes_update.core.Problem`
-    (:func:`bayes_update.core.calibrate.problem_for`: under the ``full``
-    metric set J1 follows the parameters the linear test moves) and its
-    :class:`ParameterSet`.  A model of another package with an adapter
-    (:func:`bayes_update.core.model.adapter_for`: the beam's ``fe`` models)
-    gets what its adapter builds."""
-    if model is None:
-        raise ModelSpecError("no model given: pass a model of the contract (docs/models.md), or a beam "
-                             "model (fe.BeamModel / fe.ModalROM)")
-    if not hasattr(model, "parameters"):
-        adapter = adapter_for(model)
-        if adapter is None:
-            raise ModelSpecError(f"{type(model).__name__} is not a model: it declares no `parameters` "
-                                 "(docs/models.md)")
-        return adapter(dataset, model, space, metrics)
-    from bayes_update.core.calibrate import problem_for
-
-    checked = check_model_on(model, dataset)
-    space = space if space is not None else checked
-    return problem_for(dataset, model, space, metrics)[0], space
+    dataset: Dataset
+    problem: Problem
+    space: ParameterSet
+    settings: PosteriorSettings
+    pool: object
+    cache_dir: object
+    progress: bool
+    log: object
+    steps: StepLog
+    seeds: list
+    reused: dict = field(default_factory=dict)     # model runs found in the cache, per design
 
 
-def default_start(dataset, problem, space, pool, n_points: int, seed, progress, log):
-    """(start point, model runs): the problem's own ``default_start`` when it has
-    one (the beam's: the paper's grids), else the generic two-stage calibration
-    (:mod:`bayes_update.core.calibrate`) on the problem as built."""
-    if hasattr(problem, "default_start"):
-        return problem.default_start(dataset, pool, progress, log)
-    from bayes_update.core.calibrate import screen_linear, two_stage
+@dataclass
+class _Chain:
+    """What a sampling step leaves: the sampler (read in internal coordinates) and,
+    on the surrogate path, the surrogates, their design and the local box's record."""
 
-    log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
-    names, runs = getattr(problem, "linear_parameters", None), 0
-    if names is None:
-        names, _, runs = screen_linear(problem, space, pool)
-    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=pool, progress=progress)
-    return space.to_parameters(found.x), runs + found.n_model_runs
+    sampler: object
+    burn: int
+    thin: int
+    gps: dict = field(default_factory=dict)
+    design: dict = field(default_factory=dict)
+    diagnostics: dict = field(default_factory=dict)
+    log_likelihood: dict = field(default_factory=dict)    # stage -> (steps, walkers) of the kept draws
 
 
-def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, cache_dir, progress, log,
-            stages, timing, runs, reused, t_all):
-    seeds = np.random.SeedSequence(settings.seed).spawn(8)
-    seed_of = [int(s.generate_state(1)[0]) for s in seeds]
-    # 1. start ---------------------------------------------------------------
-    t0 = time.perf_counter()
-    if start is None:
-        start, runs["start"] = default_start(dataset, problem, space, pool, settings.n_start, seed_of[7],
-                                             progress, log)
-    else:
-        space.check(start, "start")
-        runs["start"] = 0
-    start_info = space.describe(start)
-    if not space.contains(start):
-        start = space.to_parameters(np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1]))
-    timing["start"] = time.perf_counter() - t0
-    # 2. likelihood scales ------------------------------------------------------
-    t0 = time.perf_counter()
-    if likelihood is None:
-        lik = estimate_likelihood(problem, start, model_error=settings.model_error,
-                                  n_replicates=settings.n_replicates, seed=seed_of[0], space=space)
-        # replicates, the estimate, the refined model, 8 runs for the sensitivity span
-        runs["likelihood_scales"] = len(stages) * (settings.n_replicates + 9 + int(settings.model_error))
-    else:
-        if set(likelihood.stages) != set(stages):
-            raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
-        lik = likelihood
-        runs["likelihood_scales"] = 0
-    timing["likelihood_scales"] = time.perf_counter() - t0
+def _start(run: _Run, start) -> tuple[dict, dict]:
+    """1. start: the model's own start or the two-stage calibration (unless given)."""
+    space = run.space
+    with run.steps("start"):
+        if start is None:
+            start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
+                                  seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log)
+            run.steps.add_runs(n)
+        else:
+            space.check(start, "start")
+        info = {n: float(start[n]) for n in space.names}
+        if not space.contains(start):
+            start = space.to_parameters(np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1]))
+    return start, info
+
+
+def _likelihood(run: _Run, start, likelihood) -> Likelihood:
+    """2. likelihood scales at the start (unless given)."""
+    s, stages = run.settings, run.problem.stages
+    with run.steps("likelihood_scales"):
+        if likelihood is None:
+            lik = estimate_likelihood(run.problem, start, model_error=s.model_error, n_replicates=s.n_replicates,
+                                      seed=run.seeds[0], space=run.space)
+            run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error))
+        else:
+            if set(likelihood.stages) != set(stages):
+                raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
+            lik = likelihood
     for st, sc in lik.scales.items():
-        log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % per direction of the parameters' span "
-            f"({sc.span_rank}), model error "
-            f"{100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
-    # 3. MAP and local box --------------------------------------------------------
-    t0 = time.perf_counter()
-    ev = Evaluate(problem, space, stages)
-    mp = find_map(ev, lik, space.to_internal(start), pool, settings.map_max_evaluations, progress=False)
-    box = local_box(space, mp.x, mp.covariance, settings.box_sd)
-    runs["map_laplace"] = len(stages) * mp.n_evaluations
-    timing["map_laplace"] = time.perf_counter() - t0
-    log("MAP: " + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
-        + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
+        run.log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % per direction of the parameters' span "
+                f"({sc.span_rank}), model error {100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
+    return lik
+
+
+def _mode(run: _Run, lik: Likelihood, start):
+    """3. MAP, Laplace covariance, local box and the curvature adjustment."""
+    space, s = run.space, run.settings
+    with run.steps("map_laplace"):
+        ev = Evaluate(run.problem, space, run.problem.stages)
+        mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False)
+        box = local_box(space, mp.x, mp.covariance, s.box_sd)
+        run.steps.add_runs(len(run.problem.stages) * mp.n_evaluations)
+    run.log("MAP: " + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
+            + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
     adj = None
-    if settings.curvature_adjustment and mp.mode is not None:
-        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0], stages,
-                                   names=space.coordinate_names)
+    if s.curvature_adjustment and mp.mode is not None:
+        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0],
+                                   run.problem.stages, names=space.coordinate_names)
         if adj is not None:
-            log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
-                + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
-                + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
-    result = dict(design={}, surrogates={})
-    # 4-5. sampling -----------------------------------------------------------------
-    if direct:
-        t0 = time.perf_counter()
-        logp = DirectLogPosterior(ev, lik, adj)
-        x_init = initial_walkers(lambda X: np.array([logp(x) for x in X]), mp.x, mp.covariance,
-                                 settings.n_walkers, seed_of[1])
-        sampler = run_emcee(logp, x_init, settings.n_walkers, settings.direct_steps, seed_of[2],
-                            vectorize=False, pool=_ExecutorPool(pool) if pool is not None else None,
-                            progress=progress)
-        runs["mcmc"] = len(stages) * settings.n_walkers * settings.direct_steps
-        timing["mcmc"] = time.perf_counter() - t0
-        gps = {}
-    else:
-        t0 = time.perf_counter()
-        whitening = Whitening.from_covariance(mp.x, capped_covariance(mp.covariance, space, settings.box_sd))
-        ubox = np.array([[-settings.box_sd, settings.box_sd]] * len(space.coordinate_names), float)
-        timing["gp_fit"], timing["mcmc"], runs["design"] = 0.0, 0.0, 0
-        for attempt in range(settings.box_attempts):
-            t0 = time.perf_counter()
+            run.log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
+                    + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
+                    + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
+    return mp, box, adj
+
+
+def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
+    """4-5, direct path: emcee on the model itself."""
+    s = run.settings
+    with run.steps("mcmc"):
+        logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
+        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, mp.covariance, s.n_walkers,
+                                 run.seeds[1])
+        sampler = run_emcee(logp, x_init, s.n_walkers, s.direct_steps, run.seeds[2], vectorize=False,
+                            pool=_ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
+                            desc="MCMC on the model")
+        run.steps.add_runs(len(run.problem.stages) * s.n_walkers * s.direct_steps)
+    blobs = sampler.get_blobs(discard=s.direct_burn)          # (steps, walkers, stages)
+    return _Chain(sampler, s.direct_burn, 1,
+                  log_likelihood={st: blobs[..., i] for i, st in enumerate(run.problem.stages)})
+
+
+def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
+    """4-5, surrogate path: GPs on a design in the whitened local box, emcee on
+    them; the box re-centred and widened while it cuts the posterior."""
+    s, space, stages = run.settings, run.space, run.problem.stages
+    d = len(space.coordinate_names)
+    ev = Evaluate(run.problem, space, stages)
+    whitening = Whitening.from_covariance(mp.x, capped_covariance(mp.covariance, space, s.box_sd))
+    ubox = np.array([[-s.box_sd, s.box_sd]] * d, float)
+    run.steps.timing["gp_fit"] = 0.0
+    for attempt in range(s.box_attempts):
+        with run.steps("design_and_gp"):
             gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
-                                                    settings, pool, cache_dir, stages, seed_of[3] + attempt,
-                                                    progress, log, reused)
-            runs["design"] += len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1)))
-            timing["design_and_gp"] = timing.get("design_and_gp", 0.0) + time.perf_counter() - t0
-            timing["gp_fit"] += fit_time
-            result["design"] = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
-            t0 = time.perf_counter()
+                                                    s, run.pool, run.cache_dir, stages, run.seeds[3] + attempt,
+                                                    run.progress, run.log, run.reused)
+            run.steps.add_runs(len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1))))
+        run.steps.timing["gp_fit"] += fit_time
+        design = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
+        with run.steps("mcmc"):
             logp_u = WhitenedLogPosterior(gps, space, ubox, whitening, adj)
-            u_init = initial_walkers(logp_u, np.zeros(len(space.coordinate_names)), np.eye(len(space.coordinate_names)), settings.n_walkers,
-                                     seed_of[1])
-            sampler = run_emcee(logp_u, u_init, settings.n_walkers, settings.n_steps, seed_of[2],
-                                vectorize=True, progress=progress)
-            timing["mcmc"] += time.perf_counter() - t0
-            u_draws = sampler.get_chain(discard=settings.burn, flat=True)
-            cut = _box_cut_fraction(logp_u.gp_points(u_draws), settings.box_sd, whitening, space)
-            if cut <= 0.01 or attempt == settings.box_attempts - 1:
-                break
-            # the Laplace box cut the posterior (a non-Gaussian posterior, or a
-            # MAP short of the mode): re-centre and re-whiten on the surrogate
-            # posterior's draws, 3x wider (they are truncated by the old box)
-            x_draws = whitening.to_x(u_draws)
-            log(f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 3x wider "
-                f"(attempt {attempt + 2} of {settings.box_attempts})")
-            whitening = Whitening.from_covariance(x_draws.mean(axis=0),
-                                                  capped_covariance(9.0 * np.cov(x_draws.T), space,
-                                                                    settings.box_sd))
-        diag_attempts = attempt + 1
-        sampler = _XSampler(sampler, whitening)
-    burn = settings.direct_burn if direct else settings.burn
-    thin = 1 if direct else settings.thin
-    diag = _chain_diagnostics(sampler, burn, space.coordinate_names)
-    if isinstance(sampler, _XSampler):
-        diag["box_cut_fraction"] = _box_cut_fraction(
-            logp_u.gp_points(sampler.sampler.get_chain(discard=burn, flat=True)), settings.box_sd,
-            sampler.whitening, space)
-    diag["thin"] = thin
+            u_init = initial_walkers(logp_u, np.zeros(d), np.eye(d), s.n_walkers, run.seeds[1])
+            sampler = run_emcee(logp_u, u_init, s.n_walkers, s.n_steps, run.seeds[2], vectorize=True,
+                                progress=run.progress, desc="MCMC on the surrogate")
+        u_draws = sampler.get_chain(discard=s.burn, flat=True)
+        cut = _box_cut_fraction(logp_u.gp_points(u_draws), s.box_sd, whitening, space)
+        if cut <= 0.01 or attempt == s.box_attempts - 1:
+            break
+        # the Laplace box cut the posterior (a non-Gaussian posterior, or a MAP short of the
+        # mode): re-centre and re-whiten on the surrogate posterior's draws, 3x wider (they are
+        # truncated by the old box)
+        x_draws = whitening.to_x(u_draws)
+        run.log(f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 3x wider "
+                f"(attempt {attempt + 2} of {s.box_attempts})")
+        whitening = Whitening.from_covariance(x_draws.mean(axis=0),
+                                              capped_covariance(9.0 * np.cov(x_draws.T), space, s.box_sd))
+    diag = {"box_cut_fraction": _box_cut_fraction(logp_u.gp_points(sampler.get_chain(discard=s.burn, flat=True)),
+                                                   s.box_sd, whitening, space),
+            "box_attempts": attempt + 1}
+    kept = sampler.get_chain(discard=s.burn, thin=s.thin)
+    G = logp_u.gp_points(kept.reshape(-1, d))
+    # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
+    ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.predict_transformed(G)[0], 0.0)})
+          .reshape(kept.shape[:2]) for st, gp in gps.items()}
+    return _Chain(_XSampler(sampler, whitening), s.burn, s.thin, gps, design, diag, ll)
+
+
+def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> PosteriorResult:
+    """The chain's diagnostics, ArviZ data and summary."""
+    space = run.space
+    diag = _chain_diagnostics(chain.sampler, chain.burn, space.coordinate_names)
+    diag.update(chain.diagnostics)
+    diag["thin"] = chain.thin
     diag["curvature_adjustment"] = adj.to_dict() if adj is not None else None
-    if not direct:
-        diag["box_attempts"] = diag_attempts
-    chain = sampler.get_chain(discard=burn, thin=thin)
-    lp = sampler.get_log_prob(discard=burn, thin=thin)
-    idata = to_inference_data(chain, lp, space, {"source": str(problem.source), "direct": int(direct),
-                                                  "model": type(problem.model).__name__})
+    draws = chain.sampler.get_chain(discard=chain.burn, thin=chain.thin)
+    lp = chain.sampler.get_log_prob(discard=chain.burn, thin=chain.thin)
+    problem = run.problem
+    names = {st: problem.tests[st].name for st in problem.stages}
+    observed = {names[st]: (problem.output(st, problem.reference_components(st)), problem.output_unit)
+                for st in problem.stages}
+    idata = to_inference_data(draws, lp, space, {"source": str(problem.source), "direct": int(direct),
+                                                 "model": type(problem.model).__name__,
+                                                 "metric_set": problem.metrics},
+                              log_likelihood={names[st]: v for st, v in chain.log_likelihood.items()},
+                              observed=observed)
     summary = summarize(idata, space)
     diag["max_r_hat"] = max(v["r_hat"] for v in summary.values())
     diag["min_ess_bulk"] = min(v["ess_bulk"] for v in summary.values())
@@ -271,30 +309,25 @@ def _sample(dataset, problem, space, settings, pool, direct, start, likelihood, 
         warnings.warn(f"after {diag['box_attempts']} boxes the surrogate's box still cuts "
                       f"{100 * diag['box_cut_fraction']:.2f} % of the draws: the posterior is wider than the "
                       "Laplace approximation says; raise box_sd or box_attempts", RuntimeWarning)
-    flat = chain.reshape(-1, chain.shape[-1])
-    res = PosteriorResult(idata=idata, summary=summary, likelihood=lik, space=space, map=mp, box=box,
-                          start=start_info, diagnostics=diag, timing=timing, n_model_runs=runs,
-                          n_model_runs_reused=reused,
-                          settings=settings, direct=direct, problem=problem, surrogates=gps,
-                          design=result["design"], draws=flat)
-    # extras: linear-only posterior, predictive check, sensitivity ----------------------------
-    if settings.n_predictive:
-        t0 = time.perf_counter()
-        res.predictive = posterior_predictive(res, settings.n_predictive, pool, seed_of[4], progress)
-        runs["predictive"] = len(stages) * settings.n_predictive
-        timing["predictive"] = time.perf_counter() - t0
-    if settings.n_linear and not direct and hasattr(space, "ridge_posterior"):
-        t0 = time.perf_counter()
-        res.linear_only = space.ridge_posterior(res, pool, seed_of[5], cache_dir, progress, log, reused)
-        runs["linear_only"] = res.linear_only["n_model_runs"]
-        timing["linear_only"] = time.perf_counter() - t0
-    if settings.n_global:
-        t0 = time.perf_counter()
-        from bayes_update.core.sensitivity import sobol_indices
-        res.sensitivity = sobol_indices(problem, space, settings.n_global, settings.sobol_n, pool, seed_of[6],
-                                        progress)
-        runs["sensitivity"] = len(stages) * settings.n_global
-        timing["sensitivity"] = time.perf_counter() - t0
-    timing["total"] = time.perf_counter() - t_all
-    runs["total"] = int(sum(v for k, v in runs.items() if k != "total"))
-    return res
+    return PosteriorResult(idata=idata, summary=summary, likelihood=lik, space=space, map=mp, box=box,
+                           start=start_info, diagnostics=diag, timing={}, n_model_runs={},
+                           n_model_runs_reused=run.reused, settings=run.settings, direct=direct,
+                           problem=run.problem, surrogates=chain.gps, design=chain.design,
+                           draws=draws.reshape(-1, draws.shape[-1]), seeds=run.seeds)
+
+
+def _extras(run: _Run, res: PosteriorResult) -> None:
+    """Diagnostics beyond the posterior: the predictive check and the global
+    sensitivity (each skipped at size 0)."""
+    s, stages = run.settings, run.problem.stages
+    if s.n_predictive:
+        with run.steps("predictive"):
+            res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds[4], run.progress)
+            run.steps.add_runs(len(stages) * s.n_predictive)
+        draws = {run.problem.tests[st].name: res.predictive["_draws"][st] for st in stages}
+        add_posterior_predictive(res.idata, draws, dict.fromkeys(draws, run.problem.output_unit))
+    if s.n_global:
+        with run.steps("sensitivity"):
+            res.sensitivity = sobol_indices(run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds[6],
+                                            run.progress)
+            run.steps.add_runs(len(stages) * s.n_global)

@@ -32,15 +32,20 @@ class DirectLogPosterior:
     adjustment: CurvatureAdjustment | None = None
 
     def __call__(self, x):
+        """(log posterior, per-stage log likelihood): emcee keeps the second as blobs."""
+        stages = self.likelihood.stages
         lp = float(self.evaluate.space.log_prior(x)[0])
         if not np.isfinite(lp):
-            return -np.inf
+            return -np.inf, np.full(len(stages), -np.inf)
         if self.adjustment is not None:
             # the likelihood's argument, kept in the bounding box the model is run in (near a
             # bound it may step outside; a -inf there would cut the posterior at the bound)
             box = self.evaluate.space.box()
             x = np.clip(self.adjustment(x)[0], box[:, 0], box[:, 1])
-        return lp + self.likelihood.log_likelihood(self.evaluate(x))
+        metrics = self.evaluate(x)
+        per_stage = np.array([Likelihood({st: self.likelihood.scales[st]}).log_likelihood(metrics)
+                              for st in stages])
+        return lp + float(np.sum(per_stage)), per_stage
 
 
 class _ExecutorPool:

@@ -30,13 +30,11 @@ from scipy.optimize import minimize
 
 import fe
 
-from bayes_update.models.beam.rig import rig_of
+from bayes_update.core.logs import info
+from bayes_update.core.problem import Problem
 from bayes_update.data.dataset import Dataset
-from surrogates.evaluation import default_executor, evaluate_many
-from bayes_update.models.beam.problem import UpdatingProblem
 from bayes_update.models.beam.validation import validate
-
-MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
+from surrogates.evaluation import default_executor, evaluate_many
 
 
 @dataclass(frozen=True)
@@ -68,20 +66,21 @@ class CalibrationSettings:
                    eta_values=(2.0, 2.5, 3.0, 3.5, 4.0, 4.5), refine_max_evaluations=40)
 
 
-def parameters_from(rig: fe.Rig, eta_mpa_s: float, c_n_s_per_mm: float, k_s_n_per_mm: float,
-                    p_eff_n: float) -> fe.Parameters:
-    """Parameters (SI) from (eta, c, k_s) in paper units and the preload P_eff [N]
-    carried by the beam: F = P_eff (K_b + k_s) / K_b."""
-    kb = rig.axial_stiffness
-    k_s = k_s_n_per_mm * N_PER_MM
-    return fe.Parameters(eta=eta_mpa_s * MPA_S, c=c_n_s_per_mm * N_S_PER_MM,
-                         F=p_eff_n * (kb + k_s) / kb, k_s=k_s)
+#: Pa s per MPa s (the grids are in the paper's units)
+MPA_S = 1e6
 
 
-def paper_units(params: fe.Parameters, rig: fe.Rig) -> dict:
-    return {"eta_MPa_s": params.eta / MPA_S, "c_N_s_per_mm": params.c / N_S_PER_MM,
-            "F_N": params.F, "k_s_N_per_mm": params.k_s / N_PER_MM,
-            "P_eff_N": params.effective_preload(rig)}
+def parameters_from(beam, eta_mpa_s: float, c_n_s_per_mm: float, k_s_n_per_mm: float,
+                    p_eff_n: float) -> dict:
+    """theta (paper units) from (eta, c, k_s) and the preload P_eff [N] carried
+    by the beam: F = P_eff (K_b + k_s) / K_b."""
+    return beam.from_internal([eta_mpa_s, c_n_s_per_mm, p_eff_n, k_s_n_per_mm])
+
+
+def paper_units(theta: dict, beam) -> dict:
+    """A point's row of the tables: the parameters and P_eff, paper units."""
+    return {"eta_MPa_s": theta["eta"], "c_N_s_per_mm": theta["c"], "F_N": theta["F"],
+            "k_s_N_per_mm": theta["k_s"], "P_eff_N": float(beam.to_internal(theta)[2])}
 
 
 def preload_for_frequency(model, freq_hz: float, eta: float = 0.0) -> float:
@@ -131,9 +130,10 @@ class CalibrationResult:
     setup: dict
     timing: dict
     settings: CalibrationSettings
-    final_params: fe.Parameters = field(repr=False, default=None)
+    final_theta: dict = field(repr=False, default=None)     # paper units
+    final_params: fe.Parameters = field(repr=False, default=None)     # the same, SI
     velocities: dict = field(repr=False, default_factory=dict)
-    problem: UpdatingProblem | None = field(repr=False, default=None)
+    problem: Problem | None = field(repr=False, default=None)
 
     def calibration_json(self) -> dict:
         f = self.final_params
@@ -152,23 +152,26 @@ def _best(rows, key):
     return min(ok, key=lambda r: r[key])
 
 
-def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None = None,
+def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = None,
               executor: Executor | None = None, workers: int | None = None,
-              progress: bool = True, log=print) -> CalibrationResult:
+              progress: bool = True, log=info) -> CalibrationResult:
     """Run the two-stage updating on ``dataset`` (see the module docstring).
 
-    Parameters
-    ----------
-    model : a model of the rig (default ``fe.BeamModel(rig=rig_of(dataset))``).
+    model : the beam as a model of the contract
+        (:class:`~bayes_update.models.beam.model.Beam`, e.g.
+        :func:`~bayes_update.models.beam.model.beam_model` of the data set).
     executor : any ``concurrent.futures.Executor`` for the grids; default a
         local process pool over ``workers`` processes (all cores); ``workers=1``
         runs serially.
     """
     settings = settings or CalibrationSettings()
-    rig = rig_of(dataset)
-    model = model if model is not None else fe.BeamModel(rig=rig)
+    if not hasattr(model, "fe_model"):
+        raise TypeError(f"calibrate runs the paper's grids on the beam: pass a Beam (beam_model(dataset)), "
+                        f"got {type(model).__name__}")
+    beam = model
+    model, rig = beam.fe_model, beam.rig
     t_start = time.perf_counter()
-    problem = UpdatingProblem(dataset, model)
+    problem = Problem(dataset, beam, metrics="paper")
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the nonlinear stage needs a test with role 'nonlinear'")
     pole = problem.basis.pole(1)
@@ -189,14 +192,14 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
         # grid at a wrong eta would report misfits that are only damping)
         t0 = time.perf_counter()
         c_mid = float(np.median(settings.c_values))
-        eta_pre, _ = _eta_scan(problem, rig, settings, pool, progress, c_mid, 0.0, p0, "eta pre-scan")
+        eta_pre, _ = _eta_scan(problem, beam, settings, pool, progress, c_mid, 0.0, p0, "eta pre-scan")
         n_runs += len(settings.eta_values)
         combos = [(c, ks, p) for c in settings.c_values for ks in settings.k_s_values for p in p_grid]
-        pts = [parameters_from(rig, eta_pre, c, ks, p) for c, ks, p in combos]
+        pts = [parameters_from(beam, eta_pre, c, ks, p) for c, ks, p in combos]
         res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
                             progress=progress, desc="linear grid")
         n_runs += len(pts)
-        linear_grid = [{**paper_units(q, rig), "e_lin": r["e_lin"], "error": r["error"]}
+        linear_grid = [{**paper_units(q, beam), "e_lin": r["e_lin"], "error": r["error"]}
                        for q, r in zip(pts, res)]
         table1 = [_best([g for g in linear_grid if g["c_N_s_per_mm"] == c], "e_lin")
                   for c in settings.c_values]
@@ -204,7 +207,7 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
         timing["linear_grid"] = time.perf_counter() - t0
 
         t0 = time.perf_counter()
-        eta_hat, eta_scan = _eta_scan(problem, rig, settings, pool, progress, best_lin["c_N_s_per_mm"],
+        eta_hat, eta_scan = _eta_scan(problem, beam, settings, pool, progress, best_lin["c_N_s_per_mm"],
                                       best_lin["k_s_N_per_mm"], best_lin["P_eff_N"], "eta scan")
         n_runs += len(settings.eta_values)
         timing["eta_scan"] = time.perf_counter() - t0
@@ -214,10 +217,10 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
 
         # ------------------------------------------------------------- nonlinear stage
         t0 = time.perf_counter()
-        pts = [parameters_from(rig, eta_hat, c, ks, p) for c, ks, p in combos]
+        pts = [parameters_from(beam, eta_hat, c, ks, p) for c, ks, p in combos]
         res = evaluate_many(problem.evaluate, pts, pool, progress=progress, desc="nonlinear grid")
         n_runs += 2 * len(pts)
-        nonlinear_grid = [{**paper_units(q, rig), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
+        nonlinear_grid = [{**paper_units(q, beam), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
                            "e_lin_nlin": r["e_lin"] + r["e_nlin"], "error": r["error"]}
                           for q, r in zip(pts, res)]
         table2 = [_best([g for g in nonlinear_grid if g["c_N_s_per_mm"] == c], "e_lin_nlin")
@@ -237,9 +240,9 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
 
     def objective(z):
         p, ks, c = x0 + z * scale
-        q = parameters_from(rig, eta_hat, max(c, 0.0), max(ks, 0.0), p)
+        q = parameters_from(beam, eta_hat, max(c, 0.0), max(ks, 0.0), p)
         r = problem.evaluate(q)
-        history.append({**paper_units(q, rig), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
+        history.append({**paper_units(q, beam), "e_lin": r["e_lin"], "e_nlin": r["e_nlin"],
                         "e_lin_nlin": r["e_lin"] + r["e_nlin"]})
         val = r["e_lin"] + r["e_nlin"]
         return val if np.isfinite(val) else 10.0
@@ -251,8 +254,9 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
                             "initial_simplex": np.vstack([np.zeros(3), np.eye(3)])})
     n_runs += 2 * len(history)
     best_ref = min(history, key=lambda r: r["e_lin_nlin"])
-    final_params = parameters_from(rig, eta_hat, best_ref["c_N_s_per_mm"], best_ref["k_s_N_per_mm"],
-                                   best_ref["P_eff_N"])
+    final_theta = parameters_from(beam, eta_hat, best_ref["c_N_s_per_mm"], best_ref["k_s_N_per_mm"],
+                                  best_ref["P_eff_N"])
+    final_params = beam.fe_parameters(final_theta)
     timing["refinement"] = time.perf_counter() - t0
     log(f"nonlinear stage: grid best c = {best_nl['c_N_s_per_mm']:g} N s/mm, k_s = "
         f"{best_nl['k_s_N_per_mm']:g} N/mm, e_lin+nlin = {100 * best_nl['e_lin_nlin']:.2f} %; refined "
@@ -265,15 +269,15 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
 
     # ------------------------------------------------------------------ validation
     t0 = time.perf_counter()
-    val = validate(dataset, model, final_params, progress=progress)
+    val = validate(dataset, beam, final_theta)
     velocities = dict(val["_velocity"])
     for stage in problem.stages:
-        velocities[problem.tests[stage].name] = problem.simulate(final_params, stage)
+        velocities[problem.tests[stage].name] = problem.simulate(final_theta, stage)
     n_runs += len(velocities)
     timing["validation"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_start
 
-    final = {**paper_units(final_params, rig), "e_lin": best_ref["e_lin"], "e_nlin": best_ref["e_nlin"],
+    final = {**paper_units(final_theta, beam), "e_lin": best_ref["e_lin"], "e_nlin": best_ref["e_nlin"],
              "e_lin_nlin": best_ref["e_lin_nlin"]}
     table3 = {"eta_MPa_s": eta_hat, "c_N_s_per_mm": final["c_N_s_per_mm"], "F_N": final["F_N"],
               "k_s_N_per_mm": final["k_s_N_per_mm"], "P_eff_N": final["P_eff_N"],
@@ -284,14 +288,14 @@ def calibrate(dataset: Dataset, model=None, settings: CalibrationSettings | None
     return CalibrationResult(final=final, linear_grid=linear_grid, eta_scan=eta_scan,
                              nonlinear_grid=nonlinear_grid, refinement=history, table1=table1,
                              table2=table2, table3=table3, ridge=ridge, validation=val, setup=setup,
-                             timing=timing, settings=settings, final_params=final_params,
+                             timing=timing, settings=settings, final_theta=final_theta, final_params=final_params,
                              velocities=velocities, problem=problem)
 
 
-def _eta_scan(problem, rig, settings, pool, progress, c, k_s, p_eff, desc):
+def _eta_scan(problem, beam, settings, pool, progress, c, k_s, p_eff, desc):
     """e_lin against eta at (c, k_s, P_eff); the estimate is the vertex of the
     parabola through the three lowest points (clipped to the scanned range)."""
-    pts = [parameters_from(rig, e, c, k_s, p_eff) for e in settings.eta_values]
+    pts = [parameters_from(beam, e, c, k_s, p_eff) for e in settings.eta_values]
     res = evaluate_many(partial(problem.evaluate, stages=("linear",)), pts, pool,
                         progress=progress, desc=desc)
     scan = [{"eta_MPa_s": e, "e_lin": r["e_lin"]} for e, r in zip(settings.eta_values, res)]

@@ -27,10 +27,8 @@ from __future__ import annotations
 import numpy as np
 from scipy import signal as ss
 
-import fe
 import volterra
 
-from bayes_update.models.beam.rig import rig_of
 from bayes_update.data.dataset import Dataset
 from bayes_update.core.problem import basis_from_reference, relative_error
 
@@ -87,9 +85,10 @@ def decay_curve(v, fs: float, f1: float, t_start: float, n_bins: int = 6) -> dic
     return {"amplitude": np.array(amp), "zeta": np.array(zeta), "freq_hz": np.array(freq)}
 
 
-def diagnose(dataset: Dataset, model, params: fe.Parameters, basis: volterra.KautzBasis | None = None) -> dict:
-    """The four diagnostics of the module docstring, as a JSON-ready dict
-    (arrays as lists) plus ``_velocity`` {test: model velocity}."""
+def diagnose(dataset: Dataset, beam, theta: dict, basis: volterra.KautzBasis | None = None) -> dict:
+    """The four diagnostics of the module docstring for ``beam`` (a model of the
+    contract whose response is the sensor velocity) at ``theta``, as a
+    JSON-ready dict (arrays as lists) plus ``_velocity`` {test: model velocity}."""
     fs = dataset.sampling_rate_hz
     lin = dataset.by_role("linear")
     if basis is None:
@@ -100,7 +99,7 @@ def diagnose(dataset: Dataset, model, params: fe.Parameters, basis: volterra.Kau
     out = {"by_test": {}, "by_order": {}, "by_frequency": {}, "by_amplitude": {}, "f1_hz": f1,
            "_velocity": {}}
     for t in dataset.tests:
-        v = fe.simulate(model, params, t.force, fs=fs, positions=[rig_of(dataset).sensor_position_m]).sensor_velocity
+        v = np.asarray(beam.simulate(theta, t.force, fs), float)
         out["_velocity"][t.name] = v
         out["by_test"][t.name] = {"role": t.role, "signal": t.signal, "level": t.level,
                                   "rel_l2": relative_error(t.velocity, v)}

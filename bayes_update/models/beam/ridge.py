@@ -7,12 +7,34 @@ from functools import partial
 import numpy as np
 
 import surrogates
+from bayes_update.core.logs import info
 from bayes_update.core.posterior.design import _cache, _gp_factory
 from bayes_update.core.posterior.laplace import local_box
 from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, SurrogateLogPosterior
-from bayes_update.models.beam.space import UNITS
-from surrogates.evaluation import evaluate_many
+from surrogates.evaluation import default_executor, evaluate_many
+
+
+def add_linear_only(post, workers=None, cache_dir=None, progress: bool = True, log=info) -> dict:
+    """The beam's linear-only posterior (the ridge) of a beam posterior ``post``
+    (:func:`bayes_update.sample`), added to ``post.extras["linear_only"]`` with its
+    model runs and time (the ridge figure of
+    :func:`bayes_update.reports.posterior_plots.posterior_figures` draws it)."""
+    import time
+
+    t0 = time.perf_counter()
+    pool = default_executor(workers) if (workers or 2) > 1 else None
+    try:
+        lo = linear_only_posterior(post, pool, post.seeds[5], cache_dir, progress, log, post.n_model_runs_reused)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    post.extras["linear_only"] = lo
+    post.n_model_runs["linear_only"] = lo["n_model_runs"]
+    post.n_model_runs["total"] += lo["n_model_runs"]
+    post.timing["linear_only"] = time.perf_counter() - t0
+    post.timing["total"] += post.timing["linear_only"]
+    return lo
 
 
 def linear_only_posterior(res, pool, seed, cache_dir, progress, log, reused=None) -> dict:
@@ -46,22 +68,18 @@ def linear_only_posterior(res, pool, seed, cache_dir, progress, log, reused=None
     init = initial_walkers(logp, res.map.x, np.diag(((box[:, 1] - box[:, 0]) / 20) ** 2), s.n_walkers,
                            int(ss[2].generate_state(1)[0]))
     smp = run_emcee(logp, init, s.n_walkers, s.n_steps, int(ss[2].generate_state(2)[1]), vectorize=True,
-                    progress=progress)
+                    progress=progress, desc="MCMC, low level only")
     draws = smp.get_chain(discard=s.burn, thin=s.thin, flat=True)
-    F = res.space.F_of(draws)
-    corr = float(np.corrcoef(F, draws[:, 3])[0, 1])
-    full = res.draws
+    low, full = res.space.report(draws), res.space.report(res.draws)
+    corr = float(np.corrcoef(low["F"], low["k_s"])[0, 1])
+    names = ("eta", "c", "P_eff", "k_s", "F")
     out = {"n_model_runs": len(ref.X), "corr_F_k_s": corr,
-           "sd": {"eta": float(draws[:, 0].std()), "c": float(draws[:, 1].std()),
-                  "P_eff": float(draws[:, 2].std()), "k_s": float(draws[:, 3].std()), "F": float(F.std())},
-           "sd_full": {"eta": float(full[:, 0].std()), "c": float(full[:, 1].std()),
-                       "P_eff": float(full[:, 2].std()), "k_s": float(full[:, 3].std()),
-                       "F": float(res.space.F_of(full).std())},
-           "units": dict(UNITS), "_draws": draws}
+           "sd": {n: float(low[n].std()) for n in names}, "sd_full": {n: float(full[n].std()) for n in names},
+           "units": dict(res.space.report_units), "_draws": draws}
     out["narrowing"] = {k: out["sd"][k] / out["sd_full"][k] for k in ("c", "k_s")}
     # the high level leaves a band in (c, k_s), not a point: the joint spread
     # (sqrt of the determinant of the covariance) says how much it removes
-    det = [np.sqrt(np.linalg.det(np.cov(D[:, [1, 3]].T))) for D in (draws, full)]
+    det = [np.sqrt(np.linalg.det(np.cov(np.vstack([D["c"], D["k_s"]])))) for D in (low, full)]
     out["narrowing"]["c_k_s_area"] = float(det[0] / det[1])
     log(f"linear-only posterior: corr(F, k_s) = {corr:.3f}; adding the high level narrows c "
         f"{out['narrowing']['c']:.1f}x, k_s {out['narrowing']['k_s']:.1f}x (sd ratio), the (c, k_s) "

@@ -1,4 +1,4 @@
-"""The discrepancy workflow (bayes_update.models.beam.missing_effect) on virtual-rig data
+"""The discrepancy workflow (bayes_update.core.discrepancy) on the beam, on virtual-rig data
 with a hidden effect: each of the four hidden in turn, none (over three noise
 seeds), an effect outside the candidate catalogue, and a bow plus
 amplitude-dependent damping.  Magnitudes are drawn from
@@ -17,15 +17,18 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.missing_effect import (CANDIDATES, DECISIVE, EXPLAINED_FACTOR, DiscrepancySettings,
-                                         find_missing_effect, write_discrepancy)
+from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
+from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR
 from bayes_update.core.mode import laplace_log_evidence, ModeResult
+from bayes_update.models.beam.model import EFFECT_PARAMETERS, Beam, effect_values
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
+from bayes_update.reports.discrepancy import write_discrepancy
 
 TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium")]
 # the paper's Table 3 as the baseline's start (prior knowledge; it saves the coarse grids)
-START = fe.Parameters.from_paper_units(3, 15, 77, 180)
+START = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0}
+CANDIDATES = tuple(EFFECT_PARAMETERS)
 SINGLE = ("initial_imperfection", "amplitude_dependent_damping", "shaker_attachment", "clamp_compliance")
 # name -> hidden effects and how the workflow runs; magnitudes from hidden_effects(seed=1), noise seed 7
 CASES = {**{name: dict(hidden=[name]) for name in SINGLE},
@@ -51,9 +54,10 @@ def run_case(name):
         data = make_dataset(rig=VirtualRig(effects=effects), tests=TESTS, seed=spec.get("data_seed", 7))
         # one effect at most where at most one is hidden (the second round is the combined case's)
         settings = DiscrepancySettings.quick(max_effects=spec.get("max_effects", 1),
-                                             band_starts=spec.get("band_starts", False))
-        res = find_missing_effect(data, start=spec.get("start", START), candidates=spec.get("candidates"),
-                                  settings=settings, workers=2, progress=False, log=lambda *a: None)
+                                             extra_starts=spec.get("band_starts", False))
+        res = find_discrepancy(data, Beam(fe.BeamModel(rig=rig_of(data))), start=spec.get("start", START),
+                               candidates=spec.get("candidates"), settings=settings, workers=2, progress=False,
+                               log=lambda *a: None)
         _cache[name] = (effects, data, res)
     return _cache[name]
 
@@ -70,14 +74,13 @@ def _check_named_effect(res, effect):
     1.1-2.6 % off for the five parameters of the four single cases, 2.3 % for
     the bow from no start, 0.3 % for both in the combined case; the
     full-settings benchmark 0-4.5 %)."""
-    cand = CANDIDATES[effect.name]
     row = next(r for rnd in res.rounds for r in rnd["candidates"] if r["name"] == effect.name)
     assert row["two_ln_B"] > DECISIVE and row["excludes_null"], row
     got = res.to_json()["final_mode"]["effects"][effect.name]
-    for p, t in zip(cand.parameters, cand.values_of(effect)):
-        m, sd = got[p.name]["mode"], got[p.name]["sd"]
-        assert abs(m - t) <= 2.0 * sd, (p.name, t, got)
-        assert abs(m - t) <= 0.1 * abs(t - p.null), (p.name, t, got)
+    for name, t in effect_values(effect).items():
+        m, sd = got[name]["mode"], got[name]["sd"]
+        assert abs(m - t) <= 2.0 * sd, (name, t, got)
+        assert abs(m - t) <= 0.1 * abs(t - got[name]["null"]), (name, t, got)
 
 
 def _check_explains(res):
@@ -130,7 +133,7 @@ def test_an_effect_outside_the_catalogue_is_not_given_a_wrong_name(tmp_path):
     # the gap is stated: nothing was added, so after = before; what the best candidate would have left
     assert res.gap_after == res.gap_before
     assert res.tentative and res.gap_with_tentative["e_nlin"] > 0.5 * res.gap_before["e_nlin"]
-    doc = write_discrepancy(res, data, tmp_path)
+    doc = write_discrepancy(res, tmp_path)
     saved = json.loads((tmp_path / "discrepancy.json").read_text())
     assert saved["named_effect"] is None and saved["verdict"] == "no candidate explains the gap"
     assert saved["explains_gap"] is False and saved["tentative_effects"] == res.tentative
@@ -148,7 +151,7 @@ def test_no_hidden_effect_names_none(name, tmp_path):
     assert all(c["two_ln_B"] <= DECISIVE or not c["excludes_null"] for c in res.rounds[0]["candidates"])
     _check_explains(res)
     assert res.gap_after == res.gap_before
-    doc = write_discrepancy(res, data, tmp_path)
+    doc = write_discrepancy(res, tmp_path)
     saved = json.loads((tmp_path / "discrepancy.json").read_text())
     assert saved["named_effect"] is None and doc["named_effect"] is None
     assert {c["name"] for c in saved["candidates"]} == set(CANDIDATES)
@@ -201,20 +204,25 @@ def test_laplace_evidence_of_a_linear_gaussian_model_is_exact():
 
 
 def test_candidate_values_round_trip_and_bad_input():
-    for name, cand in CANDIDATES.items():
-        vals = [0.5 * (p.low + p.high) + 0.1 * p.width for p in cand.parameters]
-        assert np.allclose(cand.values_of(cand.effect(vals)), vals)
+    beam = Beam(fe.BeamModel())
+    for name, params in beam.candidate_effects().items():
+        theta = {p.name: 0.5 * (p.low + p.high) + 0.1 * (p.high - p.low) for p in params}
+        (effect,) = beam.effects_of(theta)
+        assert effect.name == name
+        got = effect_values(effect)
+        assert np.allclose([got[n] for n in theta], list(theta.values()))
+    assert beam.effects_of({p.name: 0.0 for ps in beam.candidate_effects().values() for p in ps}) == ()
+    data = make_dataset(tests=TESTS[:2])
     with pytest.raises(ValueError, match="unknown candidate"):
-        find_missing_effect(make_dataset(tests=TESTS[:2]), candidates=["gravity"], progress=False)
+        find_discrepancy(data, Beam(fe.BeamModel(rig=rig_of(data))), candidates=["gravity"], progress=False)
     with pytest.raises(ValueError, match="modal ROM"):
-        data = make_dataset(tests=TESTS[:2])
-        find_missing_effect(data, fe.ModalROM(rig_of(data)), progress=False)
+        find_discrepancy(data, Beam(fe.ModalROM(rig_of(data))), progress=False)
     with pytest.raises(ValueError, match="unknown effect"):
         hidden_effects(["gravity"], 0)
 
 
 def test_cli_discrepancy_refuses_the_rom(tmp_path, capsys):
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
 
     assert main(["discrepancy", "--model", "rom", "--out", str(tmp_path)]) == 2
     assert "modal ROM" in capsys.readouterr().err
@@ -224,7 +232,7 @@ def test_cli_discrepancy_refuses_the_rom(tmp_path, capsys):
 @pytest.fixture(scope="module")
 def hidden_bow_dataset(tmp_path_factory):
     """`bayes-update make-dataset --hidden initial_imperfection` twice with the same --hidden-seed."""
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
 
     out = tmp_path_factory.mktemp("hidden")
     for name, seed in (("a", "1"), ("b", "1"), ("c", "2")):
@@ -261,7 +269,7 @@ def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
 def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset, tmp_path):
     """`bayes-update discrepancy --quick` on the make-dataset output (start=None: the
     deterministic start on coarse grids, as a user runs it)."""
-    from bayes_update.reports.cli import main
+    from bayes_update.cli import main
 
     out = tmp_path / "disc"
     assert main(["discrepancy", "--data", str(hidden_bow_dataset / "a"), "--quick", "--workers", "2",
@@ -279,7 +287,7 @@ def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"]) and a["validation"] <= 0.5 * b["validation"]
     # the truth block travels to the output; the re-updated bow covers it
     (hidden,) = doc["truth"]["effects"]
-    got = doc["final_mode"]["effects"]["initial_imperfection"]["amplitude"]
+    got = doc["final_mode"]["effects"]["initial_imperfection"]["bow_amplitude"]
     assert abs(got["mode"] - 1e3 * hidden["amplitude"]) <= 2 * got["sd"]
     # evidence.md: the table with one row per candidate and the decision
     text = (out / "evidence.md").read_text()

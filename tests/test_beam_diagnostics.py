@@ -5,6 +5,7 @@ import pytest
 import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.diagnostics import decay_curve, diagnose, diagnostics_figure, harmonic_amplitudes
+from bayes_update.models.beam.model import Beam
 from bayes_update.models.beam.virtual_rig import PAPER_TESTS, load_default_dataset, make_dataset
 
 TRUTH = fe.Parameters.from_paper_units(3, 15, 77, 180)
@@ -15,8 +16,9 @@ TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "sine_h
 def diagnoses():
     straight = load_default_dataset()
     bowed = make_dataset(imperfection=0.5e-3, tests=TESTS)
-    model = fe.BeamModel(rig=rig_of(straight))
-    return diagnose(straight, model, TRUTH), diagnose(bowed, model, TRUTH)
+    model = Beam(fe.BeamModel(rig=rig_of(straight)))
+    theta = model.theta_of(TRUTH)
+    return diagnose(straight, model, theta), diagnose(bowed, model, theta)
 
 
 def test_harmonic_fit_and_decay_curve_against_closed_forms():

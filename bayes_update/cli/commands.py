@@ -1,0 +1,201 @@
+"""The commands that take any model: ``calibrate``, ``sample``, ``discrepancy``.
+
+``--model`` names the model: a file or module of your own, or the beam (``fe``,
+``rom``; its options in :mod:`bayes_update.cli.beam`).  Settings come from
+the command's defaults (``--quick``: small ones), then ``--config FILE.toml``,
+then the options on the command line.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+from bayes_update.cli import beam as beam_cli
+from bayes_update.cli.options import (add_common, add_data_out, add_metrics, add_model, add_posterior_options,
+                                      read_config, settings_from)
+from bayes_update.data.folder import read_dataset
+
+__all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_sample"]
+
+
+def add_commands(sub) -> None:
+    p = sub.add_parser("calibrate", help="two-stage deterministic calibration of a model on a data set",
+                       description="Your own model (--model path.py:NAME): a sensitivity screen picks the "
+                                   "parameters the linear test moves, stage 1 fits them on e_lin, stage 2 "
+                                   "fits all on both tests (least squares from Sobol' starts); "
+                                   "calibration.json holds one key per parameter (its unit), e_lin, e_nlin "
+                                   "and the prediction error on each validation test. The beam (--model "
+                                   "fe|rom): the paper's section 4 on grids, Tables 1-3 with figures. "
+                                   "Without --data: the beam's embedded default data set.")
+    add_data_out(p)
+    p.add_argument("--quick", action="store_true", help="small designs or coarse grids (a first look, or CI)")
+    add_model(p)
+    add_metrics(p)
+    beam_cli.add_model_options(p)
+    add_common(p)
+    p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser("sample", help="the posterior of a model's parameters (GP surrogate + emcee, or direct)",
+                       description="Bayesian updating on a data set: the likelihood from the Volterra metrics "
+                                   "of the 'linear' and 'nonlinear' tests with noise and model-error scales "
+                                   "measured at the start, the model's declared uniform prior (--prior to "
+                                   "change it), Gaussian-process surrogates refined where the posterior is, "
+                                   "emcee. Writes posterior.nc (ArviZ), posterior_summary.json, run.json "
+                                   "and figures. Without --data: the beam's embedded default data set.")
+    add_data_out(p)
+    p.add_argument("--direct", action="store_true",
+                   help="sample on the model itself, no surrogate (for a model of a few ms per run)")
+    p.add_argument("--quick", action="store_true", help="small designs and chains (a first look, or CI)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="do not keep model runs in OUT/cache (by default an interrupted run resumes)")
+    add_model(p)
+    add_metrics(p)
+    add_posterior_options(p)
+    beam_cli.add_model_options(p)
+    add_common(p)
+    p.set_defaults(func=cmd_sample)
+
+    p = sub.add_parser("discrepancy", help="find the effect the model misses, add it, show the gap shrink",
+                       description="After the baseline update, each effect the model offers "
+                                   "(candidate_effects(); the beam's: initial_imperfection, "
+                                   "amplitude_dependent_damping, shaker_attachment, clamp_compliance) is "
+                                   "fitted with its own parameters and ranked by Laplace evidence; one is "
+                                   "named only when 2 ln B > 6, its parameter excludes 'no effect' and it "
+                                   "explains the gap; then re-update and the gap before and after. Writes "
+                                   "discrepancy.json, evidence.md and figures. Without --data: the beam's "
+                                   "embedded default data set.")
+    add_data_out(p)
+    p.add_argument("--quick", action="store_true", help="fewer noise replicates and iterations (CI)")
+    p.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
+                   help="restrict the candidates (default: all the model offers)")
+    add_model(p)
+    add_metrics(p)
+    beam_cli.add_model_options(p)
+    add_common(p)
+    p.set_defaults(func=cmd_discrepancy)
+
+
+# ------------------------------------------------------------------ the model
+def _prior_ranges(items, names) -> dict:
+    """{name: (low, high)} from the --prior NAME=LO:HI options; ``names`` are the allowed ones."""
+    ranges = {}
+    for item in items:
+        try:
+            name, rng = item.split("=", 1)
+            lo, hi = (float(v) for v in rng.split(":"))
+        except ValueError:
+            raise ValueError(f"--prior {item!r}: expected NAME=LO:HI, e.g. {names[-1]}=0:1") from None
+        if name not in names:
+            raise ValueError(f"--prior {item!r}: NAME must be one of {', '.join(names)}")
+        ranges[name] = (lo, hi)
+    return ranges
+
+
+def _model_and_data(args, need_data: bool = False):
+    """(model, data set, space or None, truth or None) the options ask for."""
+    if args.model in beam_cli.BEAM_MODELS:
+        from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
+
+        data = read_dataset(args.data) if args.data else load_default_dataset()
+        rig = beam_cli.rig_for(data, args)
+        data = dataclasses.replace(data, rig=rig)
+        model = beam_cli.model_for(args, rig, _prior_ranges(args.prior, ("eta", "c", "F", "k_s")))
+        return model, data, None, truth_paper_units(data)
+    from bayes_update.core import ParameterSet, load_model
+
+    model = load_model(args.model)
+    if args.data is None:
+        raise ValueError(f"--model {args.model} needs --data: the embedded default data set is the beam's")
+    data = read_dataset(args.data)
+    space = None
+    if args.prior:
+        params = {p.name: p for p in model.parameters}
+        for name, (lo, hi) in _prior_ranges(args.prior, tuple(params)).items():
+            params[name] = dataclasses.replace(params[name], low=lo, high=hi)
+        space = ParameterSet(list(params.values()), model)
+    truth = data.extra.get("truth")
+    return model, data, space, truth if isinstance(truth, dict) else None
+
+
+def _workers(args):
+    if args.workers is not None and args.workers < 1:
+        raise ValueError(f"--workers must be at least 1, got {args.workers}")
+    return args.workers
+
+
+# ----------------------------------------------------------------- commands
+def cmd_calibrate(args) -> int:
+    workers = _workers(args)
+    model, data, space, _ = _model_and_data(args)
+    config = read_config(args.config, "calibrate")
+    if args.model in beam_cli.BEAM_MODELS:
+        from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
+        from bayes_update.reports.beam_calibration import write_result
+
+        if args.metrics not in (None, "paper"):
+            raise ValueError("--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
+                             "use `sample --metrics full` for the beam under the full set")
+        settings = settings_from(CalibrationSettings, args.quick, config)
+        result = calibrate(data, model, settings, workers=workers)
+        write_result(result, data, args.out)
+        print(format_tables(result))
+    else:
+        from bayes_update.core.calibrate import calibrate_model
+        from bayes_update.reports.calibration import format_calibration, write_calibration
+
+        options = {"n_start": 16 if args.quick else 64, "seed": args.seed or 0, **config}
+        cal = calibrate_model(data, model, metrics=args.metrics or "full", workers=workers, **options)
+        write_calibration(cal, args.out, sensors=data.sensors)
+        print(format_calibration(cal))
+    print(f"wrote {args.final_out}")
+    return 0
+
+
+def cmd_sample(args) -> int:
+    import sys
+
+    from bayes_update.core.posterior import PosteriorSettings, sample
+    from bayes_update.reports.posterior import write_posterior
+
+    workers = _workers(args)
+    if args.direct and args.model == "fe":
+        print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
+              "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
+    model, data, space, truth = _model_and_data(args)
+    settings = settings_from(PosteriorSettings, args.quick, read_config(args.config, "sample"), seed=args.seed,
+                             n_walkers=args.walkers,
+                             **{("direct_steps" if args.direct else "n_steps"): args.steps})
+    res = sample(data, model, settings, workers=workers, direct=args.direct, space=space,
+                 cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
+    if truth is not None:
+        truth = {k: float(v) for k, v in truth.items()
+                 if k in res.space.report_units and isinstance(v, (int, float))} or None
+    write_posterior(res, args.out, truth=truth)
+    print(res.summary_table())
+    print(f"{res.n_model_runs['total']} model runs ({sum(res.n_model_runs_reused.values())} of them found in "
+          f"{args.cache_dir}), {res.timing['total']:.0f} s; wrote {args.final_out}")
+    return 0
+
+
+def cmd_discrepancy(args) -> int:
+    from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
+    from bayes_update.core.effects import candidate_effects
+    from bayes_update.reports.discrepancy import format_result, write_discrepancy
+
+    workers = _workers(args)
+    if args.model not in beam_cli.BEAM_MODELS:
+        from bayes_update.core import load_model
+
+        model = load_model(args.model)
+        candidate_effects(model, [p.name for p in getattr(model, "parameters", ())])   # before any data work
+    model, data, space, truth = _model_and_data(args)
+    if args.model in beam_cli.BEAM_MODELS:
+        hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
+        truth = {"parameters": truth, "effects": hidden} if truth else None
+    settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"),
+                             seed=args.seed)
+    res = find_discrepancy(data, model, settings=settings, workers=workers, candidates=args.candidates,
+                           metrics=args.metrics)
+    write_discrepancy(res, args.out, truth=truth)
+    print(format_result(res))
+    print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")
+    return 0
