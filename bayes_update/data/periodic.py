@@ -9,7 +9,8 @@ Identification, 2012, sec. 2.4: the sample variance over the periods).
 * :func:`find_periods`: where in a record the force repeats with a period
   ``N`` (declared, or detected from the force's autocorrelation), as a
   :class:`PeriodLayout`: the longest chain of consecutive periods whose
-  period-to-period difference is at the force's noise level.
+  period-to-period difference is at the force's noise level (each
+  difference's mean over the period removed: a slow drift does not count).
 * :func:`period_noise`: one channel's noise sd from the chain: the first
   period (the structure's transient) dropped, further leading periods
   dropped while their difference to the next is larger than the rest's (a
@@ -62,17 +63,25 @@ class PeriodLayout:
 
 
 def _pair_ratios(f: np.ndarray, period: int) -> np.ndarray:
-    """Q[k] = sum_{i<N} (f[k+i+N] - f[k+i])^2 / sum (f[k+i]^2 + f[k+i+N]^2), k = 0..n-2N."""
-    n = f.size
-    m = n - 2 * period + 1
+    """Q[k] (k = 0 .. n - 2N): the energy of the difference between the period
+    starting at k and the next, over their energy, each with its mean over the
+    period removed (so a slow drift, nearly constant over a period's
+    difference, does not count)."""
+    n, N = f.size, period
+    m = n - 2 * N + 1
     if m < 1:
         return np.zeros(0)
-    e2 = np.concatenate([[0.0], np.cumsum((f[period:] - f[:-period]) ** 2)])
-    a2 = np.concatenate([[0.0], np.cumsum(f[period:] ** 2 + f[:-period] ** 2)])
-    num = e2[period:period + m] - e2[:m]
-    den = a2[period:period + m] - a2[:m]
+
+    def window_sums(x):
+        c = np.concatenate([[0.0], np.cumsum(x)])
+        return c[N:N + m] - c[:m]
+
+    e = f[N:] - f[:-N]
+    num = window_sums(e * e) - window_sums(e) ** 2 / N
+    den = (window_sums(f[:-N] ** 2) - window_sums(f[:-N]) ** 2 / N
+           + window_sums(f[N:] ** 2) - window_sums(f[N:]) ** 2 / N)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > 0, num / den, np.inf)
+        return np.where(den > 0, np.clip(num, 0.0, None) / den, np.inf)
 
 
 def _best_chain(f: np.ndarray, period: int):
@@ -138,7 +147,8 @@ def find_periods(force, period_samples: int | None = None):
     :data:`MIN_PERIODS` repeating periods.
     """
     f = np.asarray(force, float)
-    f = f - np.median(f)
+    t = np.linspace(-1.0, 1.0, f.size)
+    f = f - np.polyval(np.polyfit(t, f, 2), t)           # offset and slow drift
     if period_samples is not None:
         period = int(period_samples)
         if f.size < MIN_PERIODS * period:
