@@ -199,3 +199,26 @@ def test_a_data_set_with_no_source_of_noise_says_what_to_add(random_pair):
     assert "'acc1'" not in str(info.value)
     lenient = dataset_noise(ds, strict=False)["random_high"]
     assert lenient["acc2"].method == "unknown" and lenient["acc2"].sd is None
+
+
+# ------------------------------------------------------------------ over seeds (outside the default run)
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", range(100, 110))
+def test_every_estimator_over_seeds(seed):
+    cases = [(lab.periodic_test(seed=seed), "periods"),
+             (lab.lab_record("p.csv", "validation", 2.0, [("quiet", 3.0), ("random", 20.0), ("quiet", 8.0)],
+                             seed=seed), "zero_input"),
+             (lab.lab_record("f.csv", "validation", 2.0, lab.RANDOM_LAYOUT, seed=seed, fs=1000.0, white=True),
+              "quiet_band")]
+    for rec, method in cases:
+        est = record_noise(rec.record())
+        err = errors(est, rec)
+        print(seed, method, {k: f"{v:+.3f}" for k, v in err.items()})
+        assert all(est[ch].method == method for ch in CHANNELS)
+        assert all(abs(e) < TOL for e in err.values()), (method, err)
+    low, high = lab.random_tests(seed=seed)
+    noise = dataset_noise(lab.lab_dataset([low, high]))
+    for name, rec in (("random_low", low), ("random_high", high)):
+        err = errors(noise[name], rec, SENSORS)
+        print(seed, name, {k: f"{v:+.3f}" for k, v in err.items()})
+        assert all(abs(e) < TOL for e in err.values()), (name, err)
