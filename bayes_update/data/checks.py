@@ -7,8 +7,12 @@ import numpy as np
 #: the slow trend is read from Hann-weighted means over windows of 1/TREND_BLOCKS of
 #: the record, every half window
 TREND_BLOCKS = 8
-#: a run of this many consecutive samples at the channel's max or min is clipping
+#: a run of this many consecutive samples at the channel's max or min is clipping, and so
+#: are more samples at them than CLIP_COUNT and CLIP_SHARE of the record (a clipped
+#: record sampled at 2.5x its band has runs of 1-2 samples only)
 CLIP_RUN = 3
+CLIP_COUNT = 8
+CLIP_SHARE = 1e-3
 
 
 def offset(x) -> float:
@@ -45,8 +49,11 @@ def drift(x) -> float:
 def clipping(x) -> dict:
     """Samples at the channel's extreme values: ``{"clipped", "longest_run",
     "at_limits"}``; ``clipped`` when a run of at least :data:`CLIP_RUN`
-    consecutive samples sits at the max or at the min (an amplifier or ADC
-    range exceeded).  Exact equality (a recorder's clipped values are equal)."""
+    consecutive samples sits at the max or at the min, or more than
+    :data:`CLIP_COUNT` and :data:`CLIP_SHARE` of the samples do (an amplifier
+    or ADC range exceeded).  Exact equality (a recorder's clipped values are
+    equal); a coarsely quantised record of a steady sine (the top code hit at
+    many peaks) can be reported clipped when it is not."""
     x = np.asarray(x, float)
     longest, total = 0, 0
     for limit in (x.max(), x.min()):
@@ -57,4 +64,5 @@ def clipping(x) -> dict:
         longest = max(longest, int(runs.max()) if runs.size else 0)
     if x.max() == x.min():
         total = x.size
-    return {"clipped": bool(longest >= CLIP_RUN), "longest_run": longest, "at_limits": total}
+    many = total > max(CLIP_COUNT, CLIP_SHARE * x.size)
+    return {"clipped": bool(longest >= CLIP_RUN or many), "longest_run": longest, "at_limits": total}

@@ -85,7 +85,8 @@ def _pair_ratios(f: np.ndarray, period: int) -> np.ndarray:
 
 
 def _best_chain(f: np.ndarray, period: int):
-    """(start, n_periods, worst ratio) of the longest chain of repeating periods, or None."""
+    """(start, n_periods, worst ratio) of the longest chain of repeating periods
+    (ties: the smallest summed ratio), or None."""
     Q = _pair_ratios(f, period)
     if Q.size == 0 or not np.isfinite(Q).any():
         return None
@@ -93,24 +94,28 @@ def _best_chain(f: np.ndarray, period: int):
     if q_min > MAX_REPEAT_RATIO:
         return None
     thr = min(MAX_REPEAT_RATIO, REPEAT_TOLERANCE * q_min + 1e-15)
-    best = None
-    for s in range(min(period, Q.size)):
-        q = Q[s::period]
-        good = q <= thr
-        j, run_start, runs = 0, None, []
-        for j, g in enumerate(good):
-            if g and run_start is None:
-                run_start = j
-            if not g and run_start is not None:
-                runs.append((run_start, j))
-                run_start = None
-        if run_start is not None:
-            runs.append((run_start, len(good)))
-        for a, b in runs:
-            key = (b - a, -float(np.sum(q[a:b])))
-            if best is None or key > best[0]:
-                best = (key, s + a * period, b - a + 1, float(np.max(q[a:b])))
-    return None if best is None else best[1:]
+    rows = -(-Q.size // period)
+    Q2 = np.full(rows * period, np.inf)
+    Q2[:Q.size] = Q
+    Q2 = Q2.reshape(rows, period)                    # column s: the pairs starting at s, s + N, ...
+    good = Q2 <= thr
+    csum = np.cumsum(np.where(good, Q2, 0.0), axis=0)
+    run = np.zeros(period, int)
+    length = np.zeros(period, int)
+    end = np.zeros(period, int)
+    for r in range(rows):
+        run = np.where(good[r], run + 1, 0)
+        longer = run > length
+        length[longer], end[longer] = run[longer], r
+    if length.max() == 0:
+        return None
+    cols = np.flatnonzero(length == length.max())
+    first = end[cols] - length[cols] + 1
+    total = csum[end[cols], cols] - np.where(first > 0, csum[np.maximum(first - 1, 0), cols], 0.0)
+    k = int(np.argmin(total))
+    s0, r0, n = int(cols[k]), int(first[k]), int(length[cols[k]])
+    worst = float(np.max(Q2[r0:r0 + n, s0]))
+    return s0 + r0 * period, n + 1, worst
 
 
 def _candidates(f: np.ndarray, max_period: int) -> list:
