@@ -6,7 +6,7 @@ import pytest
 
 import lab_records as lab
 from bayes_update.data.lpm import lpm_noise
-from bayes_update.data.noise import NoiseEstimationError, dataset_noise, record_noise
+from bayes_update.data.noise import NoiseEstimationError, dataset_noise, from_fit_residual, record_noise
 from bayes_update.data.periodic import find_periods, period_noise
 
 TOL = 0.15
@@ -163,6 +163,19 @@ def test_the_low_level_fit_residual_is_carried_to_the_high_level_test(random_pai
     assert min(own.values()) > 3.0, own
     # the force is never carried
     assert noise["random_high"]["force"].method == "unknown"
+
+
+def test_a_fit_residual_given_by_the_caller_takes_the_place_of_the_lpm(random_pair):
+    low, high = random_pair
+    given = {"acc2": from_fit_residual(low.sensor_noise[:, 1], 12, "a Volterra fit of orders 1-3")}
+    noise = dataset_noise(lab.lab_dataset([low, high]), fit_residuals={"random_low": given})
+    n = low.sensor_noise.shape[0]
+    assert noise["random_low"]["acc2"].sd == pytest.approx(np.linalg.norm(low.sensor_noise[:, 1]) / np.sqrt(n - 12))
+    assert noise["random_low"]["acc2"].detail == "residual of a Volterra fit of orders 1-3 (12 parameters)"
+    assert noise["random_low"]["acc1"].detail.startswith("local polynomial method")
+    assert noise["random_high"]["acc2"].sd == noise["random_low"]["acc2"].sd
+    with pytest.raises(ValueError, match="cannot carry"):
+        from_fit_residual(np.zeros(5), 5)
 
 
 # ------------------------------------------------------------------ declared noise, force

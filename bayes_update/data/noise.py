@@ -43,7 +43,7 @@ import numpy as np
 from scipy.signal import welch
 
 from bayes_update.data.dataset import RESPONSE_UNITS, DatasetError
-from bayes_update.data.lpm import lpm_noise
+from bayes_update.data.lpm import lpm_noise, noise_from_fit_residual
 from bayes_update.data.periodic import MIN_PERIODS, PeriodLayout, find_periods, period_noise
 from bayes_update.data.quiet import MIN_TOTAL, band_noise, noise_band, quiet_sections, zero_input_noise
 
@@ -95,8 +95,17 @@ def _estimate(method: str, result) -> NoiseEstimate:
     return NoiseEstimate(sd, method, detail, dof, tuple(spans))
 
 
+def from_fit_residual(residual, n_parameters: int, what: str = "the caller's fit") -> NoiseEstimate:
+    """A ``fit_residual`` estimate from a fit's residual [response unit] and its
+    number of fitted parameters (``||r|| / sqrt(n - p)``), e.g. a Volterra fit
+    of orders 1-3 on the low-level test; the caller vouches that the fit is
+    complete (all of the response but noise is in the model)."""
+    sd, dof = noise_from_fit_residual(residual, n_parameters)
+    return NoiseEstimate(sd, "fit_residual", f"residual of {what} ({int(n_parameters)} parameters)", dof)
+
+
 def record_noise(record, fs: float | None = None, *, declared: dict | None = None,
-                 fit: bool = False) -> dict:
+                 fit: bool = False, fit_residual: dict | None = None) -> dict:
     """``{channel: NoiseEstimate}`` for ``force`` and every sensor of ``record``
     (a :class:`bayes_update.data.dataset.Record`), from its own data only.
 
@@ -105,7 +114,10 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
         record's own ``noise_sd``; :meth:`Dataset.declared_noise_sd` merges the
         data set's).
     fit : allow the ``fit_residual`` source for the sensors (only on a test
-        whose response is linear: the low-level test).
+        whose response is linear: the low-level test): the LPM here.
+    fit_residual : ``{sensor: NoiseEstimate}`` from the caller's own complete
+        fit (:func:`from_fit_residual`), used at the ``fit_residual`` rank in
+        place of the LPM (whatever ``fit``).
 
     A channel without a source is ``unknown`` (its detail says why); this
     function never raises for that (see :func:`dataset_noise`).
@@ -133,6 +145,9 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
                 break
             why.append(f"{method}: {result}")
         else:
+            if fit_residual and name in fit_residual:
+                out[name] = fit_residual[name]
+                continue
             if fit and name != "force":
                 try:
                     est = lpm_noise(force, x, fs)
@@ -161,7 +176,7 @@ def what_to_add(sensor: str, kind: str | None = None) -> str:
             "died out, or add a low-level test with role 'linear' (its noise is carried to the others)")
 
 
-def dataset_noise(dataset, *, strict: bool = True) -> dict:
+def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = None) -> dict:
     """``{test name: {channel: NoiseEstimate}}`` for every test of a data set.
 
     Each test from its own data (:func:`record_noise`, the declared noise
@@ -173,9 +188,14 @@ def dataset_noise(dataset, *, strict: bool = True) -> dict:
         still unknown (the message names each, why, and what to add);
         False leaves it ``unknown`` (for the inspection report).  The force
         may stay ``unknown`` either way.
+    fit_residuals : ``{test name: {sensor: NoiseEstimate}}`` from the
+        caller's own complete fits (:func:`from_fit_residual`), in place of
+        the LPM on those tests.
     """
     fs = float(dataset.sampling_rate_hz)
-    out = {t.name: record_noise(t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear")
+    fits = fit_residuals or {}
+    out = {t.name: record_noise(t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear",
+                                fit_residual=fits.get(t.name))
            for t in dataset.tests}
     linear = [t.name for t in dataset.tests if t.role == "linear"]
     kinds = dict(dataset.sensors)
