@@ -220,8 +220,8 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
 def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None = None):
     """``(f [Hz], one-sided PSD [unit^2/Hz])`` of a channel's noise as its estimate
     saw it: ``periods``, the PSD of the deviations from the period mean (x P / (P - 1));
-    ``zero_input``, of the stretches used; ``fit_residual``, the LPM's noise
-    spectrum; otherwise (declared, quiet band, carried) white at the estimate's
+    ``zero_input``, of the stretches used; ``fit_residual`` of the LPM, its noise
+    spectrum; otherwise (declared, quiet band, carried, a caller's fit) white at the estimate's
     sd, ``2 sd^2 / fs``.  None when the noise is unknown."""
     if not estimate.known:
         return None
@@ -244,7 +244,7 @@ def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None 
         spectra = [welch(q, fs=fs, nperseg=nper, detrend="linear") for q in parts]
         weights = np.array([len(q) for q in parts], float)
         return spectra[0][0], np.average([p for _, p in spectra], axis=0, weights=weights)
-    if estimate.method == "fit_residual":
+    if estimate.method == "fit_residual" and estimate.detail.startswith("local polynomial method"):
         est = lpm_noise(record.force, x, fs)
         return est.f, est.psd
     return white
