@@ -136,6 +136,11 @@ def test_quiet_band_on_a_record_sampled_well_above_its_band():
     assert all(est[ch].method == "quiet_band" for ch in CHANNELS)
     assert all(abs(e) < TOL for e in err.values()), err
     assert "white noise assumed" in est["acc1"].detail
+    # what "white noise assumed" means: coloured noise (AR(1), pole 0.75 on acc3) is under-read
+    coloured = lab.lab_record("fast.csv", "validation", 2.0, lab.RANDOM_LAYOUT, seed=41, fs=1000.0)
+    low = record_noise(coloured.record())["acc3"]
+    print("quiet band on coloured noise, acc3:", f"{low.sd / coloured.noise_sd['acc3'] - 1:+.3f}")
+    assert low.method == "quiet_band" and low.sd < 0.6 * coloured.noise_sd["acc3"]
 
 
 def test_no_quiet_band_at_two_and_a_half_times_the_band(random_pair):
