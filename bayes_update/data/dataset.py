@@ -96,10 +96,15 @@ UNITS = {"time": "s", "force": "N", "velocity": "m/s"}
 
 
 # keys of dataset.json read by this module (never in Dataset.extra)
-RESERVED_KEYS = ("name", "sampling_rate_hz", "response", "sensors", "rig", "tests")
+RESERVED_KEYS = ("name", "sampling_rate_hz", "response", "sensors", "rig", "tests", "noise_sd")
 
 
 TEST_KEYS = ("file", "signal", "level", "role")
+
+
+NOISE_TEST_KEYS = ("period_samples", "noise_sd")
+"""Keys of a test entry read into :attr:`Record.period_samples` and :attr:`Record.noise_sd`
+(never in :attr:`Record.meta`)."""
 
 
 DEFAULT_SIGNAL = DEFAULT_LEVEL = "unknown"
@@ -271,6 +276,49 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
             "fix sampling_rate_hz or the time column, the reader never resamples silently")
 
 
+def check_period_samples(period, n_samples: int | None = None, source=None):
+    """Validate a declared excitation period: None, or an integer number of samples,
+    at least 2 and (given ``n_samples``) at most half the record (two periods).
+    Returns it as an int (or None); raises :class:`DatasetError` naming ``source``."""
+    if period is None:
+        return None
+    where = _where(source)
+    if isinstance(period, bool) or not isinstance(period, (int, np.integer)):
+        raise DatasetError(f"{where}: 'period_samples' must be an integer number of samples "
+                           f"(the excitation's period), got {period!r}")
+    period = int(period)
+    if period < 2:
+        raise DatasetError(f"{where}: 'period_samples' must be at least 2, got {period}")
+    if n_samples is not None and 2 * period > n_samples:
+        raise DatasetError(f"{where}: 'period_samples' is {period} but the record has {n_samples} "
+                           "samples: it must hold at least two periods")
+    return period
+
+
+def check_noise_sd(noise_sd, channels, source=None, key: str = "noise_sd") -> dict:
+    """Validate a declared noise block ``{channel: sd}``: channels among ``channels``
+    (``force`` and the sensors' names), sd a positive finite number in the channel's
+    unit per sample.  Returns a new dict of floats; raises :class:`DatasetError`
+    naming ``source`` and ``key``."""
+    where = _where(source)
+    if noise_sd is None:
+        return {}
+    if not isinstance(noise_sd, dict):
+        raise DatasetError(f"{where}: {key!r} must be an object {{channel: sd}}, e.g. "
+                           f'{{"force": 0.002, "{channels[-1]}": 1e-4}}, got {noise_sd!r}')
+    out = {}
+    for name, value in noise_sd.items():
+        if name not in channels:
+            raise DatasetError(f"{where}: {key!r} names channel {name!r}; the channels are "
+                               f"{list(channels)} ('force' and the sensors' names)")
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
+                or not (np.isfinite(value) and value > 0):
+            raise DatasetError(f"{where}: {key!r} of channel {name!r} must be a positive number "
+                               f"(the noise sd per sample in the channel's unit), got {value!r}")
+        out[name] = float(value)
+    return out
+
+
 def _is_single_velocity(sensors) -> bool:
     return len(sensors) == 1 and sensors[0][1] == "velocity"
 
@@ -295,6 +343,12 @@ class Record:
     source : where the record was read from (for messages), or None.
     sensors : ``((name, response kind), ...)``; default one velocity sensor
         named ``velocity`` (:data:`DEFAULT_SENSORS`).
+    period_samples : the excitation's period [samples] when it is periodic
+        (several periods of a multisine), declared in ``dataset.json``; None
+        when not declared (:mod:`bayes_update.data.noise` may still detect it).
+    noise_sd : this test's declared noise ``{channel: sd}`` (``force`` [N] and
+        sensor names, sd per sample in the channel's unit); overrides the data
+        set's :attr:`Dataset.noise_sd` channel by channel.
 
     ``velocity`` is an alias of ``response`` (read and write) when the record
     has a single velocity sensor; otherwise it raises :class:`SensorError`.
@@ -313,6 +367,8 @@ class Record:
     meta: dict = field(default_factory=dict)
     source: str | None = None
     sensors: tuple = DEFAULT_SENSORS
+    period_samples: int | None = None
+    noise_sd: dict = field(default_factory=dict)
 
     def __post_init__(self):
         self.validate()
@@ -328,6 +384,8 @@ class Record:
         self.sensors = check_sensors(self.sensors, where)
         self.time, self.force, self.response = check_channels(
             self.time, self.force, self.response, where, self.sensors)
+        self.period_samples = check_period_samples(self.period_samples, self.time.size, where)
+        self.noise_sd = check_noise_sd(self.noise_sd, self.channels, where)
 
     def _velocity_alias(self) -> None:
         if not _is_single_velocity(self.sensors):
@@ -359,6 +417,11 @@ class Record:
     def units(self) -> dict:
         """Units of the channels: time, force and each sensor."""
         return {"time": "s", "force": "N", **{n: RESPONSE_UNITS[k] for n, k in self.sensors}}
+
+    @property
+    def channels(self) -> tuple:
+        """``("force", sensor names...)``: the measured channels."""
+        return ("force",) + tuple(n for n, _ in self.sensors)
 
     @property
     def name(self) -> str:
@@ -401,7 +464,10 @@ class Dataset:
     :func:`bayes_update.models.beam.rig.rig_of`.  tests : list of :class:`Record`,
     all with the same sensors; extra : other ``dataset.json`` keys, preserved
     (e.g. ``truth``, never read by the updating code); source : folder or
-    file read from, or None.
+    file read from, or None; noise_sd : the declared noise ``{channel: sd}``
+    of every test (``force`` [N] and sensor names, sd per sample in the
+    channel's unit), which a test's own :attr:`Record.noise_sd` overrides
+    (:meth:`declared_noise_sd`).
     """
 
     name: str
@@ -410,6 +476,7 @@ class Dataset:
     tests: list
     extra: dict = field(default_factory=dict)
     source: str | None = None
+    noise_sd: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if isinstance(self.rig, dict) and not isinstance(self.rig, RigBlock):
@@ -434,6 +501,11 @@ class Dataset:
         """Units of the channels: time, force and each sensor."""
         return {"time": "s", "force": "N", **{n: RESPONSE_UNITS[k] for n, k in self.sensors}}
 
+    def declared_noise_sd(self, record) -> dict:
+        """The noise declared for a test: the data set's ``noise_sd`` overridden
+        channel by channel by the test's own (``{channel: sd}``)."""
+        return {**self.noise_sd, **record.noise_sd}
+
     def by_role(self, role: str) -> list:
         if role not in ROLES:
             raise UnknownRoleError(f"unknown role {role!r}; roles are {ROLES}")
@@ -455,13 +527,19 @@ class Dataset:
         and each test's file name, role and channels (exact float64 bytes of
         time, force and response).  Caches key on this, never on the folder's
         path: new data at the same path must not reuse old results.  (A data
-        set with the default sensor hashes exactly as before sensors existed.)"""
+        set with the default sensor hashes exactly as before sensors existed.)
+        The declared noise and periods (``noise_sd``, ``period_samples``) are
+        hashed when present, so a data set without them hashes as before."""
         h = hashlib.sha256(repr(float(self.sampling_rate_hz)).encode())
         sensors = [tuple(s) for s in self.sensors]
         if sensors != list(DEFAULT_SENSORS):
             h.update(("|sensors|" + json.dumps(sensors)).encode())
+        if self.noise_sd:
+            h.update(("|noise_sd|" + json.dumps(self.noise_sd, sort_keys=True)).encode())
         for t in self.tests:
             h.update(f"|{t.file}|{t.role}|".encode())
+            if t.period_samples is not None or t.noise_sd:
+                h.update(json.dumps([t.period_samples, t.noise_sd], sort_keys=True).encode())
             for channel in (t.time, t.force, t.response):
                 h.update(np.ascontiguousarray(channel, dtype=np.float64).tobytes())
         return h.hexdigest()
@@ -487,6 +565,7 @@ class Dataset:
             t.validate()
             check_time(t.time, fs, t.source or t.file)
         sensors = self.sensors
+        self.noise_sd = check_noise_sd(self.noise_sd, ("force",) + tuple(n for n, _ in sensors), where)
         for t in self.tests:
             if list(t.sensors) != sensors:
                 raise SensorError(f"{where}: test {t.file} has sensors {list(t.sensors)}, test "

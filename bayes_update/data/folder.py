@@ -38,7 +38,28 @@ sensor, named by the sensor's name (other columns are ignored): by default
     and ``role`` required, ``signal`` and ``level`` free text, default
     ``"unknown"``; extra keys of an entry are kept in :attr:`Record.meta`.
     For a UFF file holding several tests, ``"uff_load_case"`` selects the
-    test (R6 F4 of the records).
+    test (R6 F4 of the records).  Two optional keys of an entry describe
+    its noise (:mod:`bayes_update.data.noise`):
+
+    ``period_samples``
+        the excitation's period in samples, an integer, when the test is
+        periodic (several periods of a multisine, the generator clocked with
+        the acquisition): the noise is then estimated from the
+        period-to-period scatter (the first period, a transient, dropped).
+        At least 2 and at most half the record.  Without it a period is
+        looked for in the force (exact repetition).
+    ``noise_sd``
+        this test's declared noise, as the top-level ``noise_sd`` below;
+        overrides it channel by channel.
+``noise_sd``
+    optional, the measurement noise of the channels as known by the user
+    (sensor data sheets, a record with the structure at rest):
+    ``{"force": 0.002, "<sensor name>": 1e-4, ...}``, the standard deviation
+    per sample of each channel's noise over the recorded band, in the
+    channel's unit (force [N], a sensor in its kind's SI unit); any subset
+    of ``force`` and the sensors' names (for the default sensor:
+    ``velocity``).  A declared value always wins over an estimate from the
+    data; a channel not declared is estimated.
 any other key
     kept in :attr:`Dataset.extra` and written back unchanged (e.g. the
     ``truth`` block of a virtual data set, which the updating code never
@@ -57,7 +78,15 @@ with ``low.csv`` headed ``time,force,displacement``; two sensors::
                  {"name": "mid_disp", "response": "displacement"}],
      "tests": [...]}
 
-with CSV files headed ``time,force,tip_acc,mid_disp``.
+with CSV files headed ``time,force,tip_acc,mid_disp``; with the noise
+declared for two channels, a periodic test and one test's own force noise::
+
+    {"sampling_rate_hz": 610.0,
+     "sensors": [{"name": "acc1", "response": "acceleration"},
+                 {"name": "acc2", "response": "acceleration"}],
+     "noise_sd": {"force": 0.002, "acc1": 1e-3},
+     "tests": [{"file": "ms_high.csv", "role": "nonlinear", "period_samples": 4096},
+               {"file": "rand_low.csv", "role": "linear", "noise_sd": {"force": 0.001}}]}
 
 :func:`write_dataset` writes the sensors in a canonical form: nothing for the
 default single velocity sensor, ``response`` for one sensor named after its
@@ -72,8 +101,7 @@ import copy
 import json
 from pathlib import Path
 import numpy as np
-from bayes_update.data.dataset import DatasetError
-from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, _is_single_velocity, _where, check_sensors, check_time
+from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, NOISE_TEST_KEYS, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, _is_single_velocity, _where, check_noise_sd, check_period_samples, check_sensors, check_time
 
 
 UFF_SUFFIXES = (".uff", ".unv")
@@ -119,6 +147,8 @@ def read_dataset(folder) -> Dataset:
     if rig is not None and not isinstance(rig, dict):
         raise DatasetError(f"{meta_path}: 'rig' must be an object")
     sensors = sensors_from_metadata(meta, meta_path)
+    channels = ("force",) + tuple(n for n, _ in sensors)
+    noise_sd = check_noise_sd(meta.get("noise_sd"), channels, meta_path)
     if not isinstance(meta["tests"], list) or not meta["tests"]:
         raise DatasetError(f"{meta_path}: 'tests' must be a non-empty list")
     tests = []
@@ -144,12 +174,17 @@ def read_dataset(folder) -> Dataset:
             time, force, response, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
         else:
             time, force, response = _read_csv(path, fs, sensors, meta_path)
-        extra = {k: v for k, v in entry.items() if k not in TEST_KEYS}
+        where = f"{meta_path} (test {entry['file']})"
+        period = check_period_samples(entry.get("period_samples"), len(time), where)
+        test_noise = check_noise_sd(entry.get("noise_sd"), channels, where)
+        extra = {k: v for k, v in entry.items() if k not in TEST_KEYS + NOISE_TEST_KEYS}
         tests.append(Record(entry["file"], entry.get("signal", DEFAULT_SIGNAL),
                             entry.get("level", DEFAULT_LEVEL), entry["role"],
-                            time, force, response, extra, source=str(path), sensors=sensors))
+                            time, force, response, extra, source=str(path), sensors=sensors,
+                            period_samples=period, noise_sd=test_noise))
     extra = {k: v for k, v in meta.items() if k not in RESERVED_KEYS}
-    ds = Dataset(meta.get("name", folder.name), fs, rig, tests, extra, source=str(folder))
+    ds = Dataset(meta.get("name", folder.name), fs, rig, tests, extra, source=str(folder),
+                 noise_sd=noise_sd)
     ds.validate()
     return ds
 
@@ -277,8 +312,16 @@ def dataset_metadata(dataset: Dataset) -> dict:
     meta.update(sensors_metadata(dataset.sensors))
     if dataset.rig is not None:
         meta["rig"] = dataset.rig.to_dict()
-    meta["tests"] = [dict({"file": t.file, "signal": t.signal, "level": t.level, "role": t.role},
-                          **copy.deepcopy(t.meta)) for t in dataset.tests]
+    if dataset.noise_sd:
+        meta["noise_sd"] = dict(dataset.noise_sd)
+    meta["tests"] = []
+    for t in dataset.tests:
+        entry = {"file": t.file, "signal": t.signal, "level": t.level, "role": t.role}
+        if t.period_samples is not None:
+            entry["period_samples"] = int(t.period_samples)
+        if t.noise_sd:
+            entry["noise_sd"] = dict(t.noise_sd)
+        meta["tests"].append(dict(entry, **copy.deepcopy(t.meta)))
     for key, value in dataset.extra.items():
         if key not in meta:
             meta[key] = copy.deepcopy(value)
@@ -294,7 +337,8 @@ def write_dataset(dataset: Dataset, folder) -> Path:
     sensors (default: ``velocity``).  Test files are always written as CSV (a
     ``.uff`` file name is replaced by ``.csv``).  The ``rig`` block is written
     as held (:attr:`Dataset.rig`: the raw block, or ``to_dict()`` of an
-    ``fe.Rig``), and not at all when None.
+    ``fe.Rig``), and not at all when None; ``noise_sd`` (top level and per
+    test) and ``period_samples`` only when set.
     """
     dataset = copy.copy(dataset)
     dataset.tests = [copy.copy(t) for t in dataset.tests]

@@ -1,0 +1,68 @@
+"""Cheap checks of one channel of a record, for the inspection report:
+offset, drift, clipping.  Plain functions of a 1-D array (any unit)."""
+from __future__ import annotations
+
+import numpy as np
+
+#: the slow trend is read from Hann-weighted means over windows of 1/TREND_BLOCKS of
+#: the record, every half window
+TREND_BLOCKS = 8
+#: a run of this many consecutive samples at the channel's max or min is clipping, and so
+#: are more samples at them than CLIP_COUNT and CLIP_SHARE of the record (a clipped
+#: record sampled at 2.5x its band has runs of 1-2 samples only)
+CLIP_RUN = 3
+CLIP_COUNT = 8
+CLIP_SHARE = 1e-3
+
+
+def offset(x) -> float:
+    """The channel's mean over the record [its unit] (a sensor offset, for a
+    response whose own mean is zero)."""
+    return float(np.mean(np.asarray(x, float)))
+
+
+def trend(x) -> np.ndarray:
+    """The slow trend of a record: its Hann-weighted means over windows of
+    1/:data:`TREND_BLOCKS` of the record, one every half window (centres from
+    1/16 to 15/16 of the record), minus the record's mean [its unit].  An
+    oscillation with a few cycles per window averages out (the Hann window
+    leaks little); a drift does not."""
+    x = np.asarray(x, float)
+    m = x.size // TREND_BLOCKS
+    if m < 4:
+        raise ValueError(f"a record of {x.size} samples is too short for a trend over {TREND_BLOCKS} windows")
+    w = np.hanning(m + 2)[1:-1]
+    starts = np.arange(0, x.size - m + 1, m // 2)
+    return np.array([w @ x[s:s + m] for s in starts]) / w.sum() - x.mean()
+
+
+def drift(x) -> float:
+    """Peak-to-peak of the slow trend (:func:`trend`) over the record, as a share
+    of the record's rms about its mean [-] (0.05: the channel drifts by 5 % of
+    its rms)."""
+    x = np.asarray(x, float)
+    rms = float(np.std(x))
+    span = float(np.ptp(trend(x)))
+    return span / rms if rms > 0 else 0.0
+
+
+def clipping(x) -> dict:
+    """Samples at the channel's extreme values: ``{"clipped", "longest_run",
+    "at_limits"}``; ``clipped`` when a run of at least :data:`CLIP_RUN`
+    consecutive samples sits at the max or at the min, or more than
+    :data:`CLIP_COUNT` and :data:`CLIP_SHARE` of the samples do (an amplifier
+    or ADC range exceeded).  Exact equality (a recorder's clipped values are
+    equal); a coarsely quantised record of a steady sine (the top code hit at
+    many peaks) can be reported clipped when it is not."""
+    x = np.asarray(x, float)
+    longest, total = 0, 0
+    for limit in (x.max(), x.min()):
+        at = x == limit
+        total += int(at.sum())
+        d = np.diff(np.concatenate([[0], at.astype(np.int8), [0]]))
+        runs = np.flatnonzero(d == -1) - np.flatnonzero(d == 1)
+        longest = max(longest, int(runs.max()) if runs.size else 0)
+    if x.max() == x.min():
+        total = x.size
+    many = total > max(CLIP_COUNT, CLIP_SHARE * x.size)
+    return {"clipped": bool(longest >= CLIP_RUN or many), "longest_run": longest, "at_limits": total}

@@ -1,0 +1,116 @@
+"""Noise from a model-free linear fit: the local polynomial method (LPM).
+
+Pintelon, Schoukens, Vandersteen and Barbé, "Estimation of nonparametric
+noise and FRF models for multivariable systems", MSSP 24 (2010); Pintelon &
+Schoukens, System Identification (2012), sec. 7.2.  On any excitation
+(random included, no periods needed) the DFT of the output around each
+frequency line k is fitted by
+
+    Y(k + r) = G(k + r) U(k + r) + T(k + r) + V(k + r),   r = -R .. R,
+
+with G (the FRF) and T (the leakage / transient term) polynomials of degree
+``degree`` in r; the residual's energy divided by its degrees of freedom
+``q = 2R + 1 - 2 (degree + 1)`` is the noise variance at line k.  Summed
+over the lines (Parseval) it is the noise variance per sample, coloured
+noise included; the per-line values are the noise spectrum.
+
+What the residual holds: the output noise, the response to the force
+channel's noise (the fit is driven by the recorded force), and the part of
+the nonlinear distortion not coherent with the force.  So it is the sensor
+noise only on a test whose response is linear to well below the noise (a
+low-level test); sensor noise does not grow with the level, nonlinear
+distortion does (:func:`bayes_update.data.noise.dataset_noise` carries it
+from the low-level test to the others).
+
+Frequencies in Hz, sd in the response's unit per sample.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: half-width R of the local window [lines] and degree of the local polynomials
+DEFAULT_HALF_WIDTH = 6
+DEFAULT_DEGREE = 4
+
+
+@dataclass(frozen=True)
+class LPMNoise:
+    """sd [response unit per sample], its degrees of freedom, and the noise spectrum:
+    f [Hz] and one-sided PSD [unit^2/Hz] (``sum psd * df = sd^2``)."""
+
+    sd: float
+    dof: float
+    f: np.ndarray
+    psd: np.ndarray
+    detail: str
+
+
+def _detrend(x: np.ndarray) -> np.ndarray:
+    t = np.arange(x.size)
+    return x - np.polyval(np.polyfit(t, x, 1), t)
+
+
+def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
+              degree: int = DEFAULT_DEGREE) -> LPMNoise:
+    """Noise of ``response`` [its unit] given ``force`` from the LPM (module docstring).
+
+    Both records are detrended (offsets, slow drifts) and transformed whole
+    (no window).  Raises ValueError for a record too short for the local
+    windows or a response that is not 1-D.
+    """
+    u = _detrend(np.asarray(force, float))
+    y = _detrend(np.asarray(response, float))
+    if u.ndim != 1 or y.shape != u.shape:
+        raise ValueError(f"force and response must be 1-D records of equal length, got {u.shape}, {y.shape}")
+    R, d = int(half_width), int(degree)
+    n_par = 2 * (d + 1)
+    if 2 * R + 1 <= n_par + 1:
+        raise ValueError(f"half_width {R} leaves no degrees of freedom for degree {d}")
+    N = u.size
+    U = np.fft.rfft(u) / np.sqrt(N)
+    Y = np.fft.rfft(y) / np.sqrt(N)
+    K = U.size                                               # lines 0 .. N//2
+    if K < 4 * (2 * R + 1):
+        raise ValueError(f"a record of {N} samples is too short for the LPM's {2 * R + 1}-line windows")
+    centres = np.arange(R, K - R)
+    r = np.arange(-R, R + 1)
+    idx = centres[:, None] + r[None, :]                       # (m, 2R+1)
+    P = np.vander(r / R, d + 1, increasing=True)               # (2R+1, d+1)
+    Ul = U[idx]
+    A = np.concatenate([Ul[:, :, None] * P[None], np.broadcast_to(P, (centres.size,) + P.shape)], axis=2)
+    # the residual's projection: the left singular vectors beyond the local model's rank
+    Uc, s, _ = np.linalg.svd(A, full_matrices=True)
+    tol = s[:, :1] * 1e-10 * (2 * R + 1)
+    rank = np.sum(s > tol, axis=1)
+    coef = np.einsum("mji,mj->mi", Uc.conj(), Y[idx])        # (m, 2R+1): Y in the left singular basis
+    keep = np.arange(2 * R + 1)[None, :] >= rank[:, None]
+    q = (2 * R + 1) - rank
+    v = np.sum(np.abs(coef) ** 2 * keep, axis=1) / q          # noise variance per line (DFT / sqrt(N))
+    var_line = np.empty(K)
+    var_line[centres] = v
+    var_line[:R] = v[0]
+    var_line[K - R:] = v[-1]
+    weight = np.full(K, 2.0)
+    weight[0] = 1.0
+    if N % 2 == 0:
+        weight[-1] = 1.0
+    sd = float(np.sqrt(np.sum(weight * var_line) / N))
+    f = np.fft.rfftfreq(N, 1.0 / fs)
+    dof = float(2 * np.mean(q) * K / (2 * R + 1))
+    detail = (f"local polynomial method (model-free linear fit, {2 * R + 1}-line windows, degree {d}; "
+              "holds the sensor noise, the force noise's response and any incoherent distortion)")
+    return LPMNoise(sd, dof, f, weight * var_line / fs, detail)
+
+
+def noise_from_fit_residual(residual, n_parameters: int) -> tuple[float, float]:
+    """``(sd, dof)`` of a fit's residual [response unit]: ``||r|| / sqrt(n - p)``
+    for ``n`` samples and ``p`` fitted parameters (e.g. a Volterra fit's
+    coefficients and h0).  The caller vouches that the fit is complete (all
+    of the response but noise is in the model)."""
+    r = np.asarray(residual, float).ravel()
+    p = int(n_parameters)
+    if p < 0 or r.size <= p:
+        raise ValueError(f"{r.size} residual samples cannot carry {p} parameters")
+    return float(np.linalg.norm(r) / np.sqrt(r.size - p)), float(r.size - p)

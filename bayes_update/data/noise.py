@@ -1,0 +1,254 @@
+"""One noise estimate per record and channel (force and every sensor), from the
+best source the record offers, saying which it used.
+
+Sources, best first (:data:`METHODS`):
+
+``declared``
+    ``noise_sd`` in ``dataset.json`` (top level, overridden per test; see
+    :mod:`bayes_update.data.folder`): a user who knows the sensors always wins.
+``periods``
+    repeated periods of a periodic excitation (``period_samples`` of the
+    test, or a period found in the force): the period-to-period scatter
+    after the transient, a linear trend removed per period
+    (:mod:`bayes_update.data.periodic`).
+``zero_input``
+    stretches where the force is at its floor, after the free decay of the
+    previous excitation has died out (:mod:`bayes_update.data.quiet`).
+``quiet_band``
+    the band from 3x the top of the excited band to 0.45 fs, white noise
+    assumed (today's method, where such a band exists).
+``fit_residual``
+    the residual of a model-free linear fit (the local polynomial method,
+    :mod:`bayes_update.data.lpm`) on the test with role ``linear`` (the
+    low-level test, whose response is linear to well below the noise);
+    sensors only.
+``carried``
+    on any other test without a source of its own: the sensor's estimate on
+    the ``linear`` test (sensor noise does not grow with the excitation
+    level; nonlinear distortion does, and would count as noise in a fit
+    residual of a high-level test).  Sensors only: the force is never carried.
+``unknown``
+    none of the above; ``sd`` is None (never a silent 0).  A response
+    channel left unknown makes :func:`dataset_noise` raise
+    :class:`NoiseEstimationError` saying what to add.
+
+All sd are per sample, in the channel's unit (force [N], each sensor in its
+kind's SI unit), of the noise over the recorded band.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import welch
+
+from bayes_update.data.dataset import RESPONSE_UNITS, DatasetError
+from bayes_update.data.lpm import lpm_noise, noise_from_fit_residual
+from bayes_update.data.periodic import MIN_PERIODS, PeriodLayout, find_periods, period_noise
+from bayes_update.data.quiet import MIN_TOTAL, band_noise, noise_band, quiet_sections, zero_input_noise
+
+METHODS = ("declared", "periods", "zero_input", "quiet_band", "fit_residual", "carried", "unknown")
+
+
+class NoiseEstimationError(DatasetError):
+    """A response channel of a data set has no noise estimate; the message says what to add."""
+
+
+@dataclass(frozen=True)
+class NoiseEstimate:
+    """The noise of one channel of one test.
+
+    Attributes
+    ----------
+    sd : standard deviation per sample [channel unit], None when unknown.
+    method : one of :data:`METHODS`.
+    detail : what was used, in words (e.g. ``periods 2-6 of 1024 samples ...``,
+        ``quiet band 250-450 Hz ...``) or, when unknown, why each source failed.
+    dof : degrees of freedom behind ``sd`` (its relative sd is about
+        1 / sqrt(2 dof) for white noise), None when not measured.
+    spans : sample ranges ``((start, stop), ...)`` of the record used, if any.
+    source_test : the test a ``carried`` estimate comes from.
+    """
+
+    sd: float | None
+    method: str
+    detail: str
+    dof: float | None = None
+    spans: tuple = ()
+    source_test: str | None = None
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ValueError(f"unknown noise method {self.method!r}; methods are {METHODS}")
+        if (self.sd is None) != (self.method == "unknown"):
+            raise ValueError("sd is None exactly when the method is 'unknown'")
+
+    @property
+    def known(self) -> bool:
+        return self.sd is not None
+
+    def to_dict(self) -> dict:
+        """``{"sd", "method", "detail"}`` (JSON-ready)."""
+        return {"sd": self.sd, "method": self.method, "detail": self.detail}
+
+
+def _estimate(method: str, result) -> NoiseEstimate:
+    sd, dof, detail, spans = result
+    return NoiseEstimate(sd, method, detail, dof, tuple(spans))
+
+
+def from_fit_residual(residual, n_parameters: int, what: str = "the caller's fit") -> NoiseEstimate:
+    """A ``fit_residual`` estimate from a fit's residual [response unit] and its
+    number of fitted parameters (``||r|| / sqrt(n - p)``), e.g. a Volterra fit
+    of orders 1-3 on the low-level test; the caller vouches that the fit is
+    complete (all of the response but noise is in the model)."""
+    sd, dof = noise_from_fit_residual(residual, n_parameters)
+    return NoiseEstimate(sd, "fit_residual", f"residual of {what} ({int(n_parameters)} parameters)", dof)
+
+
+def record_noise(record, fs: float | None = None, *, declared: dict | None = None,
+                 fit: bool = False, fit_residual: dict | None = None) -> dict:
+    """``{channel: NoiseEstimate}`` for ``force`` and every sensor of ``record``
+    (a :class:`bayes_update.data.dataset.Record`), from its own data only.
+
+    Parameters
+    ----------
+    fs : sampling rate [Hz] (default: from the record's time column).
+    declared : ``{channel: sd}`` declared for this test (default the
+        record's own ``noise_sd``; :meth:`Dataset.declared_noise_sd` merges the
+        data set's).
+    fit : allow the ``fit_residual`` source for the sensors (only on a test
+        whose response is linear: the low-level test): the LPM here.
+    fit_residual : ``{sensor: NoiseEstimate}`` from the caller's own complete
+        fit (:func:`from_fit_residual`), used at the ``fit_residual`` rank in
+        place of the LPM (whatever ``fit``).
+
+    A channel without a source is ``unknown`` (its detail says why); this
+    function never raises for that (see :func:`dataset_noise`).
+    """
+    fs = float(record.sampling_rate_hz if fs is None else fs)
+    declared = dict(record.noise_sd if declared is None else declared)
+    force = np.asarray(record.force, float)
+    layout = find_periods(force, record.period_samples)
+    sections = quiet_sections(force, fs)
+    band = noise_band(force, fs)
+    out = {}
+    for name in record.channels:
+        x = force if name == "force" else record.channel(name)
+        if name in declared:
+            out[name] = NoiseEstimate(float(declared[name]), "declared", "declared in dataset.json (noise_sd)")
+            continue
+        why = []
+        tries = [("periods", layout, lambda lay: period_noise(x, lay)),
+                 ("zero_input", sections, lambda sec: zero_input_noise(x, sec, fs)),
+                 ("quiet_band", band, lambda b: band_noise(x, fs, b))]
+        for method, found, measure in tries:
+            result = found if isinstance(found, str) else measure(found)
+            if not isinstance(result, str):
+                out[name] = _estimate(method, result)
+                break
+            why.append(f"{method}: {result}")
+        else:
+            if fit_residual and name in fit_residual:
+                out[name] = fit_residual[name]
+                continue
+            if fit and name != "force":
+                try:
+                    est = lpm_noise(force, x, fs)
+                    out[name] = NoiseEstimate(est.sd, "fit_residual", est.detail, est.dof)
+                    continue
+                except ValueError as exc:
+                    why.append(f"fit_residual: {exc}")
+            out[name] = NoiseEstimate(None, "unknown", "; ".join(why))
+    return out
+
+
+def carried(estimate: NoiseEstimate, from_test: str) -> NoiseEstimate:
+    """A known estimate of the same sensor on another test, carried to this one."""
+    return NoiseEstimate(estimate.sd, "carried",
+                         f"carried from test {from_test!r} ({estimate.method}: {estimate.detail})",
+                         estimate.dof, (), from_test)
+
+
+def what_to_add(sensor: str, kind: str | None = None) -> str:
+    """The sentence naming what a data set needs for ``sensor``'s noise."""
+    unit = f" in {RESPONSE_UNITS[kind]}" if kind in RESPONSE_UNITS else ""
+    return (f"declare noise_sd for sensor {sensor!r} in dataset.json (e.g. \"noise_sd\": "
+            f"{{\"{sensor}\": <sd per sample{unit}>}}), or add period_samples to the test (a periodic "
+            f"excitation with at least {MIN_PERIODS} periods, the first is dropped as a transient), or "
+            f"record a quiet (zero-force) section of at least {MIN_TOTAL} samples after the response has "
+            "died out, or add a low-level test with role 'linear' (its noise is carried to the others)")
+
+
+def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = None) -> dict:
+    """``{test name: {channel: NoiseEstimate}}`` for every test of a data set.
+
+    Each test from its own data (:func:`record_noise`, the declared noise
+    merged by :meth:`Dataset.declared_noise_sd`; ``fit_residual`` only on
+    tests with role ``linear``); a sensor still unknown then takes its
+    estimate on the first ``linear`` test that has one (``carried``).
+
+    strict : raise :class:`NoiseEstimationError` if a sensor of any test is
+        still unknown (the message names each, why, and what to add);
+        False leaves it ``unknown`` (for the inspection report).  The force
+        may stay ``unknown`` either way.
+    fit_residuals : ``{test name: {sensor: NoiseEstimate}}`` from the
+        caller's own complete fits (:func:`from_fit_residual`), in place of
+        the LPM on those tests.
+    """
+    fs = float(dataset.sampling_rate_hz)
+    fits = fit_residuals or {}
+    out = {t.name: record_noise(t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear",
+                                fit_residual=fits.get(t.name))
+           for t in dataset.tests}
+    linear = [t.name for t in dataset.tests if t.role == "linear"]
+    kinds = dict(dataset.sensors)
+    missing = []
+    for t in dataset.tests:
+        for name, est in out[t.name].items():
+            if est.known or name == "force":
+                continue
+            source = next((s for s in linear if s != t.name and out[s][name].known
+                           and out[s][name].method != "carried"), None)
+            if source is not None:
+                out[t.name][name] = carried(out[source][name], source)
+            else:
+                missing.append((t, name, est.detail))
+    if strict and missing:
+        lines = [f"test {t.name!r} ({t.source or t.file}), sensor {name!r}: no noise estimate ({why}); "
+                 f"{what_to_add(name, kinds.get(name))}" for t, name, why in missing]
+        raise NoiseEstimationError(f"{dataset.source or dataset.name}: " + "\n".join(lines))
+    return out
+
+
+def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None = None):
+    """``(f [Hz], one-sided PSD [unit^2/Hz])`` of a channel's noise as its estimate
+    saw it: ``periods``, the PSD of the deviations from the period mean (x P / (P - 1));
+    ``zero_input``, of the stretches used; ``fit_residual`` of the LPM, its noise
+    spectrum; otherwise (declared, quiet band, carried, a caller's fit) white at the estimate's
+    sd, ``2 sd^2 / fs``.  None when the noise is unknown."""
+    if not estimate.known:
+        return None
+    fs = float(record.sampling_rate_hz if fs is None else fs)
+    x = np.asarray(record.force if name == "force" else record.channel(name), float)
+    white = (np.array([0.0, fs / 2]), np.full(2, 2.0 * estimate.sd ** 2 / fs))
+    if estimate.method == "periods":
+        layout = find_periods(record.force, record.period_samples)
+        if not isinstance(layout, PeriodLayout):
+            return white
+        (a, b), = estimate.spans
+        Y = x[a:b].reshape(-1, layout.period)
+        P = Y.shape[0]
+        D = (Y - Y.mean(axis=0)).ravel()
+        f, p = welch(D, fs=fs, nperseg=min(layout.period, 512), detrend="linear")
+        return f, p * P / (P - 1)
+    if estimate.method == "zero_input":
+        parts = [x[a:b] for a, b in estimate.spans]
+        nper = min(256, min(len(q) for q in parts))
+        spectra = [welch(q, fs=fs, nperseg=nper, detrend="linear") for q in parts]
+        weights = np.array([len(q) for q in parts], float)
+        return spectra[0][0], np.average([p for _, p in spectra], axis=0, weights=weights)
+    if estimate.method == "fit_residual" and estimate.detail.startswith("local polynomial method"):
+        est = lpm_noise(record.force, x, fs)
+        return est.f, est.psd
+    return white

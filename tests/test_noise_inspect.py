@@ -1,0 +1,143 @@
+"""The inspection report's data side (bayes_update.data.inspect) and its figures
+(bayes_update.reports.inspection), on lab records with known truth and on the
+embedded default data set."""
+import json
+
+import numpy as np
+import pytest
+
+import lab_records as lab
+from bayes_update.data import checks
+from bayes_update.data.inspect import find_modes, inspect_dataset
+from bayes_update.data.noise import dataset_noise
+from bayes_update.reports.inspection import write_inspection
+
+CHANNELS = ("force", "acc1", "acc2", "acc3")
+
+
+@pytest.fixture(scope="module")
+def lab_set():
+    records = [lab.periodic_test(seed=12, drift=100.0), *lab.random_tests()]
+    records[0].role = "validation"
+    ds = lab.lab_dataset(records)
+    noise = dataset_noise(ds, strict=False)
+    return records, ds, noise, inspect_dataset(ds, noise)
+
+
+@pytest.fixture(scope="module")
+def default_set():
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
+
+    ds = load_default_dataset()
+    noise = dataset_noise(ds, strict=False)
+    return ds, noise, inspect_dataset(ds, noise)
+
+
+def test_the_inspection_of_lab_records_holds_the_truth(lab_set):
+    records, ds, noise, out = lab_set
+    json.dumps(out, allow_nan=False)                                  # JSON-ready
+    for rec in records:
+        entry = out["tests"][rec.file]
+        assert set(entry["noise"]) == set(CHANNELS)
+        for ch in CHANNELS:
+            assert entry["noise"][ch] == noise[rec.file[:-4]][ch].to_dict()
+            assert set(entry["noise"][ch]) == {"sd", "method", "detail"}
+        lo, hi = entry["excited_band_hz"]
+        assert abs(lo - lab.LAB_BAND_HZ[0]) < 0.5 and abs(hi - lab.LAB_BAND_HZ[1]) < 0.5
+        clean = np.column_stack([rec.clean_force, rec.clean_response])
+        noise_added = np.column_stack([rec.force_noise, rec.sensor_noise])
+        for j, ch in enumerate(CHANNELS):
+            # the offset added, plus the means of the drift, the structure's response and the noise
+            parts = (rec.offsets[j], rec.drift[:, j].mean(), clean[:, j].mean(), noise_added[:, j].mean())
+            assert entry["offset"][ch] == pytest.approx(sum(parts), rel=1e-9)
+            assert entry["clipping"][ch] == {"clipped": False, "longest_run": 1, "at_limits": 2}
+    # the drift added, as a share of the rms, where it is well above the floor of the measure
+    strong = records[0]
+    for j, ch in enumerate(CHANNELS):
+        truth = np.ptp(strong.drift[:, j]) / np.std(np.column_stack([strong.force, strong.response])[:, j])
+        assert out["tests"][strong.file]["drift"][ch] == pytest.approx(truth, rel=0.2), ch
+    assert out["tests"][strong.file]["period_samples"] == lab.LAB_PERIOD_SAMPLES
+    assert any("acc3" in w and "drifts by" in w for w in out["warnings"])
+    assert any("random_high.csv, channel 'force': the noise cannot be estimated" in w for w in out["warnings"])
+
+
+def test_modes_and_their_level_dependence_on_lab_records(lab_set):
+    records, ds, _, out = lab_set
+    freqs = lab.lab_modes()[0]
+    assert out["modes_from"] == "random_low.csv" and len(out["modes"]) == 1
+    f, z = out["modes"][0]["freq_hz"], out["modes"][0]["damping_ratio"]
+    assert np.min(np.abs(freqs - f) / freqs) < 0.01
+    assert z == pytest.approx(lab.LAB_DAMPING_RATIO, rel=0.15)
+    (dep,) = out["level_dependence"]
+    assert set(dep["freq_hz"]) == {r.file for r in records}
+    assert dep["freq_hz"]["random_low.csv"] == f
+
+
+def test_clipping_and_coherence_loss_are_reported():
+    rec = lab.random_tests()[0]
+    clipped = rec.record()
+    r = clipped.response.copy()
+    top = 0.6 * r[:, 1].max()
+    r[:, 1] = np.minimum(r[:, 1], top)
+    clipped.response = r
+    assert checks.clipping(r[:, 1])["clipped"] and not checks.clipping(r[:, 0])["clipped"]
+    noisy = rec.record()
+    noisy.file = "noisy.csv"
+    rng = np.random.default_rng(5)
+    r = noisy.response.copy()
+    r[:, 2] += 5.0 * rng.standard_normal(r.shape[0])                 # 2x the response's rms
+    noisy.response = r
+    ds = lab.lab_dataset([rec])
+    ds.tests = [clipped, noisy]
+    out = inspect_dataset(ds)
+    assert out["tests"]["random_low.csv"]["clipping"]["acc2"]["clipped"]
+    assert any("random_low.csv, channel 'acc2': clipped" in w for w in out["warnings"])
+    assert out["tests"]["noisy.csv"]["coherence"]["acc3"]["median_in_band"] < 0.9
+    assert any("noisy.csv, sensor 'acc3': coherence below" in w for w in out["warnings"])
+    assert not any("sensor 'acc1': coherence below" in w for w in out["warnings"])
+
+
+def test_the_default_data_set(default_set):
+    ds, noise, out = default_set
+    truth = ds.extra["truth"]
+    assert truth["noise"]["snr_force_db"] == truth["noise"]["snr_velocity_db"] == 40.0
+    methods = {}
+    for t in ds.tests:
+        for ch, x in (("force", t.force), ("velocity", t.response)):
+            est = noise[t.name][ch]
+            # noise added at 40 dB below each channel's rms: sd = rms / 100 (of the clean channel)
+            expected = np.sqrt(np.mean(x ** 2) / (1 + 1e-4)) / 100
+            assert abs(est.sd / expected - 1) < 0.15, (t.name, ch, est.method, est.sd / expected)
+            methods[(t.name, ch)] = est.method
+    print(methods)
+    assert {methods[(t, "velocity")] for t in ("sine_low", "sine_medium", "sine_high")} == {"periods"}
+    assert methods[("chirp_low", "force")] == "zero_input"
+    assert out["tests"]["sine_low.csv"]["period_samples"] == 1024      # 35 Hz repeats every 1024 samples
+    lin = truth["linearised"]
+    assert out["modes"][0]["freq_hz"] == pytest.approx(lin["f1_hz"], rel=0.01)
+    assert out["modes"][0]["damping_ratio"] == pytest.approx(lin["zeta1"], rel=0.15)
+    dep = out["level_dependence"][0]["freq_hz"]
+    assert set(dep) == {"chirp_low.csv", "chirp_medium.csv", "chirp_high.csv"}   # the sines miss the mode
+    assert dep["chirp_low.csv"] < dep["chirp_high.csv"]
+    # this virtual data set's noise is proportional to each test's level: the report says so
+    assert any("sensor 'velocity': its noise differs" in w for w in out["warnings"])
+
+
+def test_find_modes_is_one_small_function():
+    rec = lab.random_tests()[0]
+    modes = find_modes(rec.force, rec.response[:, 0], rec.fs)
+    assert isinstance(modes, list) and all(len(m) == 2 for m in modes)
+    quiet = np.random.default_rng(1).standard_normal(rec.force.size)
+    with pytest.raises(ValueError):
+        find_modes(quiet, np.random.default_rng(2).standard_normal(rec.force.size), rec.fs)
+
+
+@pytest.mark.parametrize("which", ["lab", "default"])
+def test_the_figures_are_written(which, lab_set, default_set, tmp_path):
+    ds, noise, out = (lab_set[1:] if which == "lab" else default_set)
+    paths = write_inspection(ds, tmp_path, out, noise)
+    names = {"inspection.json", "modes.png", "noise_force.png"} | {f"frf_{n}.png" for n, _ in ds.sensors} \
+        | {f"noise_{n}.png" for n, _ in ds.sensors}
+    assert set(paths) == names
+    assert all(p.stat().st_size > 10_000 for n, p in paths.items() if n.endswith(".png"))
+    assert json.loads(paths["inspection.json"].read_text())["tests"].keys() == out["tests"].keys()
