@@ -188,8 +188,10 @@ class KautzBasis:
         all).  ``options`` go to :func:`volterra.estimate_modes`.  Raises
         :class:`volterra.PoleEstimationError` when no mode can be found.
         """
+        # the poles are refined on the linear fit in the order-1 form they will serve in
+        ft1 = bool(feedthrough) if isinstance(feedthrough, (bool, np.bool_)) else 1 in tuple(feedthrough)
         est = estimate_modes(u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine,
-                             period_samples=period_samples, **options)
+                             period_samples=period_samples, feedthrough=ft1, **options)
         return cls.from_modes(est.poles, n_functions, feedthrough,
                               None if nonlinear_modes is None else min(nonlinear_modes, len(est.poles)))
 

@@ -14,7 +14,7 @@ from bayes_update.cli.options import (add_common, add_data_out, add_metrics, add
                                       read_config, settings_from)
 from bayes_update.data.folder import read_dataset
 
-__all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_sample"]
+__all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_inspect", "cmd_sample"]
 
 
 def add_commands(sub) -> None:
@@ -53,6 +53,17 @@ def add_commands(sub) -> None:
     beam_cli.add_model_options(p)
     add_common(p)
     p.set_defaults(func=cmd_sample)
+
+    p = sub.add_parser("inspect", help="a first look at a data set, no model needed",
+                       description="The noise of every channel of every test and how it was found, the "
+                                   "excited band, the modes of the linear test, how each mode's frequency and "
+                                   "damping move with the level, and warnings (offsets, drift, clipping, "
+                                   "coherence). Writes inspection.json and figures (FRF per sensor by level "
+                                   "with coherence, noise spectra against the response, the modes' level "
+                                   "dependence). Without --data: the beam's embedded default data set.")
+    add_data_out(p)
+    add_common(p, seed=False)
+    p.set_defaults(func=cmd_inspect)
 
     p = sub.add_parser("discrepancy", help="find the effect the model misses, add it, show the gap shrink",
                        description="After the baseline update, each effect the model offers "
@@ -198,4 +209,30 @@ def cmd_discrepancy(args) -> int:
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")
+    return 0
+
+
+def cmd_inspect(args) -> int:
+    import json
+
+    from bayes_update.reports.inspection import write_inspection
+
+    if args.data is None:
+        from bayes_update.models.beam.virtual_rig import load_default_dataset
+
+        data = load_default_dataset()
+    else:
+        data = read_dataset(args.data)
+    paths = write_inspection(data, args.out)
+    doc = json.loads(paths["inspection.json"].read_text())
+    for name, t in doc["tests"].items():
+        noise = ", ".join(f"{ch} {v['sd']:.3g} ({v['method']})" if v["sd"] is not None else f"{ch} unknown"
+                          for ch, v in t["noise"].items())
+        band = t.get("excited_band_hz")
+        print(f"{name}: band {band[0]:.1f}-{band[1]:.1f} Hz; noise sd: {noise}" if band else f"{name}: {noise}")
+    print("modes of the linear test: " + (", ".join(f"{m['freq_hz']:.3f} Hz (zeta {m['damping_ratio']:.4f})"
+                                                  for m in doc["modes"]) or "none found"))
+    for w in doc["warnings"]:
+        print(f"WARNING: {w}")
+    print(f"wrote {args.final_out}")
     return 0

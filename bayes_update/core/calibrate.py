@@ -45,9 +45,11 @@ from surrogates.evaluation import default_executor, evaluate_many
 from bayes_update.core.logs import info
 import volterra
 
+from bayes_update.core.checks import fit_warnings, output_errors, test_disagreement
 from bayes_update.core.mode import ResidualFunction, find_mode
 from bayes_update.core.model import check_model_on
-from bayes_update.core.problem import DEFAULT_N_FUNCTIONS, Problem, linear_n_functions
+from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
+from bayes_update.core.problem import Problem
 
 __all__ = ["Calibration", "TwoStage", "calibrate_model", "find_start", "problem_for", "screen_linear", "two_stage",
            "unidentified_directions"]
@@ -101,6 +103,9 @@ class Calibration:
     prediction_errors: dict         # validation test -> ||y - y_model|| / ||y||
     unidentified: dict              # stage -> [{"direction": {name: loading}, "sd_over_range": float}]
     noise_sd: dict                  # stage -> measured noise [response unit]
+    fit_warnings: list              # plain sentences (bayes_update.core.checks)
+    disagreement: list              # parameters the two tests pull apart (bayes_update.core.checks)
+    output_errors: dict             # test -> {"rel": output error, "noise_floor": what noise alone gives}
     n_functions: tuple
     n_model_runs: int
     units: dict
@@ -117,6 +122,12 @@ class Calibration:
                 "linear_sensitivity": self.sensitivity,
                 "unidentified_directions": self.unidentified,
                 "noise_sd": self.noise_sd,
+                "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
+                "representation_floor": {self.problem.tests[st].name: self.problem.representation_floor(st)
+                                         for st in self.problem.stages},
+                "output_errors": self.output_errors,
+                "fit_warnings": self.fit_warnings,
+                "test_disagreement": self.disagreement,
                 "n_functions": list(self.n_functions),
                 "n_model_runs": self.n_model_runs,
                 "setup": self.problem.describe()}
@@ -207,7 +218,7 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Prob
                                          feedthrough=basis.has_feedthrough(1))
         if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
             basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
-            problem = Problem(dataset, model, basis=basis, metrics=problem.metrics)
+            problem = Problem(dataset, model, basis=basis, metrics=problem.metrics, noise=problem.noise)
             problem.space = space
         problem.linear_parameters, problem.linear_sensitivity, problem.n_screen_runs = tuple(names), sens, runs
     return problem
@@ -233,6 +244,14 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
     return space.to_parameters(found.x), runs + found.n_model_runs
 
 
+def disagreement_sentence(d: dict) -> str:
+    """One line for a parameter two tests pull apart (:func:`test_disagreement`)."""
+    a, b = d["tests"]
+    return (f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
+            "apart, beyond their noise; an amplitude-dependent effect the model lacks (damping or stiffness "
+            "that changes with level) is the usual cause: run `bayes-update discrepancy`")
+
+
 @dataclass
 class TwoStage:
     """What :func:`two_stage` found (internal coordinates)."""
@@ -241,6 +260,7 @@ class TwoStage:
     x: np.ndarray           # after stage 2
     unidentified: dict      # stage -> directions (:func:`unidentified_directions`)
     n_model_runs: int
+    disagreement: list = field(default_factory=list)    # :func:`bayes_update.core.checks.test_disagreement`
 
 
 def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_best: int = 3,
@@ -275,9 +295,13 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     starts = [map_rest.full(x) for x in starts]
     mode2 = find_mode(fun2, [x1] + starts, lower, upper, steps, executor, max_iterations)
     runs += n + mode2.n_evaluations
-    unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names,
-                                                   _noise_rows(problem, fun2))
-    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs)
+    rows = _noise_rows(problem, fun2)
+    unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names, rows)
+    n_lin = problem.output("linear", problem.reference_components("linear")).size
+    blocks = {problem.tests["linear"].name: slice(0, n_lin), problem.tests["nonlinear"].name: slice(n_lin, None)}
+    disagree = test_disagreement(mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names,
+                                 upper - lower)
+    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree)
 
 
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,
@@ -312,8 +336,9 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
                           max_iterations=max_iterations, seed=seed, executor=pool, progress=progress)
         theta = space.to_parameters(found.x)
         metrics_at = problem.evaluate(theta)
-        pred = problem.prediction_errors(theta)
-        runs += found.n_model_runs + len(problem.stages) + len(pred)
+        errors = output_errors(problem, theta)
+        pred = {name: errors[name][0] for name in problem.validation}
+        runs += found.n_model_runs + len(problem.stages) + len(errors)
     finally:
         if own_pool:
             pool.shutdown()
@@ -321,9 +346,14 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
         log("WARNING: the data do not identify the direction " + ", ".join(
             f"{k} {v:+.2f}" for k, v in d["direction"].items()) + f" (prior-range units; sd "
             f"{d['sd_over_range']:.2f} of the range): the point returned is one of many along it")
+    warnings = fit_warnings(problem, theta, errors) + [disagreement_sentence(d) for d in found.disagreement]
+    for w in warnings:
+        log(f"WARNING: {w}")
     return Calibration(theta=theta, stage1=space.to_parameters(found.x1), linear_parameters=lin_names,
                        sensitivity=sens, metrics={"e_lin": metrics_at["e_lin"], "e_nlin": metrics_at["e_nlin"]},
                        metric_set=problem.metrics, prediction_errors=pred, unidentified=found.unidentified,
                        noise_sd={st: problem.noise_sd(st) for st in problem.stages},
+                       fit_warnings=warnings, disagreement=found.disagreement,
+                       output_errors={k: {"rel": e, "noise_floor": f} for k, (e, f) in errors.items()},
                        n_functions=n_functions, n_model_runs=runs,
                        units={p.name: p.unit for p in space.parameters}, problem=problem)

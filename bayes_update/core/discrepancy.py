@@ -18,11 +18,14 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    their bounds, log-uniform for ``log=True``); the extended mode is searched
    from the current mode with the effect's parameters at ``effect_start`` of
    the range on each side of the null (where the range extends that way:
-   from the null itself a symmetric effect has no gradient); Laplace log
-   evidence and ``2 ln B`` against the model without it.  Named when
-   ``2 ln B >`` :data:`~bayes_update.core.effects.DECISIVE` and the Laplace
-   interval (mode +- 2 sd) of one of its parameters excludes the null; then a
-   next round looks for a second effect (``max_effects``);
+   from the null itself a symmetric effect has no gradient); the model without
+   it re-converged from that fit's base parameters with the same effort (so that
+   what re-converging the base parameters gains is not credited to an effect);
+   Laplace log evidence and ``2 ln B`` of each at its own optimum.  Named when
+   ``2 ln B >`` :data:`~bayes_update.core.effects.DECISIVE`, the Laplace
+   interval (mode +- 2 sd) of one of its parameters excludes the null, and the
+   fit is neither at its null nor on a bound of its prior (both reported as
+   such); then a next round looks for a second effect (``max_effects``);
 3. **re-update**: the likelihood scales re-measured with the named effects in
    the model, the extended mode and its Laplace posterior;
 4. **verdict**: the named effects must bring e_lin and e_nlin within
@@ -173,6 +176,35 @@ def _excludes_null(fit: Fit, k: int) -> bool:
     return bool(np.any(np.abs(x - fit.space.null_internal()[-k:]) > 2.0 * sd))
 
 
+#: an effect's parameter within this share of its prior range of a value sits at it
+AT_VALUE = 1e-3
+
+
+def _at_null(fit: Fit, k: int) -> bool:
+    """Every parameter of the last added effect fitted at its null value: the data
+    asked nothing of it."""
+    box = fit.space.box()[-k:]
+    return bool(np.all(np.abs(fit.mode.x[-k:] - fit.space.null_internal()[-k:])
+                       <= AT_VALUE * (box[:, 1] - box[:, 0])))
+
+
+def _at_bound(fit: Fit, k: int) -> bool:
+    """A parameter of the last added effect on a bound of its prior (other than its
+    null): the fit wanted more than the prior allows, a sign of a wrong model."""
+    box, x, null = fit.space.box()[-k:], fit.mode.x[-k:], fit.space.null_internal()[-k:]
+    tol = AT_VALUE * (box[:, 1] - box[:, 0])
+    on = (np.abs(x - box[:, 0]) <= tol) | (np.abs(x - box[:, 1]) <= tol)
+    return bool(np.any(on & (np.abs(x - null) > tol)))
+
+
+def names_effect(row: dict) -> bool:
+    """The naming rule for one candidate's evidence row: decisive evidence
+    (2 ln B > :data:`DECISIVE`), a parameter more than 2 sd from its null, and the
+    fit neither at its null nor on a bound of its prior."""
+    return bool(row["two_ln_B"] > DECISIVE and row["excludes_null"] and not row["at_null"]
+                and not row["at_bound"])
+
+
 def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
                        n_best: int = 2) -> tuple[list, int]:
     """(the ``n_best`` lowest-cost of the model's ``extra_starts(x0)``, model runs);
@@ -187,19 +219,12 @@ def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor
     return [grid[i] for i in np.argsort(cost)[:n_best]], len(grid) * len(problem.stages)
 
 
-def noise_floor(problem: Problem, test) -> float | None:
-    """The relative output error a perfect model would have on ``test``: its
-    response's noise sd over its rms (several sensors: rms over them), or None
-    where the record offers no noise estimate."""
-    from bayes_update.core.likelihood import noise_band, white_noise_sd
-
+def noise_floor(problem: Problem, test) -> float:
+    """The relative output error a perfect model would have on ``test``: each
+    sensor's measurement noise (:meth:`Problem.test_noise`) over its rms, the
+    rms over the sensors [-]."""
     y = test.response if test.response.ndim == 2 else test.response[:, None]
-    try:
-        band = noise_band(test.force, problem.fs)
-        ratios = [white_noise_sd(y[:, j], problem.fs, band) / np.sqrt(np.mean(y[:, j] ** 2))
-                  for j in range(y.shape[1])]
-    except ValueError:
-        return None
+    ratios = problem.test_noise(test.name) / np.sqrt(np.mean(y ** 2, axis=0))
     return float(np.sqrt(np.mean(np.square(ratios))))
 
 
@@ -272,32 +297,57 @@ class _Workflow:
             fit = self.fit([], lik, [fit.mode.x])
         return fit, lik
 
-    def round(self, current: Fit, remaining, lik) -> tuple[list, dict]:
-        rows, fits = [], {}
+    def round(self, current: Fit, remaining, lik) -> tuple[Fit, list, dict]:
+        """Each remaining effect added to ``current`` and fitted; the model without it
+        re-converged from each extended fit's own base parameters (with the same
+        effort) so that the Bayes factor compares both models at their optima: what
+        re-converging the base parameters gains is not credited to an effect.
+        Returns (the best model without the effects, the evidence rows, the fits)."""
+        fits, base_fits = {}, [current]
+        box = current.space.box()
+        width = box[:, 1] - box[:, 0]
+        n = len(current.mode.x)
         for e in remaining:
             k = len(self.effects[e])
             trial = ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e]))
             starts = [np.concatenate([current.mode.x, v])
                       for v in _effect_starts(trial, k, self.settings.effect_start)]
             f = fits[e] = self.fit(current.names + [e], lik, starts)
-            two_ln_b = 2.0 * (f.log_evidence - current.log_evidence)
-            values = {p.name: f.space.values(f.mode.x, f.covariance)[p.name] for p in self.effects[e]}
+            if np.any(np.abs(f.mode.x[:n] - current.mode.x) > 1e-3 * width):
+                base_fits.append(self.fit(current.names, lik, [f.mode.x[:n]]))
+        best_base = min(base_fits, key=lambda fit: fit.mode.cost)
+        if best_base is not current:
+            self.log(f"  the model without the candidates re-converged from a candidate's base parameters: "
+                     f"-log L {current.mode.cost:.1f} -> {best_base.mode.cost:.1f} (the comparisons use it)")
+        rows = []
+        for e, f in fits.items():
+            k = len(self.effects[e])
+            two_ln_b = 2.0 * (f.log_evidence - best_base.log_evidence)
+            values = f.space.values(f.mode.x, f.covariance)
+            values = {p.name: values[p.name] for p in self.effects[e]}
             rows.append({"name": e, "two_ln_B": two_ln_b,
-                         "delta_log_likelihood": float(current.mode.cost - f.mode.cost),
+                         "delta_log_likelihood": float(best_base.mode.cost - f.mode.cost),
                          "n_parameters": k, "parameters": values, "excludes_null": _excludes_null(f, k),
+                         "at_null": _at_null(f, k), "at_bound": _at_bound(f, k),
                          "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"]})
-            self.log(f"  {e}: 2 ln B = {two_ln_b:.1f}, " + ", ".join(
+            flag = " (at its null value)" if rows[-1]["at_null"] else " (on a bound of its prior)" if rows[-1][
+                "at_bound"] else ""
+            self.log(f"  {e}: 2 ln B = {two_ln_b:.1f}{flag}, " + ", ".join(
                 f"{n} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for n, v in values.items()))
         rows.sort(key=lambda r: -r["two_ln_B"])
-        return rows, fits
+        return best_base, rows, fits
 
-    def name_effects(self, baseline: Fit, lik, names) -> tuple[Fit, list, list]:
+    def name_effects(self, baseline: Fit, lik, names) -> tuple[Fit, Fit, list, list]:
+        """Rounds of naming; returns (the model with the named effects, the baseline
+        as re-converged in the first round, the rounds, the named effects)."""
         current, rounds, named, remaining = baseline, [], [], list(names)
-        for _ in range(self.settings.max_effects):
-            rows, fits = self.round(current, remaining, lik)
+        for i in range(self.settings.max_effects):
+            current, rows, fits = self.round(current, remaining, lik)
+            if i == 0:
+                baseline = current
             rounds.append({"base": list(current.names), "candidates": rows})
             best = rows[0] if rows else None
-            if best is None or best["two_ln_B"] <= DECISIVE or not best["excludes_null"]:
+            if best is None or not names_effect(best):
                 break
             named.append(best["name"])
             remaining.remove(best["name"])
@@ -307,7 +357,7 @@ class _Workflow:
                 # not name a second effect for what this one's unfinished fit left over
                 current = self.fit(current.names, lik, [current.mode.x])
             self.log(f"named: {best['name']}")
-        return current, rounds, named
+        return current, baseline, rounds, named
 
     def diagnose(self, theta) -> dict | None:
         diagnose = getattr(self.problem.model, "diagnose", None)
@@ -363,7 +413,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
         log(f"baseline: e_lin {100 * baseline.metrics['e_lin']:.3f} %, e_nlin "
             f"{100 * baseline.metrics['e_nlin']:.3f} %")
         with steps("naming"):
-            current, rounds, named = flow.name_effects(baseline, lik, names)
+            current, baseline, rounds, named = flow.name_effects(baseline, lik, names)
         with steps("re_update"):
             final, final_lik = baseline, lik
             if named:

@@ -202,12 +202,15 @@ def evidence_table(res) -> str:
     for i, rnd in enumerate(res.rounds):
         base = " + ".join(["baseline"] + rnd["base"])
         lines += [f"Round {i + 1}: candidates added to {base}", "",
-                  "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null |",
-                  "|---|---|---|---|---|"]
+                  "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null "
+                  "| note |",
+                  "|---|---|---|---|---|---|"]
         for c in rnd["candidates"]:
             pars = ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in c["parameters"].items())
+            note = ("fitted at its null value" if c.get("at_null") else
+                    "on a bound of its prior" if c.get("at_bound") else "")
             lines.append(f"| {c['name']} | {c['two_ln_B']:.1f} | {c['delta_log_likelihood']:.1f} | {pars} | "
-                         f"{'yes' if c['excludes_null'] else 'no'} |")
+                         f"{'yes' if c['excludes_null'] else 'no'} | {note} |")
         lines.append("")
     ratios = ", ".join(f"{k} {v:.2g}x" for k, v in res.misfit_ratio.items())
     if res.named:
@@ -220,8 +223,9 @@ def evidence_table(res) -> str:
                  "model error allow)")
     else:
         named = "none (no candidate improves the fit beyond what the noise explains)"
-    lines.append(f"Named: **{named}** (rule: 2 ln B > {DECISIVE:g} and the effect's mode more than 2 sd "
-                 f"from its null value, and with it e_lin and e_nlin within {EXPLAINED_FACTOR:g}x what noise "
+    lines.append(f"Named: **{named}** (rule: 2 ln B > {DECISIVE:g} against the model without it, each at its "
+                 "own optimum; the effect's mode more than 2 sd from its null value and neither at its null nor "
+                 f"on a bound of its prior; and with it e_lin and e_nlin within {EXPLAINED_FACTOR:g}x what noise "
                  "and model error allow)")
     lines.append(f"Verdict: {res.verdict}; misfit over what noise and model error allow: {ratios}")
     return "\n".join(lines)
@@ -249,7 +253,8 @@ class NamingVerdict:
                 "verdict": self.verdict, "explains_gap": bool(self.explains_gap),
                 "misfit_ratio": self.misfit_ratio, "explained_factor": EXPLAINED_FACTOR,
                 "tentative_effects": list(self.tentative), "gap_with_tentative": self.gap_with_tentative,
-                "decision_rule": f"2 ln B > {DECISIVE:g} against the model without it, and the effect's "
-                                 "mode more than 2 Laplace sd from its null value; the named effects must "
+                "decision_rule": f"2 ln B > {DECISIVE:g} against the model without it (each re-converged to "
+                                 "its own optimum), the effect's mode more than 2 Laplace sd from its null "
+                                 "value and neither at its null nor on a bound of its prior; the named effects must "
                                  f"bring e_lin and e_nlin within {EXPLAINED_FACTOR:g} x sqrt(noise mean "
                                  "square + unabsorbed model error^2), else none is named"}

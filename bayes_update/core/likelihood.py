@@ -54,8 +54,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 import volterra
-from bayes_update.core.problem import STAGE_ORDERS, Problem, excited_band
-from bayes_update.data.spectral import psd
+from bayes_update.core.problem import STAGE_ORDERS, Problem
 
 
 @dataclass(frozen=True)
@@ -164,31 +163,6 @@ class Likelihood:
 
 
 # --------------------------------------------------------------------- noise
-def white_noise_sd(x, fs: float, band: tuple[float, float]) -> float:
-    """sd of a white noise floor from the median Welch PSD in ``band`` [Hz]
-    (one-sided PSD of white noise of variance v is 2 v / fs).  The median
-    ignores the peaks of modes and harmonics that fall in the band."""
-    f, p = psd(np.asarray(x, float), fs, nperseg=min(len(x), 256))
-    sel = (f >= band[0]) & (f <= band[1])
-    if sel.sum() < 8:
-        raise ValueError(f"band {band} Hz holds too few PSD lines to estimate a noise floor")
-    # median of a chi^2 with 2 K dof is below its mean; Welch with 50 % overlap
-    # and K segments: the bias is small (K ~ 30 here), ignored
-    return float(math.sqrt(np.median(p[sel]) * fs / 2.0))
-
-
-def noise_band(force, fs: float) -> tuple[float, float]:
-    """Band used for the noise floor: from 3x the top of the excited band
-    (above the harmonics that matter) to 0.45 fs."""
-    _, f_hi = excited_band(force, fs)
-    lo = max(3.0 * f_hi, f_hi + 20.0)
-    hi = 0.45 * fs
-    if lo >= hi - 20.0:
-        raise ValueError(f"the force excites up to {f_hi:.0f} Hz: no band above 3x that, below "
-                         f"0.45 fs = {hi:.0f} Hz, is left to estimate the noise floor from")
-    return lo, hi
-
-
 def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
     """(mean of e^2, nu) from replicate values of e^2, assuming e^2 = s^2 chi^2_nu:
     mean = nu s^2 and var = 2 nu s^4 give nu = 2 mean^2 / var, clipped to
@@ -224,11 +198,11 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     scales, residuals = {}, {}
     for i, stage in enumerate(stages):
         test = problem.tests[stage]
-        fs = problem.fs
-        band = noise_band(test.force, fs)
-        sig_f = white_noise_sd(test.force, fs, band)
-        y_ref = test.response if test.response.ndim == 2 else test.response[:, None]
-        sig_y = np.array([white_noise_sd(y_ref[:, j], fs, band) for j in range(y_ref.shape[1])])
+        # the measured noise of each channel (bayes_update.data.noise: declared, periods,
+        # zero-input sections, quiet band, or the linear test's fit residual carried over)
+        est = problem.noise[test.name]
+        sig_f = est["force"].sd if est["force"].sd is not None else 0.0
+        sig_y = np.array([est[name].sd for name, _ in problem.sensors])
         sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
         basis = problem.projector(stage).basis
         v0 = problem.simulate(params, stage)
@@ -258,12 +232,20 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         residuals[stage] = D
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),
-                                   noise_levels={"force_N": sig_f, "velocity_m_s": sig_y.tolist(),
-                                                 "band_hz": list(band)},
+                                   noise_levels=_noise_levels(est, problem.sensors),
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,
                                    model_error_source=error_source)
     return Likelihood(scales, residuals)
+
+
+def _noise_levels(estimates: dict, sensors) -> dict:
+    """{channel: {"sd", "unit", "method", "detail"}} of the noise the bootstrap adds
+    (the force's counted as 0 where it is unknown)."""
+    from bayes_update.data.dataset import RESPONSE_UNITS
+
+    units = {"force": "N", **{name: RESPONSE_UNITS[kind] for name, kind in sensors}}
+    return {ch: {**estimates[ch].to_dict(), "unit": units[ch]} for ch in ["force"] + [n for n, _ in sensors]}
 
 
 def likelihood_runs(problem: Problem, n_replicates: int, space=None, model_error: bool = True,

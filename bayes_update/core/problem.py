@@ -38,15 +38,15 @@ import numpy as np
 import volterra
 
 from bayes_update.core.model import ModelError
+from bayes_update.core.basis import (DEFAULT_N_FUNCTIONS, FEEDTHROUGH, basis_from_reference, describe_basis,
+                                     excited_band, linear_n_functions)
+from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
 from bayes_update.data.dataset import DatasetError
+from bayes_update.data.noise import dataset_noise
 
-__all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS",
-           "FEEDTHROUGH", "basis_from_reference", "describe_basis", "excited_band", "linear_n_functions", "n_compared_regressors",
-           "relative_error", "stage_output"]
+__all__ = ["METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS", "n_compared_regressors", "relative_error",
+           "stage_output"]
 
-
-#: Kautz functions per order (J1, J2, J3): see volterra.basis for the trade-off.
-DEFAULT_N_FUNCTIONS = volterra.DEFAULT_N_FUNCTIONS
 
 STAGES = ("linear", "nonlinear")
 #: Kernel orders fitted on each stage's test.
@@ -77,66 +77,6 @@ def n_compared_regressors(basis: volterra.KautzBasis, stage: str, metrics: str =
     C(dim_k + k - 1, k) (the symmetric kernel's coefficients; dim_k, the
     order's functions, counts every mode and the feed-through)."""
     return sum(basis.n_terms(k) for k in METRIC_SETS[metrics][stage])
-
-
-def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS, n_modes: int = 1,
-                       feedthrough: bool = False) -> tuple:
-    """(J1, J2, J3) for a linear test that must identify ``n_linear``
-    parameters: J1 (functions per mode, even, at least ``base``'s) the
-    smallest for which y1's coefficients, J1 x ``n_modes`` (+ 1 with the
-    feed-through), outnumber the parameters.  With one mode and J1 = 2,
-    three linear parameters (frequency, damping, gain) zero e_lin along a
-    whole curve."""
-    j1 = base[0]
-    while j1 * n_modes + int(feedthrough) <= n_linear:
-        j1 += 2
-    return (j1,) + tuple(base[1:])
-
-
-def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
-    """(f_min, f_max) [Hz] where the force PSD exceeds ``level`` x its peak:
-    the band in which an FRF estimate of the record is meaningful
-    (:func:`volterra.excited_band` on 4 s Hann segments, the force's mean
-    removed)."""
-    return volterra.excited_band(np.asarray(force, float), fs, level=level,
-                                 nperseg=min(len(force), int(4 * fs)))
-
-
-#: Orders whose functions include the input itself (the feed-through), per metric set.
-#: ``full``: order 1, so that y1 spans every proper (sampled, e.g. behind a zero-order
-#: hold) linear system with the data's poles exactly.  ``paper``: none: the paper's
-#: metric compares y2 + y3 alone, and on a single constant-amplitude chirp the input's
-#: own term is nearly collinear with the cubic ones (u^3 = 3/4 A^2 u + a third
-#: harmonic), which blurs the y1 / y3 split (the beam's e_nlin at Table 3's point
-#: 0.51 % without it, 1.12 % with it on order 1).
-FEEDTHROUGH = {"full": (1,), "paper": ()}
-
-
-def basis_from_reference(force, response, fs: float, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=(1,),
-                         n_modes=None, period_samples=None) -> volterra.KautzBasis:
-    """The data set's basis from the reference linear record: every mode of its
-    excited, coherent band (LSCF fit of H1 on a stabilisation diagram, refined on
-    the record's linear fit; :meth:`volterra.KautzBasis.from_data`), all of them
-    at order 1, the dominant one at orders 2 and 3.  ``response``: (n,) or
-    (n, n_sensors), the sensors share the poles."""
-    f_lo, f_hi = excited_band(force, fs)
-    return volterra.KautzBasis.from_data(force, response, fs, n_functions=n_functions, f_range=(f_lo, f_hi),
-                                         refine=True, feedthrough=feedthrough, n_modes=n_modes,
-                                         period_samples=period_samples)
-
-
-def describe_basis(basis: volterra.KautzBasis) -> dict:
-    """JSON-ready record of a basis (its first pole [Hz, -], every mode, J per mode,
-    the feed-through and the number of coefficients, per order)."""
-    return {"fs_hz": basis.fs,
-            "orders": {str(n): {"n_functions": basis.n_functions[n],
-                                "pole_freq_hz": basis.pole(n).freq_hz,
-                                "pole_damping_ratio": basis.pole(n).damping_ratio,
-                                "modes": [{"freq_hz": p.freq_hz, "damping_ratio": p.damping_ratio}
-                                          for p in basis.modes(n)],
-                                "feedthrough": basis.has_feedthrough(n),
-                                "n_coefficients": basis.n_terms(n)}
-                       for n in basis.orders}}
 
 
 @dataclass(frozen=True)
@@ -170,6 +110,9 @@ class Problem:
         linear test (:func:`basis_from_reference`).
     metrics : the metric set, ``"paper"`` or ``"full"`` (:data:`METRIC_SETS`);
         default: the model's ``default_metrics``, else ``"full"``.
+    noise : ``{test name: {channel: NoiseEstimate}}``, the measurement noise of
+        every channel (default: :func:`bayes_update.data.noise.dataset_noise`,
+        which raises, saying what to add, when a sensor offers no estimate).
 
     Tests with role ``validation`` are kept for :meth:`prediction_errors`;
     the metrics never see them.
@@ -190,7 +133,7 @@ class Problem:
     #: model runs the builder's screen took
     n_screen_runs: int = 0
 
-    def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None):
+    def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None, noise=None):
         if not hasattr(model, "simulate"):
             raise TypeError(f"{type(model).__name__} is not a model (no simulate method)")
         if callable(getattr(model, "check_dataset", None)):
@@ -233,6 +176,9 @@ class Problem:
         if not {1, 2, 3} <= set(basis.orders):
             raise ValueError(f"the basis needs orders 1, 2 and 3, got {basis.orders}")
         self.basis = basis
+        # the measurement noise of every channel of every test, found once per data set
+        self.noise = noise if noise is not None else dataset_noise(dataset)
+        self._gain = None
         self._projectors = {}
         self._reference = {}
         self._sensor_noise = {}
@@ -298,20 +244,32 @@ class Problem:
         return {n: np.concatenate([w[j] * c[n] for j, c in enumerate(per)]) for n in per[0]}
 
     def sensor_noise(self, stage: str) -> np.ndarray:
-        """Measured noise of each sensor of a several-sensor test: rms residual
-        of its own Volterra fit per sample (as :meth:`noise_sd`) [sensor unit]."""
+        """Measurement noise of each sensor of the stage's test [sensor unit]: its
+        own noise and the force channel's through the structure
+        (:func:`bayes_update.core.weights.effective_noise`; the estimates in
+        :attr:`noise`)."""
         if stage not in self._sensor_noise:
-            y = self.tests[stage].response
-            proj = self.projector(stage)
-            self._sensor_noise[stage] = np.array([self._residual_rms(y[:, j], proj.components(y[:, j]), stage)
-                                                  for j in range(y.shape[1])])
+            self._check_stage(stage)
+            self._sensor_noise[stage] = self.test_noise(self.tests[stage].name)
         return self._sensor_noise[stage]
 
-    def _residual_rms(self, y, comps, stage, n_sensors: int = 1) -> float:
-        """rms of y - sum(comps) per degree of freedom left by the fit (one fit per sensor)."""
-        basis = self.projector(stage).basis
-        n_coef = 1 + sum(basis.n_terms(k) for k in STAGE_ORDERS[stage])
-        return float(np.linalg.norm(y - sum(comps.values())) / math.sqrt(max(y.size - n_sensors * n_coef, 1)))
+    def test_noise(self, name: str) -> np.ndarray:
+        """:meth:`sensor_noise` of any test of the data set, by name."""
+        if self._gain is None:
+            lin = self.tests["linear"]
+            self._gain = linear_gain(lin.force, lin.response, self.basis)
+        return effective_noise(self.noise[name], self.sensors, self._gain)
+
+    def representation_floor(self, stage: str) -> float:
+        """The share of the stage's reference rms its own Volterra fit (orders
+        :data:`STAGE_ORDERS`) leaves unexplained beyond the noise [-]
+        (:func:`bayes_update.core.weights.representation_floor`): what orders
+        1-3 in this basis cannot represent, never folded into the weights."""
+        y = self.tests[stage].response
+        y2 = y[:, None] if y.ndim == 1 else y
+        proj = self.projector(stage)
+        fitted = np.column_stack([sum(proj.components(y2[:, j]).values()) for j in range(y2.shape[1])])
+        return representation_floor(y2, fitted, self.sensor_noise(stage))
 
     def reference_components(self, stage: str) -> dict:
         if stage not in self._reference:
@@ -354,18 +312,12 @@ class Problem:
                               self.output(stage, self.components(stage, response)))
 
     def noise_sd(self, stage: str) -> float:
-        """The stage's measured noise: rms of the reference record's residual
-        after its Volterra fit (orders :data:`STAGE_ORDERS`), per sample, in
-        the response's unit, ``||y - sum_n y_n|| / sqrt(n - n_coefficients)``
-        (several sensors: of the noise-weighted sensors, so about 1).  It holds
-        the sensor noise, the input noise passed through the system and
-        whatever the fitted orders cannot represent."""
+        """The measurement noise of the stage's compared output, per sample: the
+        sensor's (:meth:`sensor_noise`, its unit) for one sensor; 1 for several
+        (their components are divided by their own noise)."""
         self._check_stage(stage)
-        y = self.tests[stage].response
-        if y.ndim == 1:
-            return self._residual_rms(y, self.reference_components(stage), stage)
-        y = np.concatenate([y[:, j] / w for j, w in enumerate(self.sensor_noise(stage))])
-        return self._residual_rms(y, self.reference_components(stage), stage, n_sensors=len(self.sensor_noise(stage)))
+        noise = self.sensor_noise(stage)
+        return float(noise[0]) if len(noise) == 1 else 1.0
 
     def prediction_errors(self, params, model=None) -> dict:
         """Direct output error of the model on every validation test:

@@ -55,25 +55,19 @@ def _detrended(x) -> np.ndarray:
     return x - np.polyval(np.polyfit(t, x, 1), t)
 
 
-def find_modes(force, response, fs: float) -> list:
-    """``[(freq_hz, damping_ratio), ...]`` of the modes a record shows.
-
-    For now one mode: today's single-pole finder, the pole of
-    ``volterra.KautzBasis.from_data(..., refine=True)`` (H1 peak and
-    half-power width in the excited band, refined by a J1 = 2 linear fit); if
-    the refinement refuses (a structure with several modes, which a single
-    Kautz pole does not fit), the unrefined :func:`volterra.pole_from_frf`
-    (its damping biased high by the Welch window on short records).  Offsets
-    and linear drifts are removed first.  Raises
+def find_modes(force, response, fs: float, period_samples=None) -> list:
+    """``[(freq_hz, damping_ratio), ...]`` of every mode a record shows in its
+    excited, coherent band, sorted by frequency: :func:`volterra.estimate_modes`
+    (an LSCF fit of H1 on a stabilisation diagram, the sensors sharing the poles,
+    refined on the record's linear fit; period-synchronous H1 with
+    ``period_samples``).  Offsets and linear drifts are removed first.  Raises
     :class:`volterra.PoleEstimationError` (a ValueError) when no mode is found.
     """
-    u, y = _detrended(force), _detrended(response)
+    u, y = _detrended(force), np.asarray(response, float)
+    y = _detrended(y) if y.ndim == 1 else np.column_stack([_detrended(c) for c in y.T])
     band = excited_band(u, fs)
-    try:
-        pole = volterra.KautzBasis.from_data(u, y, fs, n_functions=(2,), f_range=band, refine=True).pole(1)
-    except volterra.PoleEstimationError:
-        pole = volterra.pole_from_frf(u, y, fs, f_range=band)
-    return [(float(pole.freq_hz), float(pole.damping_ratio))]
+    est = volterra.estimate_modes(u, y, fs, f_range=band, period_samples=period_samples)
+    return sorted((float(p.freq_hz), float(p.damping_ratio)) for p in est.poles)
 
 
 def is_transient(record, fs: float) -> bool:
@@ -175,14 +169,13 @@ def _test_entry(record, fs, noise, warnings) -> dict:
 
 def _level_dependence(dataset, modes, fs, warnings) -> list:
     out = [{"freq_hz": {}, "damping_ratio": {}} for _ in modes]
-    first = dataset.sensors[0][0]
     for t in dataset.tests:
         lo, hi = excited_band(t.force, fs)
         inside = [i for i, (f, _) in enumerate(modes) if lo <= f <= hi]
         if not inside:
             continue
         try:
-            found = find_modes(t.force, t.channel(first), fs)
+            found = find_modes(t.force, t.response, fs, t.period_samples)
         except ValueError as exc:
             warnings.append(f"test {t.file}: no mode found ({exc})")
             continue
@@ -228,7 +221,7 @@ def inspect_dataset(dataset, noise: dict | None = None) -> dict:
         ref = linear[0]
         modes_from = ref.file
         try:
-            modes = find_modes(ref.force, ref.channel(dataset.sensors[0][0]), fs)
+            modes = find_modes(ref.force, ref.response, fs, ref.period_samples)
         except ValueError as exc:
             warnings.append(f"test {ref.file}: no mode found ({exc})")
         dependence = _level_dependence(dataset, modes, fs, warnings)

@@ -25,6 +25,8 @@ def format_calibration(cal: Calibration) -> str:
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
     if not cal.prediction_errors:
         lines.append("no validation test (role 'validation'): no prediction error to report")
+    for w in cal.fit_warnings:
+        lines.append(f"WARNING: {w}")
     for stage, dirs in cal.unidentified.items():
         for d in dirs:
             lines.append(f"UNIDENTIFIED after the {stage} stage: " + ", ".join(

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from bayes_update.core.effects import evidence_table
-from bayes_update.core.problem import excited_band
+from bayes_update.core.basis import excited_band
 
 __all__ = ["format_result", "gap_figure", "write_discrepancy"]
 

@@ -77,7 +77,7 @@ def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = Non
         return None
     from pathlib import Path
 
-    from bayes_update.core.problem import describe_basis
+    from bayes_update.core.basis import describe_basis
     config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
               "basis": describe_basis(ev.problem.basis), "metric_set": ev.problem.metrics,
               "data": ev.problem.data_fingerprint,

@@ -38,7 +38,11 @@ def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.
         if len(out) >= n_walkers:
             return np.array(out[:n_walkers])
         scale *= 0.7
-    raise RuntimeError("could not place the MCMC walkers where the posterior is finite")
+    from bayes_update.core.checks import ModelFitError
+
+    raise ModelFitError("could not place the MCMC walkers where the posterior is finite: around the mode the "
+                        "prior or the model (failed runs) rule out every point; check the prior's bounds and "
+                        "where the model raises ModelError, or widen the prior")
 
 
 def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None,

@@ -10,6 +10,7 @@ import numpy as np
 from bayes_update.core.logs import info
 from bayes_update.core.likelihood import Likelihood, curvature_adjustment, estimate_likelihood, likelihood_runs
 from bayes_update.core.calibrate import find_start, problem_for
+from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates
@@ -62,7 +63,11 @@ class PosteriorResult:
                 **{name: {k: v for k, v in extra.items() if not k.startswith("_")}
                    for name, extra in self.extras.items()},
                 "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
-                "sensitivity": self.sensitivity}
+                "sensitivity": self.sensitivity,
+                "fit_warnings": self.diagnostics.get("fit_warnings", []),
+                "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
+                "representation_floor": {self.problem.tests[st].name: self.problem.representation_floor(st)
+                                         for st in self.problem.stages}}
 
     def summary_table(self) -> str:
         """Markdown table of the posterior: mean, sd, 94 % HDI, R-hat and bulk ESS of
@@ -152,6 +157,7 @@ class _Run:
     steps: StepLog
     seeds: list
     reused: dict = field(default_factory=dict)     # model runs found in the cache, per design
+    warnings: list = field(default_factory=list)   # fit warnings at the start (bayes_update.core.checks)
 
 
 @dataclass
@@ -181,6 +187,19 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
         info = {n: float(start[n]) for n in space.names}
         if not space.contains(start):
             start = space.to_parameters(np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1]))
+        # does the model fit at all? a model of the wrong form is told here, not after the design
+        errors = output_errors(run.problem, start)
+        run.steps.add_runs(len(errors))
+    run.warnings = fit_warnings(run.problem, start, errors)
+    for w in run.warnings:
+        run.log(f"WARNING: {w}")
+    severe = severe_misfit(errors, run.problem)
+    if severe:
+        raise ModelFitError(
+            "the model cannot fit the data: at its best start point it misses " + "; ".join(
+                f"test {k} by {100 * e:.0f} % of its rms (noise allows {100 * f:.1f} %)" for k, (e, f) in severe.items())
+            + ". A posterior of this model would describe nothing real: check the model's form and units and "
+              "the data set's roles, or run `bayes-update discrepancy` with the effects the model may miss")
     return start, info
 
 
@@ -291,6 +310,7 @@ def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> 
     diag.update(chain.diagnostics)
     diag["thin"] = chain.thin
     diag["curvature_adjustment"] = adj.to_dict() if adj is not None else None
+    diag["fit_warnings"] = list(run.warnings)
     draws = chain.sampler.get_chain(discard=chain.burn, thin=chain.thin)
     lp = chain.sampler.get_log_prob(discard=chain.burn, thin=chain.thin)
     problem = run.problem

@@ -30,7 +30,8 @@ from scipy import signal as ss
 import volterra
 
 from bayes_update.data.dataset import Dataset
-from bayes_update.core.problem import basis_from_reference, relative_error
+from bayes_update.core.basis import basis_from_reference
+from bayes_update.core.problem import relative_error
 
 HARMONICS = (1, 2, 3)
 
@@ -94,7 +95,7 @@ def diagnose(dataset: Dataset, beam, theta: dict, basis: volterra.KautzBasis | N
     if basis is None:
         if not lin:
             raise ValueError("no test has role 'linear': pass the Kautz basis explicitly")
-        basis = basis_from_reference(lin[0].force, lin[0].velocity, fs)
+        basis = basis_from_reference(lin[0].force, lin[0].velocity, fs, feedthrough=())
     f1 = basis.pole(1).freq_hz
     out = {"by_test": {}, "by_order": {}, "by_frequency": {}, "by_amplitude": {}, "f1_hz": f1,
            "_velocity": {}}

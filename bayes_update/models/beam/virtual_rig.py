@@ -445,7 +445,7 @@ def nonlinear_shares(force, velocity, f1_hz: float, zeta1: float, fs: float,
     """
     import volterra
 
-    basis = volterra.KautzBasis.from_modal(f1_hz, zeta1, fs, n_functions=tuple(n_functions))
+    basis = volterra.KautzBasis.from_modal(f1_hz, zeta1, fs, n_functions=tuple(n_functions), feedthrough=False)
     model = volterra.fit_volterra(np.asarray(force, float), np.asarray(velocity, float), basis)
     y1, y2, y3 = model.components(np.asarray(force, float))
     y = np.asarray(velocity, float)

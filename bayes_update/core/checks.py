@@ -1,0 +1,132 @@
+"""After a fit: does the model fit the data at all, and do the tests agree?
+
+* :func:`fit_warnings`: each test's direct output error at the fitted
+  parameters against what its measurement noise allows, and the share of
+  each estimation test that its own Volterra projection cannot represent
+  (the representation floor).  A model of the wrong form (a Duffing fitted to
+  a hysteretic response) misses by far more than the noise; the warning names
+  the tests and points to ``discrepancy``.
+* :func:`test_disagreement`: where each estimation test alone would move the
+  shared parameters from the joint fit (one Gauss-Newton step on its own
+  residual rows), and by how many combined sd the two tests disagree.  An
+  amplitude-dependent effect the model lacks (damping that grows with
+  amplitude) pulls the low- and high-level tests apart; the joint fit then
+  sits between them and neither test's noise explains the gap.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["FIT_FACTOR", "DISAGREEMENT_SD", "ModelFitError", "fit_warnings", "output_errors", "test_disagreement"]
+
+#: a test is missed when its output error exceeds this many times its noise floor ...
+FIT_FACTOR = 3.0
+#: ... and the floor by this much (relative to the test's rms): a model error of a few
+#: percent (a discretisation, a reduced model) is not a wrong model
+FIT_MARGIN = 0.05
+#: a test's own Volterra projection that leaves more than this share of its rms
+#: unexplained beyond the noise is reported (its metric sees only the rest)
+FLOOR_WARNING = 0.10
+#: two tests disagree on a parameter when their preferred values differ by more
+#: than this many combined sd
+DISAGREEMENT_SD = 3.0
+#: a model that misses an estimation test by more than this share of its rms cannot be
+#: sampled meaningfully: ``sample`` stops after its start and says so
+SEVERE_MISFIT = 0.5
+
+
+class ModelFitError(ValueError):
+    """The model cannot fit the data at all (its best point misses a test by far
+    more than the noise); the message says what was found and what to try."""
+
+
+def output_errors(problem, theta) -> dict:
+    """{test name: (output error, noise floor)} at ``theta`` for the estimation
+    and validation tests: ||y - y_model|| / ||y|| (rms over sensors) and what the
+    measurement noise alone gives [-]; NaN where the model cannot run."""
+    from bayes_update.core.problem import relative_error
+
+    out = {}
+    tests = list(problem.tests.values()) + list(problem.validation.values())
+    for t in tests:
+        y = t.response if t.response.ndim == 2 else t.response[:, None]
+        floor = float(np.sqrt(np.mean(np.square(problem.test_noise(t.name) / np.sqrt(np.mean(y ** 2, axis=0))))))
+        try:
+            m = problem.run(theta, t.force)
+        except problem.failures:
+            out[t.name] = (math.nan, floor)
+            continue
+        m = m if m.ndim == 2 else m[:, None]
+        err = float(np.sqrt(np.mean([relative_error(y[:, j], m[:, j]) ** 2 for j in range(y.shape[1])])))
+        out[t.name] = (err, floor)
+    return out
+
+
+def fit_warnings(problem, theta, errors: dict | None = None) -> list:
+    """Plain sentences: each test the model at ``theta`` misses by far more than
+    its noise allows (module docstring), and each estimation test whose own
+    Volterra projection leaves more than :data:`FLOOR_WARNING` of its rms
+    unexplained beyond the noise.  ``errors``: :func:`output_errors`, if already
+    computed."""
+    errors = output_errors(problem, theta) if errors is None else errors
+    out = []
+    missed = {k: v for k, v in errors.items()
+              if not (v[0] <= max(FIT_FACTOR * v[1], v[1] + FIT_MARGIN))}
+    if missed:
+        out.append("the model misses " + "; ".join(
+            f"test {k} by {100 * e:.1f} % of its rms (its noise allows {100 * f:.1f} %)" for k, (e, f) in missed.items())
+            + ": the model's form may be wrong or an effect missing; run `bayes-update discrepancy` (with the "
+              "model's candidate_effects()) or try another model")
+    for stage, t in problem.tests.items():
+        floor = problem.representation_floor(stage)
+        if floor > FLOOR_WARNING:
+            out.append(f"the Volterra projection (orders 1-3) of test {t.name} leaves {100 * floor:.0f} % of its "
+                       "rms unexplained beyond the noise: its metric sees only the rest (a nonlinearity of "
+                       "higher order or a level beyond the series' reach; try a lower level or more functions)")
+    return out
+
+
+def severe_misfit(errors: dict, problem) -> dict:
+    """The estimation tests missed by more than :data:`SEVERE_MISFIT` of their rms."""
+    names = {t.name for t in problem.tests.values()}
+    return {k: v for k, v in errors.items() if k in names and not v[0] <= SEVERE_MISFIT}
+
+
+def test_disagreement(jacobian, residual, blocks: dict, names, widths) -> list:
+    """Where two tests pull the shared parameters apart.
+
+    jacobian, residual : of the joint fit at its optimum, rows in noise units
+        (each test's rows divided by its noise).
+    blocks : {test name: row slice} of each test's rows.
+    names : parameter (coordinate) names; widths : their prior widths.
+
+    For each test alone: one Gauss-Newton step from the joint optimum on its
+    own rows, x_t = x - J_t^+ r_t, with covariance (J_t^T J_t)^+.  For each pair
+    of tests and each parameter both identify (sd below half its prior width),
+    z = (x_a - x_b) / sqrt(var_a + var_b).  Returns the parameters with
+    |z| > :data:`DISAGREEMENT_SD`: [{"parameter", "tests", "sd", "values"}].
+    """
+    J, r = np.asarray(jacobian, float), np.asarray(residual, float)
+    widths = np.asarray(widths, float)
+    pref = {}
+    for test, rows in blocks.items():
+        Jt, rt = J[rows], r[rows]
+        H = Jt.T @ Jt
+        cov = np.linalg.pinv(H, rcond=1e-10)
+        step = -cov @ (Jt.T @ rt)
+        pref[test] = (step, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
+    out = []
+    tests = list(pref)
+    for i, a in enumerate(tests):
+        for b in tests[i + 1:]:
+            (xa, sa), (xb, sb) = pref[a], pref[b]
+            for k, name in enumerate(names):
+                if not (0 < sa[k] < 0.5 * widths[k] and 0 < sb[k] < 0.5 * widths[k]):
+                    continue
+                z = (xa[k] - xb[k]) / math.hypot(sa[k], sb[k])
+                if abs(z) > DISAGREEMENT_SD:
+                    out.append({"parameter": name, "tests": [a, b], "sd": float(abs(z)),
+                                "shift_from_joint": {a: float(xa[k]), b: float(xb[k])}})
+    return out
