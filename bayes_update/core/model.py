@@ -46,7 +46,8 @@ import numpy as np
 
 from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "check_model", "check_model_on", "load_model"]
+__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelRunError", "ModelSpecError", "check_model", "check_model_on",
+           "describe_theta", "load_model", "model_label", "run_error"]
 
 
 @runtime_checkable
@@ -67,6 +68,65 @@ class ModelError(RuntimeError):
 class ModelSpecError(ValueError):
     """A ``--model`` spec or a model object that the framework cannot use; the
     message says what to fix."""
+
+
+class ModelRunError(ModelSpecError):
+    """A model run that breaks the contract after the check run: ``simulate``
+    raised an exception other than :class:`ModelError` (a bug), or returned
+    non-finite values or the wrong shape.  It stops the run; the message names
+    the model, the theta (each parameter with its unit) and what to do.  It
+    carries the message alone, so that it pickles from a worker process."""
+
+
+#: what to do where a model cannot run (the end of every :class:`ModelRunError`)
+RUN_REMEDY = ("where the model cannot run, raise bayes_update.ModelError (that point then gets no "
+              "likelihood and the run goes on); never return NaN")
+
+
+def model_label(model) -> str:
+    """The class name of ``model`` (of the model inside the framework's wrappers)."""
+    from bayes_update.core.effects import WithNulls
+
+    while isinstance(model, WithNulls):
+        model = model.model
+    return type(model).__name__
+
+
+def _units_of(model) -> dict:
+    units = {}
+    try:
+        for p in getattr(model, "parameters", ()) or ():
+            units[p.name] = getattr(p, "unit", "")
+        effects = getattr(model, "candidate_effects", None)
+        for ps in (effects() if callable(effects) else {}).values():
+            for p in ps:
+                units.setdefault(p.name, getattr(p, "unit", ""))
+    except Exception:      # only for a message: a model that cannot say gets its values without units
+        pass
+    return units
+
+
+def describe_theta(model, theta) -> str:
+    """``fn = 33.4 Hz, zeta = 0.0271``: each parameter of ``theta`` with its unit
+    (declared in the model's ``parameters`` or ``candidate_effects()``)."""
+    if not isinstance(theta, Mapping):
+        return repr(theta)
+    units = _units_of(model)
+    parts = []
+    for name, value in theta.items():
+        try:
+            text = f"{float(value):.6g}"
+        except (TypeError, ValueError):
+            text = repr(value)
+        unit = units.get(name, "")
+        parts.append(f"{name} = {text} {unit}" if unit else f"{name} = {text}")
+    return "{" + ", ".join(parts) + "}"
+
+
+def run_error(model, theta, what: str, remedy: str = RUN_REMEDY) -> ModelRunError:
+    """A :class:`ModelRunError` saying ``<Model>.simulate <what> at theta = {...}: <remedy>``, in one line."""
+    text = f"{model_label(model)}.simulate {what} at theta = {describe_theta(model, theta)}: {remedy}"
+    return ModelRunError(" ".join(text.split()))
 
 
 # built-in names of --model: "module:NAME" specs, filled in as models ship

@@ -37,7 +37,7 @@ import numpy as np
 
 import volterra
 
-from bayes_update.core.model import ModelError
+from bayes_update.core.model import ModelError, run_error
 from bayes_update.data.dataset import DatasetError
 
 __all__ = ["DEFAULT_N_FUNCTIONS", "DatasetError", "METRIC_SETS", "Problem", "STAGES", "STAGE_ORDERS",
@@ -323,7 +323,34 @@ class Problem:
         sampled at the data's rate: ``model.simulate(theta, force, fs)``, (n,)
         for one sensor, (n, n_sensors) for several."""
         model = self.model if model is None else model
-        y = np.asarray(model.simulate(params, force, self.fs), float)
+        try:
+            y = model.simulate(params, force, self.fs)
+        except self.failures:
+            raise                     # this point cannot run: the caller gives it NaN metrics
+        except Exception as exc:      # a bug of the model, not a region of its parameters
+            raise run_error(model, params, f"raised {type(exc).__name__}: {exc}",
+                            "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
+                            "(that point then gets no likelihood and the run goes on)") from exc
+        return self._checked(model, params, y, len(force))
+
+    def _checked(self, model, params, y, n: int) -> np.ndarray:
+        """A model's response as (n,) or (n, n_sensors), or a :class:`~bayes_update.core.model.ModelRunError`
+        naming the model, the theta and the remedy."""
+        try:
+            y = np.asarray(y, float)
+        except (TypeError, ValueError) as exc:
+            raise run_error(model, params, f"returned a {type(y).__name__} that is not an array of numbers ({exc})",
+                            "return a numpy array of the response, one value per input sample") from None
+        k = len(self.sensors)
+        shapes = [(n, k)] if k > 1 else [(n,), (n, 1)]
+        if y.shape not in shapes:
+            raise run_error(model, params, f"returned shape {y.shape} for a force of {n} samples and {k} "
+                            f"sensor(s)", f"it must return {' or '.join(map(str, shapes))} at every theta: one "
+                            "value per input sample" + (", one column per sensor" if k > 1 else "")
+                            + "; where the model cannot run, raise bayes_update.ModelError")
+        bad = int(np.count_nonzero(~np.isfinite(y)))
+        if bad:
+            raise run_error(model, params, f"returned {bad} NaN/inf value(s) of {y.size}")
         return y[:, 0] if y.ndim == 2 and y.shape[1] == 1 else y
 
     def simulate(self, params, stage: str) -> np.ndarray:
