@@ -240,6 +240,14 @@ class Problem:
 
     def _test(self, record) -> _Test:
         force, response = np.array(record.force, float), np.array(record.response, float)
+        span, top = float(np.ptp(force)), float(np.max(np.abs(force)))
+        if not span > 1e-12 * top:
+            # quiet sections are fine; a force without energy over the whole record has nothing to compare
+            what = "zero" if top == 0 else f"constant ({force[0]:.6g} N)"
+            raise DatasetError(f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
+                               f"its force is {what} over the whole record, so it excites nothing the model "
+                               "could be compared with; check the force column (channel, scaling) or remove "
+                               "the test from dataset.json")
         if self.remove_offsets:
             force -= force.mean()
             response -= response.mean(axis=0)
