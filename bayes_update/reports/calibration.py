@@ -3,23 +3,29 @@ calibration.json, report.txt and a figure of the fit on every test."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from bayes_update.core.calibrate import Calibration
+from bayes_update.core.numbers import format_sd, format_value
 
 __all__ = ["fit_figure", "format_calibration", "write_calibration"]
 
 
 def format_calibration(cal: Calibration) -> str:
-    """A plain-text table of the calibrated values, the metrics and the prediction errors."""
+    """A plain-text table of the calibrated values (with the digits their Gauss-Newton
+    sd resolves, :mod:`bayes_update.core.numbers`), the metrics and the prediction errors."""
     lines = [f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, "
              f"{cal.n_model_runs} model runs",
              f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
-             f"{'parameter':>12} {'stage 1':>14} {'final':>14}  unit"]
+             f"{'parameter':>12} {'stage 1':>14} {'final':>14} {'GN sd':>10}  unit"]
     for name, value in cal.theta.items():
-        lines.append(f"{name:>12} {cal.stage1[name]:>14.6g} {value:>14.6g}  {cal.units[name]}")
+        # the digits the final value's (Gauss-Newton) sd resolves, in both columns
+        sd = (cal.sd or {}).get(name, math.nan)
+        lines.append(f"{name:>12} {format_value(cal.stage1[name], sd):>14} {format_value(value, sd):>14} "
+                     f"{format_sd(sd):>10}  {cal.units[name]}")
     lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
     for test, err in cal.prediction_errors.items():
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
