@@ -68,7 +68,7 @@ class StageScale:
     model_error: float         # e_model: model against its refined version at the estimate
     n_regressors: int
     n_replicates: int
-    noise_levels: dict = field(default_factory=dict)   # sigma of force [N] and velocity [m/s]
+    noise_levels: dict = field(default_factory=dict)   # sigma of force [N] and of each sensor (Problem.sensor_keys)
     span_variance: float | None = None   # noise variance per direction in the span of the parameters' sensitivities
     span_rank: int | None = None
     model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up
@@ -258,7 +258,8 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         residuals[stage] = D
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),
-                                   noise_levels={"force_N": sig_f, "velocity_m_s": sig_y.tolist(),
+                                   noise_levels={"force_N": sig_f, **dict(zip(problem.sensor_keys,
+                                                                              np.atleast_1d(sig_y).tolist())),
                                                  "band_hz": list(band)},
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,

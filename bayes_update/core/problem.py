@@ -379,6 +379,16 @@ class Problem:
 
         return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
 
+    @property
+    def sensor_keys(self) -> tuple:
+        """A JSON key per sensor naming it and its unit, ``<name>_<unit>`` with the
+        unit's ``/`` as ``_`` and no ``^``: ``velocity_m_s``, ``displacement_m``,
+        ``tip_acc_m_s2``."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        return tuple(f"{name}_{RESPONSE_UNITS[kind].replace('/', '_').replace('^', '')}"
+                     for name, kind in self.sensors)
+
     def n_regressors(self, stage: str) -> int:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
         return n_compared_regressors(self.projector(stage).basis, stage, self.metrics)
