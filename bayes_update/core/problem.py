@@ -412,15 +412,25 @@ class Problem:
         y = np.concatenate([y[:, j] / w for j, w in enumerate(self.sensor_noise(stage))])
         return self._residual_rms(y, self.reference_components(stage), stage, n_sensors=len(self.sensor_noise(stage)))
 
+    def compared_response(self, y) -> np.ndarray:
+        """A model response as it is compared with a record's: without its mean (each
+        sensor's) when the records' means are removed as sensor offsets
+        (``remove_offsets``).  The record's mean is gone, so the model's must go too:
+        a displacement's physical mean (a quadratic spring's static shift) would
+        otherwise count as error of a model that is exact."""
+        y = np.asarray(y, float)
+        return y - y.mean(axis=0) if self.remove_offsets else y
+
     def prediction_errors(self, params, model=None) -> dict:
         """Direct output error of the model on every validation test:
-        ``{test name: ||y - y_model|| / ||y||}`` (record means removed; several
-        sensors: the rms over the sensors of each one's relative error, so that
-        no sensor's unit outweighs another's); NaN where the model cannot run."""
+        ``{test name: ||y - y_model|| / ||y||}`` (the record's means removed, and the
+        model output's, :meth:`compared_response`; several sensors: the rms over the
+        sensors of each one's relative error, so that no sensor's unit outweighs
+        another's); NaN where the model cannot run."""
         out = {}
         for name, t in self.validation.items():
             try:
-                y = self.run(params, t.force, model=model)
+                y = self.compared_response(self.run(params, t.force, model=model))
             except self.failures:
                 out[name] = math.nan
                 continue

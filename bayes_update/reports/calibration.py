@@ -55,7 +55,7 @@ def fit_figure(cal: Calibration, sensors=None):
     tests = [(st, t) for st, t in problem.tests.items()] + [("validation", t) for t in problem.validation.values()]
     rows = []
     for role, t in tests:
-        y_mod = problem.run(cal.theta, t.force)
+        y_mod = problem.compared_response(problem.run(cal.theta, t.force))   # as the records: offsets removed
         measured = t.response if t.response.ndim == 2 else t.response[:, None]
         model = y_mod if y_mod.ndim == 2 else y_mod[:, None]
         for j in range(measured.shape[1]):

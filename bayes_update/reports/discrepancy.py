@@ -93,7 +93,7 @@ def gap_figure(res):
         measured = t.response if t.response.ndim == 2 else t.response[:, None]
         runs = {}
         for label, theta in fits.items():
-            y = problem.run(theta, t.force)
+            y = problem.compared_response(problem.run(theta, t.force))      # as prediction_errors compares it
             runs[label] = y if y.ndim == 2 else y[:, None]
         for j in range(measured.shape[1]):
             name, kind = sensors[j]
