@@ -41,8 +41,9 @@ def sampled(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(plots, "posterior_figures", spy)
-        rc = main(["sample", "--quick", "--direct", "--workers", "1", "--config", str(tmp / "fast.toml"),
-                   "--model", "new_user_kit:Spring", "--data", str(tmp / "data"), "--out", str(tmp / "out")])
+        rc = main(["sample", "--quick", "--direct", "--workers", "1", "--walkers", "8",
+                   "--config", str(tmp / "fast.toml"), "--model", "new_user_kit:Spring",
+                   "--data", str(tmp / "data"), "--out", str(tmp / "out")])
     assert rc == 0
     return tmp / "out", seen
 
@@ -139,3 +140,19 @@ def test_calibration_fit_labels_both_axes_and_limits_the_spectra(calibrated, tmp
         assert high >= measured.max()
     write_calibration(calibrated, tmp_path)
     assert (tmp_path / "calibration_fit.png").stat().st_size > 20_000
+
+
+def test_predictive_draws_a_row_per_sensor_of_a_several_sensor_data_set():
+    from bayes_update.reports.posterior_plots import predictive_bands
+
+    n = 300
+    t = np.arange(2 * n) / 100.0
+    ref = np.sin(7 * t)
+    band = {"reference": ref, "low": ref - 0.1, "high": ref + 0.1, "median": ref + 0.01}
+    fig = predictive_bands({"linear": band, "nonlinear": band}, 100.0, {"linear": "a", "nonlinear": "b"},
+                           sensors=[("tip", "acceleration"), ("mid", "displacement")], unit="noise sd",
+                           metrics="paper")
+    left = [ax for ax in fig.axes if "model - data" not in ax.get_title()]
+    assert [ax.get_ylabel() for ax in left] == ["tip (acceleration) [noise sd]", "mid (displacement) [noise sd]"] * 2
+    assert [ax.get_title() for ax in left] == ["y1, a, tip", "y1, a, mid", "y2 + y3, b, tip", "y2 + y3, b, mid"]
+    assert all(len(ax.get_lines()[0].get_xdata()) == n for ax in left)
