@@ -127,6 +127,8 @@ def test_a_model_file_whose_name_is_taken_loads_under_another_and_keeps_numba_ca
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba_cache")
     env["PYTHONPATH"] = repo
+    env["TMPDIR"] = str(tmp_path / "tmp")       # where the synthetic name's own cache goes
+    (tmp_path / "tmp").mkdir()
     code = textwrap.dedent('''
         import json, sys
         import numpy as np
@@ -140,3 +142,5 @@ def test_a_model_file_whose_name_is_taken_loads_under_another_and_keeps_numba_ca
     # nothing of the synthetic module went to the user's cache folder
     cached = [p.name for p in (tmp_path / "numba_cache").rglob("*.nbi")] if (tmp_path / "numba_cache").exists() else []
     assert not [n for n in cached if n.startswith("json.")], cached
+    apart = [p.name for p in (tmp_path / "tmp" / "bayes_update_numba_cache").rglob("*.nbi")]
+    assert any(n.startswith("json._gain") for n in apart), apart
