@@ -17,7 +17,7 @@ The verbs::
 
 from bayes_update.core.calibrate import Calibration, calibrate_model as calibrate
 from bayes_update.core.discrepancy import DiscrepancyResult, DiscrepancySettings, find_discrepancy
-from bayes_update.core.model import Model, ModelError, ModelSpecError, check_model, load_model
+from bayes_update.core.model import Model, ModelError, ModelRunError, ModelSpecError, check_model, load_model
 from bayes_update.core.parameters import Parameter, ParameterSet
 from bayes_update.core.posterior import PosteriorResult, PosteriorSettings, sample
 from bayes_update.core.problem import Problem
@@ -28,7 +28,7 @@ from bayes_update.reports.discrepancy import write_discrepancy
 from bayes_update.reports.posterior import write_posterior
 
 __all__ = ["Calibration", "Dataset", "DatasetError", "DiscrepancyResult", "DiscrepancySettings", "Model",
-           "ModelError", "ModelSpecError", "Parameter", "ParameterSet", "PosteriorResult", "PosteriorSettings",
+           "ModelError", "ModelRunError", "ModelSpecError", "Parameter", "ParameterSet", "PosteriorResult", "PosteriorSettings",
            "Problem", "Record", "beam_model", "calibrate", "check_model", "find_discrepancy", "load_model",
            "read_dataset", "sample", "write_calibration", "write_dataset", "write_discrepancy", "write_posterior"]
 __version__ = "0.2.0"

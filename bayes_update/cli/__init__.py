@@ -15,7 +15,7 @@ from pathlib import Path
 from bayes_update.cli import beam as beam_cli
 from bayes_update.cli import commands
 from bayes_update.cli.options import configure_logging
-from bayes_update.core.model import ModelError
+from bayes_update.core.model import ModelError, ModelRunError, ModelSpecError
 from bayes_update.data.dataset import DatasetError
 
 __all__ = ["build_parser", "main"]
@@ -37,8 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-#: errors reported in one line (exit status 2) instead of a traceback
-_REPORTED_ERRORS = (ValueError, DatasetError, ModelError, OSError) + beam_cli.FAILURES
+#: errors reported in one line (exit status 2) instead of a traceback; a model run that breaks the
+#: contract (ModelRunError: an exception in simulate, NaN, a wrong shape) names the model, theta and remedy
+_REPORTED_ERRORS = (ValueError, DatasetError, ModelError, ModelSpecError, ModelRunError, OSError) + beam_cli.FAILURES
 
 
 def main(argv=None) -> int:

@@ -102,7 +102,10 @@ def _prior_ranges(items, names) -> dict:
 
 
 def _model_and_data(args, need_data: bool = False):
-    """(model, data set, space or None, truth or None) the options ask for."""
+    """(model, data set, space or None, truth or None) the options ask for: the
+    beam's truth in its (paper) units, else the data set's ``truth`` block as
+    written (:func:`bayes_update.reports.posterior.truth_in_model_units` keeps
+    what names the model's parameters in their units)."""
     if args.model in beam_cli.BEAM_MODELS:
         from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
@@ -177,7 +180,12 @@ def cmd_sample(args) -> int:
                              **{("direct_steps" if args.direct else "n_steps"): args.steps})
     res = sample(data, model, settings, workers=workers, direct=args.direct, space=space,
                  cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
-    if truth is not None:
+    if truth is not None and args.model not in beam_cli.BEAM_MODELS:
+        # the data set's own block: drawn only where it names the model's parameters in their units
+        from bayes_update.reports.posterior import truth_in_model_units
+
+        truth = truth_in_model_units(truth, res.space.report_units)
+    elif truth is not None:          # the beam's, already in the model's (paper) units
         truth = {k: float(v) for k, v in truth.items()
                  if k in res.space.report_units and isinstance(v, (int, float))} or None
     write_posterior(res, args.out, truth=truth)

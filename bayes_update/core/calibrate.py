@@ -110,6 +110,9 @@ class Calibration:
     n_model_runs: int
     units: dict
     problem: Problem = field(repr=False)
+    #: Gauss-Newton sd of each parameter at theta, in its unit, from the data's chi^2 at the end of
+    #: stage 2 (white noise of the measured level assumed: a scale for the report's digits, not a posterior)
+    sd: dict = field(default_factory=dict)
 
     def calibration_json(self) -> dict:
         """One key per parameter (its unit), e_lin, e_nlin, and how they were found."""
@@ -128,6 +131,7 @@ class Calibration:
                 "output_errors": self.output_errors,
                 "fit_warnings": self.fit_warnings,
                 "test_disagreement": self.disagreement,
+                "sd_gauss_newton": self.sd,
                 "n_functions": list(self.n_functions),
                 "n_model_runs": self.n_model_runs,
                 "setup": self.problem.describe()}
@@ -261,6 +265,7 @@ class TwoStage:
     unidentified: dict      # stage -> directions (:func:`unidentified_directions`)
     n_model_runs: int
     disagreement: list = field(default_factory=list)    # :func:`bayes_update.core.checks.test_disagreement`
+    covariance: np.ndarray | None = None    # Gauss-Newton covariance of x at the end of stage 2 (noise units)
 
 
 def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_best: int = 3,
@@ -301,7 +306,33 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     blocks = {problem.tests["linear"].name: slice(0, n_lin), problem.tests["nonlinear"].name: slice(n_lin, None)}
     disagree = test_disagreement(mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names,
                                  upper - lower)
-    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree)
+    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree,
+                    covariance=_gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
+
+
+def _gauss_newton_covariance(J, widths) -> np.ndarray:
+    """(J^T J)^-1 of a Jacobian in noise units, inverted in prior-range units (a
+    direction the data do not constrain comes out wide, not infinite)."""
+    Js = np.asarray(J, float) * widths
+    cov = np.linalg.pinv(Js.T @ Js, rcond=1e-12, hermitian=True)
+    return cov * np.outer(widths, widths)
+
+
+def parameter_sd(space, x, covariance) -> dict:
+    """{name: sd in the parameter's unit} of internal point ``x`` with covariance
+    ``covariance`` (the delta method through ``space.to_parameters``)."""
+    x = np.asarray(x, float)
+    names = list(space.names)
+    h = 1e-6 * np.maximum(np.abs(np.diff(space.box(), axis=1)[:, 0]), 1e-12)
+    G = np.empty((len(names), len(x)))
+    for j in range(len(x)):
+        up, down = x.copy(), x.copy()
+        up[j] += h[j]
+        down[j] -= h[j]
+        t_up, t_down = space.to_parameters(up), space.to_parameters(down)
+        G[:, j] = [(t_up[n] - t_down[n]) / (2 * h[j]) for n in names]
+    var = np.einsum("ij,jk,ik->i", G, covariance, G)
+    return {n: float(np.sqrt(max(v, 0.0))) for n, v in zip(names, var)}
 
 
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,
@@ -356,4 +387,5 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
                        fit_warnings=warnings, disagreement=found.disagreement,
                        output_errors={k: {"rel": e, "noise_floor": f} for k, (e, f) in errors.items()},
                        n_functions=n_functions, n_model_runs=runs,
-                       units={p.name: p.unit for p in space.parameters}, problem=problem)
+                       units={p.name: p.unit for p in space.parameters}, problem=problem,
+                       sd=parameter_sd(space, found.x, found.covariance) if found.covariance is not None else {})

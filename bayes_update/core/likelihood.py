@@ -67,7 +67,7 @@ class StageScale:
     model_error: float         # e_model: model against its refined version at the estimate
     n_regressors: int
     n_replicates: int
-    noise_levels: dict = field(default_factory=dict)   # sigma of force [N] and velocity [m/s]
+    noise_levels: dict = field(default_factory=dict)   # channel -> {sd, unit, method, detail} the bootstrap added
     span_variance: float | None = None   # noise variance per direction in the span of the parameters' sensitivities
     span_rank: int | None = None
     model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up

@@ -33,11 +33,16 @@ when absent):
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import importlib
 import importlib.util
 import inspect
+import keyword
+import os
 import pickle
 import sys
+import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Protocol, runtime_checkable
@@ -46,7 +51,8 @@ import numpy as np
 
 from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelSpecError", "check_model", "check_model_on", "load_model"]
+__all__ = ["BUILTIN_MODELS", "Model", "ModelError", "ModelRunError", "ModelSpecError", "check_model", "check_model_on",
+           "describe_theta", "load_model", "model_label", "run_error"]
 
 
 @runtime_checkable
@@ -67,6 +73,65 @@ class ModelError(RuntimeError):
 class ModelSpecError(ValueError):
     """A ``--model`` spec or a model object that the framework cannot use; the
     message says what to fix."""
+
+
+class ModelRunError(ModelSpecError):
+    """A model run that breaks the contract after the check run: ``simulate``
+    raised an exception other than :class:`ModelError` (a bug), or returned
+    non-finite values or the wrong shape.  It stops the run; the message names
+    the model, the theta (each parameter with its unit) and what to do.  It
+    carries the message alone, so that it pickles from a worker process."""
+
+
+#: what to do where a model cannot run (the end of every :class:`ModelRunError`)
+RUN_REMEDY = ("where the model cannot run, raise bayes_update.ModelError (that point then gets no "
+              "likelihood and the run goes on); never return NaN")
+
+
+def model_label(model) -> str:
+    """The class name of ``model`` (of the model inside the framework's wrappers)."""
+    from bayes_update.core.effects import WithNulls
+
+    while isinstance(model, WithNulls):
+        model = model.model
+    return type(model).__name__
+
+
+def _units_of(model) -> dict:
+    units = {}
+    try:
+        for p in getattr(model, "parameters", ()) or ():
+            units[p.name] = getattr(p, "unit", "")
+        effects = getattr(model, "candidate_effects", None)
+        for ps in (effects() if callable(effects) else {}).values():
+            for p in ps:
+                units.setdefault(p.name, getattr(p, "unit", ""))
+    except Exception:      # only for a message: a model that cannot say gets its values without units
+        pass
+    return units
+
+
+def describe_theta(model, theta) -> str:
+    """``fn = 33.4 Hz, zeta = 0.0271``: each parameter of ``theta`` with its unit
+    (declared in the model's ``parameters`` or ``candidate_effects()``)."""
+    if not isinstance(theta, Mapping):
+        return repr(theta)
+    units = _units_of(model)
+    parts = []
+    for name, value in theta.items():
+        try:
+            text = f"{float(value):.6g}"
+        except (TypeError, ValueError):
+            text = repr(value)
+        unit = units.get(name, "")
+        parts.append(f"{name} = {text} {unit}" if unit else f"{name} = {text}")
+    return "{" + ", ".join(parts) + "}"
+
+
+def run_error(model, theta, what: str, remedy: str = RUN_REMEDY) -> ModelRunError:
+    """A :class:`ModelRunError` saying ``<Model>.simulate <what> at theta = {...}: <remedy>``, in one line."""
+    text = f"{model_label(model)}.simulate {what} at theta = {describe_theta(model, theta)}: {remedy}"
+    return ModelRunError(" ".join(text.split()))
 
 
 # built-in names of --model: "module:NAME" specs, filled in as models ship
@@ -106,25 +171,91 @@ def _import(where: str, spec: str):
         path = Path(where).expanduser()
         if not path.is_file():
             raise ModelSpecError(f"--model {spec!r}: no such file {path}")
-        # a stable module name, so that worker processes can unpickle the model
-        mod_name = f"_bayes_update_user_model_{path.resolve().stem}"
-        if mod_name in sys.modules and getattr(sys.modules[mod_name], "__file__", None) == str(path.resolve()):
-            return sys.modules[mod_name]
-        mod_spec = importlib.util.spec_from_file_location(mod_name, path.resolve())
-        module = importlib.util.module_from_spec(mod_spec)
-        sys.modules[mod_name] = module
-        try:
-            mod_spec.loader.exec_module(module)
-        except Exception as exc:
-            del sys.modules[mod_name]
-            raise ModelSpecError(f"--model {spec!r}: importing {path} failed: "
-                                 f"{type(exc).__name__}: {exc}") from exc
-        return module
+        return _import_file(path.resolve(), spec)
     try:
         return importlib.import_module(where)
     except ImportError as exc:
         raise ModelSpecError(f"--model {spec!r}: cannot import module {where!r} ({exc}); "
                              "is it installed, or on PYTHONPATH?") from exc
+
+
+def _same_file(a, b) -> bool:
+    try:
+        return a is not None and b is not None and os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _import_file(path: Path, spec: str):
+    """The module of the file ``path``, loaded as ``python path`` would see it: its
+    folder on ``sys.path`` while it loads (so that it imports the modules beside
+    it), under its own name (its stem) when that name is free or already is this
+    file, so that worker processes (fork or spawn) import it by that name and
+    numba's cache (``cache=True``, keyed by the file) holds code that reloads
+    under a real, importable name.  The folder stays on ``sys.path`` afterwards,
+    at its end (a spawned worker inherits it; the framework's own imports are not
+    shadowed).  Only when the stem names another module (``json.py``) or is not an
+    identifier is the file loaded under a synthetic name, and then its numba
+    functions cache in a folder of their own (:func:`_numba_cache_apart`)."""
+    folder = str(path.parent)
+    stem = path.stem
+    name = stem if stem.isidentifier() and not keyword.iskeyword(stem) else None
+    if name is not None:
+        loaded = sys.modules.get(name)
+        if loaded is not None:
+            if _same_file(getattr(loaded, "__file__", None), path):
+                return loaded
+            name = None                             # another module of that name is imported
+        else:
+            try:
+                found = importlib.util.find_spec(name)
+            except (ImportError, ValueError):
+                found = None
+            if found is not None and not _same_file(found.origin, path):
+                name = None                         # the name would import another module
+    synthetic = name is None
+    if synthetic:
+        name = f"_bayes_update_user_model_{stem if stem.isidentifier() else 'file'}_" \
+               f"{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+        if name in sys.modules and _same_file(getattr(sys.modules[name], "__file__", None), path):
+            return sys.modules[name]
+    mod_spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(mod_spec)
+    sys.modules[name] = module
+    sys.path.insert(0, folder)                      # as `python file.py` has it, while it loads
+    ok = False
+    try:
+        with _numba_cache_apart(name) if synthetic else contextlib.nullcontext():
+            mod_spec.loader.exec_module(module)
+        ok = True
+    except Exception as exc:
+        del sys.modules[name]
+        raise ModelSpecError(f"--model {spec!r}: importing {path} failed: "
+                             f"{type(exc).__name__}: {exc}") from exc
+    finally:
+        sys.path.remove(folder)                     # the copy inserted above
+        if ok and folder not in sys.path:
+            sys.path.append(folder)
+    return module
+
+
+@contextlib.contextmanager
+def _numba_cache_apart(module_name: str):
+    """While a file loads under a synthetic module name: numba's cache (keyed by
+    the file, not the module name) goes to a folder of that name in the temporary
+    directory, so that the user's own cache folder never holds entries that
+    reload only under a name nothing can import."""
+    if "numba" not in sys.modules and importlib.util.find_spec("numba") is None:
+        yield
+        return
+    from numba.core import config
+
+    old = config.CACHE_DIR
+    config.CACHE_DIR = os.path.join(tempfile.gettempdir(), "bayes_update_numba_cache", module_name)
+    try:
+        yield
+    finally:
+        config.CACHE_DIR = old
 
 
 def check_model(model, force: np.ndarray, fs: float, n_sensors: int = 1, theta: Mapping | None = None

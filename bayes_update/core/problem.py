@@ -37,7 +37,7 @@ import numpy as np
 
 import volterra
 
-from bayes_update.core.model import ModelError
+from bayes_update.core.model import ModelError, run_error
 from bayes_update.core.basis import (DEFAULT_N_FUNCTIONS, FEEDTHROUGH, basis_from_reference, describe_basis,
                                      excited_band, linear_n_functions)
 from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
@@ -186,6 +186,14 @@ class Problem:
 
     def _test(self, record) -> _Test:
         force, response = np.array(record.force, float), np.array(record.response, float)
+        span, top = float(np.ptp(force)), float(np.max(np.abs(force)))
+        if not span > 1e-12 * top:
+            # quiet sections are fine; a force without energy over the whole record has nothing to compare
+            what = "zero" if top == 0 else f"constant ({force[0]:.6g} N)"
+            raise DatasetError(f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
+                               f"its force is {what} over the whole record, so it excites nothing the model "
+                               "could be compared with; check the force column (channel, scaling) or remove "
+                               "the test from dataset.json")
         if self.remove_offsets:
             force -= force.mean()
             response -= response.mean(axis=0)
@@ -281,7 +289,34 @@ class Problem:
         sampled at the data's rate: ``model.simulate(theta, force, fs)``, (n,)
         for one sensor, (n, n_sensors) for several."""
         model = self.model if model is None else model
-        y = np.asarray(model.simulate(params, force, self.fs), float)
+        try:
+            y = model.simulate(params, force, self.fs)
+        except self.failures:
+            raise                     # this point cannot run: the caller gives it NaN metrics
+        except Exception as exc:      # a bug of the model, not a region of its parameters
+            raise run_error(model, params, f"raised {type(exc).__name__}: {exc}",
+                            "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
+                            "(that point then gets no likelihood and the run goes on)") from exc
+        return self._checked(model, params, y, len(force))
+
+    def _checked(self, model, params, y, n: int) -> np.ndarray:
+        """A model's response as (n,) or (n, n_sensors), or a :class:`~bayes_update.core.model.ModelRunError`
+        naming the model, the theta and the remedy."""
+        try:
+            y = np.asarray(y, float)
+        except (TypeError, ValueError) as exc:
+            raise run_error(model, params, f"returned a {type(y).__name__} that is not an array of numbers ({exc})",
+                            "return a numpy array of the response, one value per input sample") from None
+        k = len(self.sensors)
+        shapes = [(n, k)] if k > 1 else [(n,), (n, 1)]
+        if y.shape not in shapes:
+            raise run_error(model, params, f"returned shape {y.shape} for a force of {n} samples and {k} "
+                            f"sensor(s)", f"it must return {' or '.join(map(str, shapes))} at every theta: one "
+                            "value per input sample" + (", one column per sensor" if k > 1 else "")
+                            + "; where the model cannot run, raise bayes_update.ModelError")
+        bad = int(np.count_nonzero(~np.isfinite(y)))
+        if bad:
+            raise run_error(model, params, f"returned {bad} NaN/inf value(s) of {y.size}")
         return y[:, 0] if y.ndim == 2 and y.shape[1] == 1 else y
 
     def simulate(self, params, stage: str) -> np.ndarray:
@@ -302,6 +337,16 @@ class Problem:
 
         return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
 
+    @property
+    def sensor_keys(self) -> tuple:
+        """A JSON key per sensor naming it and its unit, ``<name>_<unit>`` with the
+        unit's ``/`` as ``_`` and no ``^``: ``velocity_m_s``, ``displacement_m``,
+        ``tip_acc_m_s2``."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        return tuple(f"{name}_{RESPONSE_UNITS[kind].replace('/', '_').replace('^', '')}"
+                     for name, kind in self.sensors)
+
     def n_regressors(self, stage: str) -> int:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
         return n_compared_regressors(self.projector(stage).basis, stage, self.metrics)
@@ -319,15 +364,25 @@ class Problem:
         noise = self.sensor_noise(stage)
         return float(noise[0]) if len(noise) == 1 else 1.0
 
+    def compared_response(self, y) -> np.ndarray:
+        """A model response as it is compared with a record's: without its mean (each
+        sensor's) when the records' means are removed as sensor offsets
+        (``remove_offsets``).  The record's mean is gone, so the model's must go too:
+        a displacement's physical mean (a quadratic spring's static shift) would
+        otherwise count as error of a model that is exact."""
+        y = np.asarray(y, float)
+        return y - y.mean(axis=0) if self.remove_offsets else y
+
     def prediction_errors(self, params, model=None) -> dict:
         """Direct output error of the model on every validation test:
-        ``{test name: ||y - y_model|| / ||y||}`` (record means removed; several
-        sensors: the rms over the sensors of each one's relative error, so that
-        no sensor's unit outweighs another's); NaN where the model cannot run."""
+        ``{test name: ||y - y_model|| / ||y||}`` (the record's means removed, and the
+        model output's, :meth:`compared_response`; several sensors: the rms over the
+        sensors of each one's relative error, so that no sensor's unit outweighs
+        another's); NaN where the model cannot run."""
         out = {}
         for name, t in self.validation.items():
             try:
-                y = self.run(params, t.force, model=model)
+                y = self.compared_response(self.run(params, t.force, model=model))
             except self.failures:
                 out[name] = math.nan
                 continue

@@ -60,10 +60,23 @@ sensor, named by the sensor's name (other columns are ignored): by default
     of ``force`` and the sensors' names (for the default sensor:
     ``velocity``).  A declared value always wins over an estimate from the
     data; a channel not declared is estimated.
+``truth``
+    optional, the true parameters of a virtual data set, to mark the
+    figures (the updating never reads it): each value with its unit, either
+    ``{"k": 4.6, "fn": 23.7, "units": {"k": "kN/m", "fn": "Hz"}}`` or
+    ``{"k": {"value": 4.6, "unit": "kN/m"}, ...}``.  ``sample``'s
+    ``corner.png`` draws a value only where its unit is the model's declared
+    unit for that parameter, the same string (nothing converts units); a
+    value without a stated unit, or in another unit, is not drawn, and the
+    log says so (:func:`bayes_update.reports.posterior.truth_in_model_units`).
+    Kept in :attr:`Dataset.extra` and written back unchanged.
 any other key
-    kept in :attr:`Dataset.extra` and written back unchanged (e.g. the
-    ``truth`` block of a virtual data set, which the updating code never
-    reads).
+    kept in :attr:`Dataset.extra` and written back unchanged.
+
+A test whose force is zero, or constant, over its whole record is refused
+(:class:`DatasetError` naming the file and the test) when a problem is built
+on the data set (:class:`bayes_update.core.problem.Problem`); quiet sections
+within a record are fine.
 
 Examples: a user model's displacement response::
 

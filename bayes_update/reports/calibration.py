@@ -3,23 +3,29 @@ calibration.json, report.txt and a figure of the fit on every test."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
 
 from bayes_update.core.calibrate import Calibration
+from bayes_update.core.numbers import format_sd, format_value
 
 __all__ = ["fit_figure", "format_calibration", "write_calibration"]
 
 
 def format_calibration(cal: Calibration) -> str:
-    """A plain-text table of the calibrated values, the metrics and the prediction errors."""
+    """A plain-text table of the calibrated values (with the digits their Gauss-Newton
+    sd resolves, :mod:`bayes_update.core.numbers`), the metrics and the prediction errors."""
     lines = [f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, "
              f"{cal.n_model_runs} model runs",
              f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
-             f"{'parameter':>12} {'stage 1':>14} {'final':>14}  unit"]
+             f"{'parameter':>12} {'stage 1':>14} {'final':>14} {'GN sd':>10}  unit"]
     for name, value in cal.theta.items():
-        lines.append(f"{name:>12} {cal.stage1[name]:>14.6g} {value:>14.6g}  {cal.units[name]}")
+        # the digits the final value's (Gauss-Newton) sd resolves, in both columns
+        sd = (cal.sd or {}).get(name, math.nan)
+        lines.append(f"{name:>12} {format_value(cal.stage1[name], sd):>14} {format_value(value, sd):>14} "
+                     f"{format_sd(sd):>10}  {cal.units[name]}")
     lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
     for test, err in cal.prediction_errors.items():
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
@@ -36,31 +42,44 @@ def format_calibration(cal: Calibration) -> str:
 
 
 def fit_figure(cal: Calibration, sensors=None):
-    """Measured and calibrated responses of every test and sensor (time, and amplitude spectra).
-    ``sensors``: the data set's ``[(name, kind), ...]`` for the titles."""
+    """Measured and calibrated responses of every test and sensor: against time, and
+    their amplitude spectra with the difference (each axis labelled with its
+    quantity and unit; a spectrum's y range where the data are,
+    :func:`~bayes_update.reports.plots.spectrum_limits`).
+    ``sensors``: the data set's ``[(name, kind), ...]`` (default: the problem's)."""
     import matplotlib.pyplot as plt
 
+    from bayes_update.data.dataset import RESPONSE_UNITS
+    from bayes_update.reports.plots import amplitude_spectrum, response_label, spectrum_limits
+
     problem = cal.problem
+    sensors = list(sensors or problem.sensors)
     tests = [(st, t) for st, t in problem.tests.items()] + [("validation", t) for t in problem.validation.values()]
     rows = []
     for role, t in tests:
-        y_mod = problem.run(cal.theta, t.force)
+        y_mod = problem.compared_response(problem.run(cal.theta, t.force))   # as the records: offsets removed
         measured = t.response if t.response.ndim == 2 else t.response[:, None]
         model = y_mod if y_mod.ndim == 2 else y_mod[:, None]
         for j in range(measured.shape[1]):
-            name = f", {sensors[j][0]} ({sensors[j][1]})" if sensors and measured.shape[1] > 1 else ""
-            rows.append((f"{t.name} ({role}){name}", measured[:, j], model[:, j]))
-    fig, axes = plt.subplots(len(rows), 2, figsize=(11, 2.6 * len(rows)), squeeze=False)
-    for (title, y, y_mod), (ax_t, ax_f) in zip(rows, axes):
+            name, kind = sensors[j]
+            where = f", {name}" if measured.shape[1] > 1 or name != kind else ""
+            rows.append((f"{t.name} ({role}){where}", name, kind, measured[:, j], model[:, j]))
+    fig, axes = plt.subplots(len(rows), 2, figsize=(11, 2.8 * len(rows)), squeeze=False)
+    for (title, name, kind, y, y_mod), (ax_t, ax_f) in zip(rows, axes):
+        unit = RESPONSE_UNITS[kind]
         time = np.arange(y.size) / problem.fs
         ax_t.plot(time, y, lw=0.6, label="measured")
         ax_t.plot(time, y_mod, lw=0.6, alpha=0.8, label="calibrated model")
         ax_t.set_title(title, fontsize=9)
         ax_t.set_xlabel("time [s]")
-        f = np.fft.rfftfreq(y.size, 1.0 / problem.fs)
+        ax_t.set_ylabel(response_label(kind, name), fontsize=8)
+        spectra = {}
         for z, lab in ((y, "measured"), (y_mod, "model"), (y - y_mod, "difference")):
-            ax_f.semilogy(f, np.abs(np.fft.rfft(z)) + 1e-300, lw=0.6, label=lab)
+            f, spectra[lab] = amplitude_spectrum(z, problem.fs)
+            ax_f.semilogy(f, spectra[lab], lw=0.6, label=lab)
+        ax_f.set_ylim(*spectrum_limits(spectra["measured"], spectra["model"]))
         ax_f.set_xlabel("frequency [Hz]")
+        ax_f.set_ylabel(f"amplitude [{unit}]", fontsize=8)
         ax_f.set_xlim(0, problem.fs / 2)
     axes[0, 0].legend(fontsize=8)
     axes[0, 1].legend(fontsize=8)

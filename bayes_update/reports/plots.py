@@ -12,6 +12,36 @@ import numpy as np
 from matplotlib.figure import Figure
 
 
+#: a spectrum's axis reaches down to this fraction of the measured spectrum's 99th percentile
+SPECTRUM_DEPTH = 1e-4
+
+
+def amplitude_spectrum(y, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """(f [Hz], amplitude per frequency line, in y's unit): ``2 |FFT(y)| / n``,
+    a sine of amplitude A on a line shows as A."""
+    y = np.asarray(y, float)
+    return np.fft.rfftfreq(y.size, 1.0 / fs), 2.0 * np.abs(np.fft.rfft(y)) / y.size
+
+
+def spectrum_limits(measured, *others) -> tuple[float, float]:
+    """y range of a log spectrum axis where the data are: from :data:`SPECTRUM_DEPTH`
+    x the measured spectrum's 99th percentile to twice the highest line of any."""
+    measured = np.asarray(measured, float)
+    top = max(float(np.max(measured)), *(float(np.max(o)) for o in others)) if others else float(np.max(measured))
+    p99 = float(np.percentile(measured, 99))
+    bottom = SPECTRUM_DEPTH * p99 if p99 > 0 else (SPECTRUM_DEPTH * top if top > 0 else 1e-300)
+    return bottom, 2.0 * max(top, bottom)
+
+
+def response_label(kind: str, name: str | None = None) -> str:
+    """``displacement [m]`` (``tip (acceleration) [m/s^2]`` with a sensor name that is not its kind)."""
+    from bayes_update.data.dataset import RESPONSE_UNITS
+
+    unit = RESPONSE_UNITS.get(kind, "")
+    what = kind if not name or name == kind else f"{name} ({kind})"
+    return f"{what} [{unit}]" if unit else what
+
+
 def plot_test(test, simulated=None, title: str | None = None):
     """Force and velocity of one test; the simulated velocity overlaid if given."""
     fig = Figure(figsize=(8, 5), constrained_layout=True)

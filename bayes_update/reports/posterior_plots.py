@@ -1,6 +1,8 @@
 """Figures of the posterior (matplotlib ``Figure`` objects, no pyplot state).
 
-Paper units on every axis: eta [MPa s], c [N s/mm], F [N], k_s [N/mm], P_eff [N].
+Every axis in its unit: the model's parameters in their declared units (the
+beam's paper units: eta [MPa s], c [N s/mm], F [N], k_s [N/mm], P_eff [N]),
+the responses in the data set's sensor units.
 """
 from __future__ import annotations
 
@@ -13,26 +15,62 @@ def _label(space, name: str) -> str:
     return f"{name} [{unit}]" if unit else name
 
 
-def predictive_bands(bands: dict, fs: float, names: dict | None = None):
-    """Left: y1 (linear test) and y2 + y3 (nonlinear test) of the data with the
-    model's 5-95 % band over posterior draws.  Right: the band of model - data,
-    where the two would otherwise be indistinguishable."""
-    fig = Figure(figsize=(12, 6), constrained_layout=True)
-    axes = fig.subplots(len(bands), 2, squeeze=False)
-    for (ax, ax_r), (stage, b) in zip(axes, bands.items()):
+def _compared(stage: str, metrics: str | None) -> str:
+    """What a stage's metric compares: y1, y2 + y3 or y1 + y2 + y3."""
+    from bayes_update.core.problem import METRIC_SETS
+
+    orders = METRIC_SETS.get(metrics or "paper", METRIC_SETS["paper"])[stage]
+    return " + ".join(f"y{n}" for n in orders)
+
+
+def predictive_bands(bands: dict, fs: float, names: dict | None = None, sensors=None, unit: str | None = None,
+                     metrics: str | None = None):
+    """Left: the compared output of each test (y1 of the linear test; y2 + y3 or
+    y1 + y2 + y3 of the nonlinear one, per the metric set ``metrics``) of the
+    data, a thin dark line on top of the model's median and 5-95 % band over
+    posterior draws.  Right: the band of model - data, where the two would
+    otherwise be indistinguishable.
+
+    Parameters
+    ----------
+    sensors : the data set's ``[(name, kind), ...]`` (default: one velocity
+        sensor); several sensors get a row each.
+    unit : the outputs' unit (:attr:`~bayes_update.core.problem.Problem.output_unit`;
+        default: the single sensor kind's unit).
+    """
+    from bayes_update.data.dataset import RESPONSE_UNITS
+
+    sensors = list(sensors) if sensors else [("velocity", "velocity")]
+    if unit is None:
+        unit = RESPONSE_UNITS[sensors[0][1]] if len(sensors) == 1 else "noise sd"
+    rows = []
+    for stage, b in bands.items():
+        n = len(b["reference"]) // len(sensors)
+        for j, (sensor, kind) in enumerate(sensors):
+            cut = slice(j * n, (j + 1) * n)
+            rows.append((stage, sensor, kind, {k: np.asarray(v)[cut] for k, v in b.items()}))
+    fig = Figure(figsize=(12, 3 * len(rows)), constrained_layout=True)
+    axes = fig.subplots(len(rows), 2, squeeze=False)
+    for (ax, ax_r), (stage, sensor, kind, b) in zip(axes, rows):
         ref = b["reference"]
         t = np.arange(len(ref)) / fs
-        ax.plot(t, ref, color="k", lw=0.6, label="data (reference decomposition)")
-        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.6, lw=0, label="model, 5-95 % over draws")
-        ax_r.fill_between(t, b["low"] - ref, b["high"] - ref, color="C1", alpha=0.6, lw=0,
+        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.35, lw=0, zorder=1,
+                        label="model, 5-95 % over draws")
+        ax.plot(t, b["median"], color="C1", lw=2.2, alpha=0.8, zorder=2, label="model, median over draws")
+        ax.plot(t, ref, color="k", lw=0.5, zorder=3, label="data (reference decomposition)")
+        ax_r.fill_between(t, b["low"] - ref, b["high"] - ref, color="C1", alpha=0.45, lw=0,
                           label="model - data, 5-95 % over draws")
-        ax_r.plot(t, b["median"] - ref, color="C1", lw=0.4)
+        ax_r.plot(t, b["median"] - ref, color="C1", lw=0.5, label="model - data, median")
         ax_r.axhline(0.0, color="k", lw=0.5)
-        what = "y1" if stage == "linear" else "y2 + y3"
+        what = _compared(stage, metrics)
         test = (names or {}).get(stage, stage)
-        ax.set_title(f"{what}, {test}")
-        ax_r.set_title(f"{what}, {test}: model - data (RMS of data {np.sqrt(np.mean(ref ** 2)):.2e} m/s)")
-        ax.set_ylabel("velocity [m/s]")
+        where = f", {sensor}" if len(sensors) > 1 else ""
+        ax.set_title(f"{what}, {test}{where}", fontsize=10)
+        ax_r.set_title(f"{what}, {test}{where}: model - data (RMS of data {np.sqrt(np.mean(ref ** 2)):.2e} {unit})",
+                       fontsize=9)
+        label = f"{kind} [{unit}]" if len(sensors) == 1 else f"{sensor} ({kind}) [{unit}]"
+        ax.set_ylabel(label)
+        ax_r.set_ylabel(f"model - data [{unit}]")
         ax.legend(loc="upper right", fontsize=7)
         ax_r.legend(loc="upper right", fontsize=7)
     axes[-1, 0].set_xlabel("time [s]")
@@ -124,7 +162,9 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
     figs = arviz_figures(res, truth)
     if res.predictive.get("_bands"):
         names = {st: t.name for st, t in res.problem.tests.items()}
-        figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names)
+        figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names,
+                                              sensors=res.problem.sensors, unit=res.problem.output_unit,
+                                              metrics=res.problem.metrics)
     linear_only = res.extras.get("linear_only", {})
     if linear_only.get("_draws") is not None:
         figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)

@@ -71,12 +71,17 @@ class PosteriorResult:
 
     def summary_table(self) -> str:
         """Markdown table of the posterior: mean, sd, 94 % HDI, R-hat and bulk ESS of
-        every reported variable, in its unit."""
+        every reported variable, in its unit; the mean and the HDI with the digits
+        the sd resolves (:mod:`bayes_update.core.numbers`)."""
+        from bayes_update.core.numbers import format_sd, format_value
+
         lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
         for var, v in self.summary.items():
             unit = f" [{v['units']}]" if v["units"] else ""
-            lines.append(f"| {var}{unit} | {v['mean']:.5g} | {v['sd']:.3g} | "
-                         f"{v['hdi_3%']:.5g} - {v['hdi_97%']:.5g} | {v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
+            sd = v["sd"]          # the mean and the HDI to the decimal place of sd's second digit
+            lines.append(f"| {var}{unit} | {format_value(v['mean'], sd)} | {format_sd(sd)} | "
+                         f"{format_value(v['hdi_3%'], sd)} - {format_value(v['hdi_97%'], sd)} | "
+                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
         return "\n".join(lines)
 
     def run_json(self) -> dict:
