@@ -17,7 +17,8 @@ from bayes_update.cli import main
 from bayes_update.data.dataset import DatasetError
 from bayes_update.data.folder import read_dataset
 from surrogates.evaluation import default_executor, evaluate_many
-from bayes_update.core.problem import Problem, relative_error
+from bayes_update.core.metrics import relative_error
+from bayes_update.core.problem import Problem
 from bayes_update.models.beam.model import Beam
 from bayes_update.models.beam.virtual_rig import default_dataset_path, load_default_dataset
 

@@ -46,7 +46,7 @@ def output_errors(problem, theta) -> dict:
     """{test name: (output error, noise floor)} at ``theta`` for the estimation
     and validation tests: ||y - y_model|| / ||y|| (rms over sensors) and what the
     measurement noise alone gives [-]; NaN where the model cannot run."""
-    from bayes_update.core.problem import relative_error
+    from bayes_update.core.metrics import relative_error
 
     out = {}
     tests = list(problem.tests.values()) + list(problem.validation.values())

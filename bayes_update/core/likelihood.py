@@ -54,7 +54,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 import volterra
-from bayes_update.core.problem import STAGE_ORDERS, Problem
+from bayes_update.core.metrics import STAGE_ORDERS
+from bayes_update.core.problem import Problem
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@ def _label(space, name: str) -> str:
 
 def _compared(stage: str, metrics: str | None) -> str:
     """What a stage's metric compares: y1, y2 + y3 or y1 + y2 + y3."""
-    from bayes_update.core.problem import METRIC_SETS
+    from bayes_update.core.metrics import METRIC_SETS
 
     orders = METRIC_SETS.get(metrics or "paper", METRIC_SETS["paper"])[stage]
     return " + ".join(f"y{n}" for n in orders)

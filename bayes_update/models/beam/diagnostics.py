@@ -31,7 +31,7 @@ import volterra
 
 from bayes_update.data.dataset import Dataset
 from bayes_update.core.basis import basis_from_reference
-from bayes_update.core.problem import relative_error
+from bayes_update.core.metrics import relative_error
 
 HARMONICS = (1, 2, 3)
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from bayes_update.data.dataset import Dataset
-from bayes_update.core.problem import relative_error
+from bayes_update.core.metrics import relative_error
 from bayes_update.data.spectral import psd
 
 PSD_BAND_HZ = (1.0, 140.0)

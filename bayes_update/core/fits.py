@@ -1,0 +1,159 @@
+"""The fits of the discrepancy workflow (:mod:`bayes_update.core.discrepancy`): a
+model (the baseline plus added effects) at its least-squares mode with its
+Laplace evidence, where its effect's parameters sit (at the null, on a bound),
+the naming rule for one candidate, and the gap a fit leaves on the tests."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bayes_update.core.effects import DECISIVE, ExtendedSpace
+from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
+from bayes_update.core.problem import Problem
+from surrogates.evaluation import evaluate_many
+
+__all__ = ["AT_VALUE", "Fit", "fit_model", "gap", "names_effect", "noise_floor"]
+
+
+@dataclass
+class Fit:
+    """One model (baseline + added effects) at its mode."""
+
+    names: list                  # added effects, in order
+    space: ExtendedSpace
+    mode: ModeResult
+    log_evidence: float
+    covariance: np.ndarray
+    metrics: dict                # e_lin, e_nlin at the mode
+
+    @property
+    def theta(self) -> dict:
+        return self.space.to_parameters(self.mode.x)
+
+    def to_json(self, effects: dict) -> dict:
+        values = self.space.values(self.mode.x, self.covariance)
+        base = {n: v for n, v in self.theta.items() if n in self.space.base.names}
+        sd = np.sqrt(np.diag(self.covariance))[:self.space.n_base]
+        return {"parameters": {n: {"mode": base[n], "unit": self.space.base[n].unit,
+                                   "sd_internal": float(s), "coordinate": c}
+                               for n, s, c in zip(self.space.base.names, sd, self.space.base.coordinate_names)},
+                "effects": {e: {p.name: values[p.name] for p in effects[e]} for e in self.names},
+                "e_lin": self.metrics["e_lin"], "e_nlin": self.metrics["e_nlin"], "log_evidence": self.log_evidence}
+
+
+
+def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None) -> Fit:
+    """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``."""
+    stages = problem.stages
+    fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
+    box = space.box()
+    lo, hi = box[:, 0], box[:, 1]
+    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations)
+    cov = mode.covariance(scale=hi - lo)
+    logz = laplace_log_evidence(mode, space.log_prior_density(mode.x), hi - lo)
+    r, n = mode.residual, len(mode.residual) // len(stages)
+    metrics = {("e_lin" if st == "linear" else "e_nlin"):
+               float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd) for i, st in enumerate(stages)}
+    return Fit(list(names), space, mode, logz, cov, metrics)
+
+
+def _effect_starts(space: ExtendedSpace, k: int, fraction: float) -> list:
+    """Starts of the last ``k`` coordinates: null +- ``fraction`` of the range
+    towards each bound (where the range extends that way); the null itself
+    when the range is a point."""
+    box, null = space.box()[-k:], space.null_internal()[-k:]
+    up = null + fraction * (box[:, 1] - null)
+    down = null - fraction * (null - box[:, 0])
+    out = [v for v in (up, down) if not np.allclose(v, null)]
+    return out or [null]
+
+
+def _excludes_null(fit: Fit, k: int) -> bool:
+    x, sd = fit.mode.x[-k:], np.sqrt(np.diag(fit.covariance))[-k:]
+    return bool(np.any(np.abs(x - fit.space.null_internal()[-k:]) > 2.0 * sd))
+
+
+#: an effect's parameter within this share of its prior range of a value sits at it
+AT_VALUE = 1e-3
+
+
+def _at_null(fit: Fit, k: int) -> bool:
+    """Every parameter of the last added effect fitted at its null value: the data
+    asked nothing of it."""
+    box = fit.space.box()[-k:]
+    return bool(np.all(np.abs(fit.mode.x[-k:] - fit.space.null_internal()[-k:])
+                       <= AT_VALUE * (box[:, 1] - box[:, 0])))
+
+
+def _at_bound(fit: Fit, k: int) -> bool:
+    """A parameter of the last added effect on a bound of its prior (other than its
+    null): the fit wanted more than the prior allows, a sign of a wrong model."""
+    box, x, null = fit.space.box()[-k:], fit.mode.x[-k:], fit.space.null_internal()[-k:]
+    tol = AT_VALUE * (box[:, 1] - box[:, 0])
+    on = (np.abs(x - box[:, 0]) <= tol) | (np.abs(x - box[:, 1]) <= tol)
+    return bool(np.any(on & (np.abs(x - null) > tol)))
+
+
+def names_effect(row: dict) -> bool:
+    """The naming rule for one candidate's evidence row: decisive evidence
+    (2 ln B > :data:`DECISIVE`), a parameter more than 2 sd from its null, and the
+    fit neither at its null nor on a bound of its prior."""
+    return bool(row["two_ln_B"] > DECISIVE and row["excludes_null"] and not row["at_null"]
+                and not row["at_bound"])
+
+
+def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
+                       n_best: int = 2) -> tuple[list, int]:
+    """(the ``n_best`` lowest-cost of the model's ``extra_starts(x0)``, model runs);
+    none if it offers none."""
+    extra = getattr(problem.model, "extra_starts", None)
+    grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
+    if not grid:
+        return [], 0
+    fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
+                           SpacePoint(space, problem.model))
+    cost = [0.5 * float(r @ r) for r in evaluate_many(fun, grid, executor, progress=False)]
+    return [grid[i] for i in np.argsort(cost)[:n_best]], len(grid) * len(problem.stages)
+
+
+def noise_floor(problem: Problem, test) -> float:
+    """The relative output error a perfect model would have on ``test``: each
+    sensor's measurement noise (:meth:`Problem.test_noise`) over its rms, the
+    rms over the sensors [-]."""
+    y = test.response if test.response.ndim == 2 else test.response[:, None]
+    ratios = problem.test_noise(test.name) / np.sqrt(np.mean(y ** 2, axis=0))
+    return float(np.sqrt(np.mean(np.square(ratios))))
+
+
+def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
+    """e_lin, e_nlin and the validation tests' output error at ``fit``'s mode:
+    ``validation`` is the error beyond the noise, sqrt(rel^2 - floor^2),
+    averaged over the tests (the noise alone gives rel = floor, which no model
+    removes); ``validation_rel`` the raw mean."""
+    out = {"e_lin": fit.metrics["e_lin"], "e_nlin": fit.metrics["e_nlin"],
+           "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"]}
+    val = problem.prediction_errors(fit.theta)
+    if val:
+        excess = [math.sqrt(max(v ** 2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
+        out["validation"] = float(np.mean(excess))
+        out["validation_rel"] = float(np.mean(list(val.values())))
+        out["validation_tests"] = {k: {"rel": v, "noise_floor": floors.get(k)} for k, v in val.items()}
+    return out
+
+
+def _signature_check(model, named, d0, d1, gap0, gap1) -> dict:
+    """For each named effect, the number its physics should move (the model's
+    ``signature(effect, diagnostics, gap)``), before and after."""
+    sig = getattr(model, "signature", None)
+    out = {}
+    for name in named if callable(sig) and d0 is not None else ():
+        got = sig(name, d0, gap0)
+        if got is None:
+            continue
+        key, meaning, before = got
+        after = sig(name, d1, gap1)[2]
+        out[name] = {"signature": key, "meaning": meaning, "before": before, "after": after,
+                     "shrank": bool(before is not None and after is not None and after < before)}
+    return out
