@@ -32,10 +32,9 @@ from bayes_update.data import signals
 from bayes_update.models.beam.virtual_rig import (  # noqa: E402
     PAPER_TESTS,
     VirtualRig,
-    linear_departure,
     load_default_dataset,
-    nonlinear_shares,
 )
+from bayes_update.models.beam.levels import linear_departure, nonlinear_shares  # noqa: E402
 
 J_SETS = ((2, 2, 4), (2, 2, 6))
 

@@ -23,11 +23,10 @@ from bayes_update.models.beam.virtual_rig import (
     TestSpec,
     VirtualRig,
     default_dataset_path,
-    linear_departure,
     load_default_dataset,
     make_dataset,
-    nonlinear_shares,
 )
+from bayes_update.models.beam.levels import linear_departure, nonlinear_shares
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_SUBSTEPS
 
 SHIPPED = default_dataset_path()
