@@ -6,7 +6,7 @@ For each seed and each case (the four effects hidden in turn, none, and a bow
 plus amplitude-dependent damping), a data set from the virtual rig (20
 elements at 4096 Hz, 40 dB noise on both channels; the two updating chirps,
 the medium chirp and the high sine for validation) with magnitudes drawn
-from bayes_update.models.beam.virtual_rig.HIDDEN_EFFECT_RANGES, then the whole workflow
+from bayes_update.models.beam.model.HIDDEN_EFFECT_RANGES, then the whole workflow
 (deterministic start on coarse grids, baseline, naming, re-update) on the
 default FE model (:func:`bayes_update.find_discrepancy` with the beam as a
 model of the contract).  A case succeeds when the named effects are the hidden
@@ -30,7 +30,8 @@ sys.path.insert(0, str(ROOT))
 
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy  # noqa: E402
 from bayes_update.models.beam.model import beam_model, effect_values  # noqa: E402
-from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset  # noqa: E402
+from bayes_update.models.beam.model import hidden_effects  # noqa: E402
+from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, make_dataset  # noqa: E402
 
 from _machine import machine  # noqa: E402
 

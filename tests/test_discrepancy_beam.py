@@ -22,7 +22,8 @@ from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR
 from bayes_update.core.mode import laplace_log_evidence, ModeResult
 from bayes_update.models.beam.model import EFFECT_PARAMETERS, Beam, effect_values
 from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
+from bayes_update.models.beam.model import hidden_effects
+from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, make_dataset
 from bayes_update.reports.discrepancy import write_discrepancy
 
 TESTS = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium")]
@@ -243,7 +244,8 @@ def hidden_bow_dataset(tmp_path_factory):
 
 def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
     from bayes_update.data.folder import read_dataset
-    from bayes_update.models.beam.virtual_rig import HIDDEN_EFFECT_RANGES, load_default_dataset
+    from bayes_update.models.beam.model import HIDDEN_EFFECT_RANGES
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
 
     a, b = (json.loads((hidden_bow_dataset / n / "dataset.json").read_text()) for n in ("a", "b"))
     (effect,) = a["truth"]["effects"]

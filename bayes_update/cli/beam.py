@@ -170,7 +170,8 @@ def cmd_make_dataset(args) -> int:
     start = time.perf_counter()
     rig = None
     if args.hidden:
-        from bayes_update.models.beam.virtual_rig import VirtualRig, hidden_effects
+        from bayes_update.models.beam.model import hidden_effects
+        from bayes_update.models.beam.virtual_rig import VirtualRig
         rig = VirtualRig(effects=hidden_effects(args.hidden, args.hidden_seed))
     ds = make_dataset(out, rig=rig,
                       seed=DEFAULT_SEED if args.seed is None else args.seed,

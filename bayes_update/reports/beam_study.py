@@ -92,7 +92,8 @@ DISCREPANCY_SEED = 0
 def discrepancy_dataset():
     """The default rig with a hidden bow (the updating is not told), the two
     updating chirps, the medium chirp and the high sine."""
-    from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, hidden_effects, make_dataset
+    from bayes_update.models.beam.model import hidden_effects
+    from bayes_update.models.beam.virtual_rig import PAPER_TESTS, VirtualRig, make_dataset
 
     tests = [t for t in PAPER_TESTS if t.name in ("chirp_low", "chirp_high", "chirp_medium", "sine_high")]
     rig = VirtualRig(effects=hidden_effects(DISCREPANCY_CASE, DISCREPANCY_SEED))

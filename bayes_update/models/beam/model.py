@@ -33,7 +33,7 @@ import fe
 from bayes_update.core.model import ModelError, ModelSpecError
 from bayes_update.core.parameters import Parameter
 
-__all__ = ["Beam", "EFFECT_PARAMETERS", "MPA_S", "N_PER_MM", "N_S_PER_MM", "PRIOR", "beam_model"]
+__all__ = ["Beam", "EFFECT_PARAMETERS", "HIDDEN_EFFECT_RANGES", "hidden_effects", "MPA_S", "N_PER_MM", "N_S_PER_MM", "PRIOR", "beam_model"]
 
 MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
 
@@ -77,6 +77,40 @@ def _effect(name: str, si: list):
     if name == "clamp_compliance":
         return fe.ClampCompliance(stiffness=math.inf if si[0] <= 0 else 1.0 / si[0])
     raise ValueError(f"no effect named {name!r}")
+
+
+#: Ranges the hidden-effect data sets draw magnitudes from (SI), uniform:
+#: what a real rig of this size shows (a bow of a tenth of a millimetre, a
+#: load cell and stud of 5-20 g on a 45 g strip, a bolted clamp of 20-70 EI/L,
+#: a guide that rubs), at magnitudes where the effect moves the high-level
+#: response by more than the noise.
+HIDDEN_EFFECT_RANGES = {
+    "initial_imperfection": {"amplitude": (0.05e-3, 0.2e-3)},          # m, either sign
+    "amplitude_dependent_damping": {"coefficient": (30e6, 80e6)},      # N s^2/m^2 (quadratic)
+    "shaker_attachment": {"mass": (5e-3, 20e-3), "stiffness": (0.5e3, 2e3)},   # kg, N/m
+    "clamp_compliance": {"stiffness": (40.0, 120.0)},                  # N m/rad
+}
+
+
+def hidden_effects(names, seed: int) -> tuple:
+    """Effects named in ``names`` with magnitudes drawn (uniformly, seeded) from
+    :data:`HIDDEN_EFFECT_RANGES`; for a virtual rig whose data hide them."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for name in names:
+        if name not in HIDDEN_EFFECT_RANGES:
+            raise ValueError(f"unknown effect {name!r}; choose from {sorted(HIDDEN_EFFECT_RANGES)}")
+        v = {k: float(rng.uniform(*r)) for k, r in HIDDEN_EFFECT_RANGES[name].items()}
+        if name == "initial_imperfection":
+            v["amplitude"] *= float(rng.choice([-1.0, 1.0]))
+            out.append(fe.InitialImperfection(**v))
+        elif name == "amplitude_dependent_damping":
+            out.append(fe.AmplitudeDependentDamping(kind="quadratic", **v))
+        elif name == "shaker_attachment":
+            out.append(fe.ShakerAttachment(**v))
+        else:
+            out.append(fe.ClampCompliance(**v))
+    return tuple(out)
 
 
 def effect_values(effect) -> dict:
