@@ -114,11 +114,13 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
     max(1, chi^2_t / (dof_t - d)) where chi^2_t is the test's misfit at x_t
     (its own best point: what noise and the model's own error leave, never
     the other test's pull).  Why: on lab-like records (tests/test_measured_records.py)
-    the chain model integrated at 8 RK4 substeps, physics otherwise exact,
-    kept chi^2 of 75 on 21 directions of the low-level test and ~2e4 on 594 of
-    the high-level one, and the noise-only sd reported the damping as
-    disagreeing at 4.1 sd; with the misfit counted it is not (< 3 sd), while
-    two tests recorded at 2 % and 3 % damping still disagree at ~30 sd.  For each pair
+    a chain model of the records' own physics, integrated at 8 RK4 substeps
+    (0.1 % of error at the truth), kept chi^2 = 138 on the 21 directions of the
+    low-level test and 3.1e4 on the 198 of the high-level one at their own best
+    points; the noise-only sd reported the damping as disagreeing at 4.3 sd
+    (and k1 at 4.3 sd where only the damping differed); with the misfit
+    counted neither is reported, while tests recorded at 2 % and 2.5 % damping
+    disagree on it at 618 sd and a quadratic damper the model lacks at 36 sd.  For each pair
     of tests and each parameter both identify (sd below half its prior width),
     z = (x_a - x_b) / sqrt(var_a + var_b).  Returns the parameters with
     |z| > :data:`DISAGREEMENT_SD`: [{"parameter", "tests", "sd", "values"}].
