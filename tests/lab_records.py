@@ -70,17 +70,18 @@ def _stiffness() -> np.ndarray:
     return np.array([[k1 + k2, -k2, 0.0], [-k2, k2 + k3, -k3], [0.0, -k3, k3]])
 
 
-def _damping() -> np.ndarray:
-    """Modal damping LAB_DAMPING_RATIO: C = M V diag(2 zeta w) V^T M (V mass-normalised)."""
+def _damping(ratio: float = LAB_DAMPING_RATIO) -> np.ndarray:
+    """Modal damping ``ratio`` (default LAB_DAMPING_RATIO): C = M V diag(2 zeta w) V^T M (V mass-normalised)."""
     M = np.diag(LAB_MASSES_KG)
     f, V = lab_modes()
-    return M @ V @ np.diag(2 * LAB_DAMPING_RATIO * 2 * np.pi * f) @ V.T @ M
+    return M @ V @ np.diag(2 * ratio * 2 * np.pi * f) @ V.T @ M
 
 
 @numba.njit(cache=False)
-def _acc(x, v, f, minv, C, K, knl, b, out):
-    """out = M^-1 (b f - C v - K x - knl x1^3 e1) (3 degrees of freedom, written out)."""
-    r0 = b[0] * f - knl * x[0] ** 3
+def _acc(x, v, f, minv, C, K, knl, cq, b, out):
+    """out = M^-1 (b f - C v - K x - (knl x1^3 + cq |v1| v1) e1) (3 degrees of freedom, written out;
+    ``cq``: the optional quadratic damper beside the ground spring, 0 by default)."""
+    r0 = b[0] * f - knl * x[0] ** 3 - cq * abs(v[0]) * v[0]
     r1 = b[1] * f
     r2 = b[2] * f
     for j in range(3):
@@ -92,34 +93,34 @@ def _acc(x, v, f, minv, C, K, knl, b, out):
 
 
 @numba.njit(cache=False)
-def _rk4(minv, C, K, knl, b, F, h):
-    """RK4 of M a + C v + K x + knl x1^3 e1 = b F(t) from rest; F on the half-step
+def _rk4(minv, C, K, knl, cq, b, F, h):
+    """RK4 of M a + C v + K x + (knl x1^3 + cq |v1| v1) e1 = b F(t) from rest; F on the half-step
     grid (F[2j] at step j); returns the accelerations at the steps, (n, 3)."""
     n = (F.size - 1) // 2 + 1
     out = np.zeros((n, 3))
     x, v = np.zeros(3), np.zeros(3)
     x2, v2, x3, v3, x4, v4 = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
     a1, a2, a3, a4 = np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3)
-    _acc(x, v, F[0], minv, C, K, knl, b, a1)
+    _acc(x, v, F[0], minv, C, K, knl, cq, b, a1)
     out[0] = a1
     for j in range(n - 1):
-        _acc(x, v, F[2 * j], minv, C, K, knl, b, a1)
+        _acc(x, v, F[2 * j], minv, C, K, knl, cq, b, a1)
         for i in range(3):
             x2[i] = x[i] + 0.5 * h * v[i]
             v2[i] = v[i] + 0.5 * h * a1[i]
-        _acc(x2, v2, F[2 * j + 1], minv, C, K, knl, b, a2)
+        _acc(x2, v2, F[2 * j + 1], minv, C, K, knl, cq, b, a2)
         for i in range(3):
             x3[i] = x[i] + 0.5 * h * v2[i]
             v3[i] = v[i] + 0.5 * h * a2[i]
-        _acc(x3, v3, F[2 * j + 1], minv, C, K, knl, b, a3)
+        _acc(x3, v3, F[2 * j + 1], minv, C, K, knl, cq, b, a3)
         for i in range(3):
             x4[i] = x[i] + h * v3[i]
             v4[i] = v[i] + h * a3[i]
-        _acc(x4, v4, F[2 * j + 2], minv, C, K, knl, b, a4)
+        _acc(x4, v4, F[2 * j + 2], minv, C, K, knl, cq, b, a4)
         for i in range(3):
             x[i] += h / 6.0 * (v[i] + 2 * v2[i] + 2 * v3[i] + v4[i])
             v[i] += h / 6.0 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i])
-        _acc(x, v, F[2 * j + 2], minv, C, K, knl, b, a1)
+        _acc(x, v, F[2 * j + 2], minv, C, K, knl, cq, b, a1)
         for i in range(3):
             out[j + 1, i] = a1[i]
     return out
@@ -198,13 +199,18 @@ def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, lev
                fs: float = LAB_FS_HZ, band_hz=LAB_BAND_HZ, period_samples: int = LAB_PERIOD_SAMPLES,
                sensor_noise=LAB_SENSOR_NOISE, force_noise: float = LAB_FORCE_NOISE,
                white: bool = False, offsets=LAB_OFFSETS, drift: float = LAB_DRIFT,
-               cubic: float = LAB_CUBIC_N_M3) -> LabRecord:
+               cubic: float = LAB_CUBIC_N_M3, damping_ratio: float = LAB_DAMPING_RATIO,
+               quadratic_damping: float = 0.0) -> LabRecord:
     """A recorded test: ``segments`` is a list of ``("quiet", seconds)``,
     ``("multisine", n_periods)`` (of ``period_samples`` samples each) or
     ``("random", seconds)``; ``level_n`` [N] is the rms of the excited
     segments' force.  ``white``: white instead of coloured noise on every
     channel.  ``drift``: amplitude of each channel's slow trend in units of
-    that channel's noise sd (a per-test random shape, so tests drift apart)."""
+    that channel's noise sd (a per-test random shape, so tests drift apart).
+    ``damping_ratio``: the modal damping of every mode.  ``quadratic_damping``
+    [N s^2/m^2]: a damper ``c2 |v1| v1`` beside the ground spring (damping that
+    grows with amplitude, which real joints show); 0 (off) by default, so that the
+    default records are exactly those of the noise tests."""
     rng = np.random.default_rng(seed)
     q = LAB_OVERSAMPLING
     h = 1.0 / (q * fs)
@@ -231,7 +237,7 @@ def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, lev
     F = np.concatenate(pieces)
     minv = np.linalg.inv(np.diag(LAB_MASSES_KG))
     b = np.array([0.0, 0.0, 1.0])
-    acc = _rk4(minv, _damping(), _stiffness(), float(cubic), b, F, h)
+    acc = _rk4(minv, _damping(float(damping_ratio)), _stiffness(), float(cubic), float(quadratic_damping), b, F, h)
     fine = np.column_stack([F[::2], acc])
     rec = signal.resample_poly(fine, 1, q, axis=0)[pre:pre + n_rec]
     clean_force, clean_response = rec[:, 0], rec[:, 1:]

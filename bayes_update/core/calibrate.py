@@ -304,8 +304,11 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names, rows)
     n_lin = problem.output("linear", problem.reference_components("linear")).size
     blocks = {problem.tests["linear"].name: slice(0, n_lin), problem.tests["nonlinear"].name: slice(n_lin, None)}
+    # each test's independent directions (its compared regressors per sensor): its own misfit beyond
+    # the noise widens its sd (bayes_update.core.checks.test_disagreement)
+    dof = {problem.tests[st].name: problem.n_regressors(st) * len(problem.sensors) for st in ("linear", "nonlinear")}
     disagree = test_disagreement(mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names,
-                                 upper - lower)
+                                 upper - lower, dof)
     return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree,
                     covariance=_gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
 
