@@ -101,8 +101,10 @@ def test_the_likelihoods_noise_levels_name_the_sensor_and_its_unit(sampled):
     lik = json.loads((out / "posterior_summary.json").read_text())["likelihood"]
     for stage in ("linear", "nonlinear"):
         levels = lik[stage]["noise_levels"]
-        assert "velocity_m_s" not in levels and set(levels) == {"force_N", "displacement_m", "band_hz"}, levels
-        assert levels["displacement_m"] > 0
+        # the record's channels under their own names, each with its unit and how its noise was found
+        assert set(levels) == {"force", "displacement"}, levels
+        assert levels["force"]["unit"] == "N" and levels["displacement"]["unit"] == "m", levels
+        assert levels["displacement"]["sd"] > 0 and levels["displacement"]["method"], levels
 
 
 def test_each_sensor_has_a_key_with_its_name_and_unit():

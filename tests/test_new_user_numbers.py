@@ -50,7 +50,8 @@ def test_the_calibration_report_prints_the_digits_of_each_value():
 
     cal = Calibration(theta={"fn": 25.000121, "k": 1234.5}, stage1={"fn": 25.00113, "k": 1000.0},
                       linear_parameters=["fn", "k"], sensitivity={}, metrics={"e_lin": 0.01, "e_nlin": 0.02},
-                      metric_set="full", prediction_errors={}, unidentified={}, noise_sd={}, n_functions=(4, 2, 6),
+                      metric_set="full", prediction_errors={}, unidentified={}, noise_sd={}, fit_warnings=[],
+                      disagreement=[], output_errors={}, n_functions=(4, 2, 6),
                       n_model_runs=1, units={"fn": "Hz", "k": "N/mm"}, problem=None,
                       sd={"fn": 0.000097, "k": 210.0})
     rows = {ln.split()[0]: ln.split()[1:] for ln in format_calibration(cal).splitlines()[3:5]}

@@ -262,6 +262,12 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
         return _energies(f, H, upow, np.array([KautzPole.from_modal(fr, ze, fs).s for fr, ze, _ in cands]))
 
     chosen = _pick_modes(clusters, len(fits), n_modes, energy)
+    no_stable = (
+        f"no mode is stable over the LSCF model orders in ({band[0]:.4g}, {band[1]:.4g}) Hz "
+        f"(a physical pole, 0 < zeta < {max_damping:g}, stable in frequency and damping at 30 % of the "
+        "orders): the response looks like noise, or has no resonance in the band. Check that y is the "
+        "response to u, the noise level, offsets or slow drifts of y, and f_range.")
+    fallback = not chosen
     if not chosen and refine and n_modes in (None, 1):
         # a lightly damped mode whose record does not end at rest (a chirp with a short decay)
         # gives a leaky H1 on which no LSCF order is stable: one mode from the peak and
@@ -272,13 +278,7 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
             # it, so that the refinement's range (a tenth to ten times the start) holds the truth
             chosen = [(peak[0], peak[1] / 4.0, 0)]
     if not chosen:
-        raise PoleEstimationError(
-            f"no mode is stable over the LSCF model orders in ({band[0]:.4g}, {band[1]:.4g}) Hz "
-            "(a physical pole, 0 < zeta < "
-            f"{max_damping:g}, stable in frequency and damping at 30 % of the orders): the response "
-            "looks like noise, or has no resonance in the band. Check that y is the response to u, "
-            "the noise level, offsets or slow drifts of y, and f_range."
-        )
+        raise PoleEstimationError(no_stable)
     lscf = [KautzPole.from_modal(fr, ze, fs) for fr, ze, _ in chosen]
     shares = _energies(f, H, upow, np.array([p.s for p in lscf]))
     keep = np.ones(len(lscf), bool) if n_modes is not None else shares >= min_share
@@ -286,7 +286,15 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     poles, resid = lscf, float("nan")
     if refine:
         skip = 0 if period_samples is None else int(period_samples)
-        poles, resid = refine_modes(us, ys, lscf, skip=skip, max_residual=max_residual, feedthrough=feedthrough)
+        try:
+            poles, resid = refine_modes(us, ys, lscf, skip=skip, max_residual=max_residual,
+                                        feedthrough=feedthrough)
+        except PoleEstimationError as err:
+            if not fallback:
+                raise
+            # the peak was the last resort: the record's own failure is the first message
+            raise PoleEstimationError(f"{no_stable} (The largest H1 peak, {lscf[0].freq_hz:.4g} Hz, "
+                                      f"could not be refined either: {err})") from None
     shares = _energies(f, H, upow, np.array([p.s for p in poles]))
     order = np.argsort(-shares)
     return ModalEstimate(poles=tuple(poles[i] for i in order), energy_shares=shares[order],

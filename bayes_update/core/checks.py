@@ -106,14 +106,22 @@ def severe_misfit(errors: dict, problem) -> dict:
 def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict | None = None) -> list:
     """Where two tests pull the shared parameters apart.
 
-    jacobian, residual : of the joint fit at its optimum, rows in noise units
-        (each test's rows divided by its noise).
-    blocks : {test name: row slice} of each test's rows.
-    names : parameter (coordinate) names; widths : their prior widths.
-    dof : {test name: independent directions of its rows} (a Volterra
+    Parameters
+    ----------
+    jacobian, residual
+        Of the joint fit at its optimum, rows in noise units (each test's rows
+        divided by its noise).
+    blocks
+        {test name: row slice} of each test's rows.
+    names, widths
+        Parameter (coordinate) names and their prior widths.
+    dof
+        {test name: independent directions of its rows} (a Volterra
         projection's: its regressors times the sensors); None: no misfit
         scaling (noise alone).
 
+    Notes
+    -----
     For each test alone: one Gauss-Newton step from the joint optimum on its
     own rows, x_t = x - J_t^+ r_t, with covariance (J_t^T J_t)^+, times
     max(1, chi^2_t / (dof_t - d)) where chi^2_t is the test's misfit at x_t
@@ -128,7 +136,7 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
     disagree on it at 618 sd and a quadratic damper the model lacks at 36 sd.  For each pair
     of tests and each parameter both identify (sd below half its prior width),
     z = (x_a - x_b) / sqrt(var_a + var_b).  Returns the parameters with
-    |z| > :data:`DISAGREEMENT_SD`: [{"parameter", "tests", "sd", "values"}].
+    ``|z|`` > :data:`DISAGREEMENT_SD`: [{"parameter", "tests", "sd", "values"}].
     """
     J, r = np.asarray(jacobian, float), np.asarray(residual, float)
     widths = np.asarray(widths, float)
