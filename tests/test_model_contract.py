@@ -206,3 +206,17 @@ def test_the_example_oscillator_is_right():
     amp = np.abs(v[-int(fs):]).max()
     # Newmark's average acceleration: period error (w dt)^2 / 12 = 6e-4 -> |H| off by ~1e-3 here
     assert amp == pytest.approx(1 / (2 * zeta * 2 * np.pi * fn), rel=5e-3)
+
+
+def test_messages_name_the_model_inside_the_frameworks_wrappers():
+    from bayes_update.core.effects import WithNulls
+    from bayes_update.core.model import model_label
+
+    class Plate:
+        parameters = [Parameter("k", 1.0, 2.0)]
+
+        def simulate(self, theta, force, fs):
+            return force
+
+    assert model_label(Plate()) == "Plate"
+    assert model_label(WithNulls(WithNulls(Plate(), {}), {})) == "Plate"

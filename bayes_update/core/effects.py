@@ -112,6 +112,8 @@ class WithNulls:
     member is the wrapped model's (its hooks, units, metric set), and
     ``refined()`` wraps the wrapped model's refined one."""
 
+    wraps_model = True   # messages name the wrapped model (bayes_update.core.model.model_label)
+
     def __init__(self, model, nulls: Mapping):
         self.model, self.nulls = model, dict(nulls)
 

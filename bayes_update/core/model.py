@@ -89,10 +89,9 @@ RUN_REMEDY = ("where the model cannot run, raise bayes_update.ModelError (that p
 
 
 def model_label(model) -> str:
-    """The class name of ``model`` (of the model inside the framework's wrappers)."""
-    from bayes_update.core.effects import WithNulls
-
-    while isinstance(model, WithNulls):
+    """The class name of ``model`` (of the model inside the framework's wrappers:
+    a class with ``wraps_model = True`` holds it as ``.model``)."""
+    while getattr(type(model), "wraps_model", False):
         model = model.model
     return type(model).__name__
 

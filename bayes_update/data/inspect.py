@@ -15,7 +15,7 @@
     coherence over the excited band and the share of its lines below 0.9.
 ``modes``
     ``[{"freq_hz", "damping_ratio"}, ...]`` of the (first) ``linear`` test,
-    first sensor (:func:`find_modes`); ``modes_from`` its file.
+    every sensor sharing the poles (:func:`find_modes`); ``modes_from`` its file.
 ``level_dependence``
     one entry per mode, ``{"freq_hz": {file: f}, "damping_ratio": {file: z}}``
     over the tests whose excited band holds the mode and whose mode found
