@@ -236,3 +236,7 @@ def test_cli_calibrate_with_a_model_from_a_file(tmp_path, gain_data):
     assert set(cal["prediction_errors"]) == {"multisine_mid"}
     assert (out / "calibration_fit.png").stat().st_size > 20_000
     assert "prediction error on validation test multisine_mid" in res.stdout
+    # the data set's first look comes with the calibration: the mode the data show, near the truth's
+    look = json.loads((out / "inspection" / "inspection.json").read_text())
+    assert [m["freq_hz"] for m in look["modes"]] == [pytest.approx(TRUTH["fn"], rel=0.01)], look["modes"]
+    assert (out / "inspection" / "modes.png").exists()

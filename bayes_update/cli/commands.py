@@ -8,6 +8,8 @@ then the options on the command line.
 from __future__ import annotations
 
 import dataclasses
+import json
+import sys
 
 from bayes_update.cli import beam as beam_cli
 from bayes_update.cli.options import (add_common, add_data_out, add_metrics, add_model, add_posterior_options,
@@ -130,6 +132,16 @@ def _model_and_data(args, need_data: bool = False):
     return model, data, space, truth if isinstance(truth, dict) else None
 
 
+def _first_look(data, out) -> None:
+    """The data set's first look (``bayes-update inspect``) in OUT/inspection: the first page of
+    every report, so that a calibration is never read without the noise and modes it stood on."""
+    from bayes_update.reports.inspection import write_inspection
+
+    paths = write_inspection(data, out / "inspection")
+    for w in json.loads(paths["inspection.json"].read_text())["warnings"]:
+        print(f"bayes-update: data: {w}", file=sys.stderr)
+
+
 def _workers(args):
     if args.workers is not None and args.workers < 1:
         raise ValueError(f"--workers must be at least 1, got {args.workers}")
@@ -141,6 +153,7 @@ def cmd_calibrate(args) -> int:
     workers = _workers(args)
     model, data, space, _ = _model_and_data(args)
     config = read_config(args.config, "calibrate")
+    _first_look(data, args.out)
     if args.model in beam_cli.BEAM_MODELS:
         from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
         from bayes_update.reports.beam_calibration import write_result
@@ -165,8 +178,6 @@ def cmd_calibrate(args) -> int:
 
 
 def cmd_sample(args) -> int:
-    import sys
-
     from bayes_update.core.posterior import PosteriorSettings, sample
     from bayes_update.reports.posterior import write_posterior
 
@@ -175,6 +186,7 @@ def cmd_sample(args) -> int:
         print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
               "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
     model, data, space, truth = _model_and_data(args)
+    _first_look(data, args.out)
     settings = settings_from(PosteriorSettings, args.quick, read_config(args.config, "sample"), seed=args.seed,
                              n_walkers=args.walkers,
                              **{("direct_steps" if args.direct else "n_steps"): args.steps})
@@ -221,8 +233,6 @@ def cmd_discrepancy(args) -> int:
 
 
 def cmd_inspect(args) -> int:
-    import json
-
     from bayes_update.reports.inspection import write_inspection
 
     if args.data is None:
