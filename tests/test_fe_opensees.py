@@ -150,7 +150,7 @@ def test_independent_element_has_fe_forces():
     assert np.max(np.abs(k_t - fd)) < 2e-4 * np.max(np.abs(k_t))
 
 
-@pytest.mark.parametrize("rho_inf", [0.9, 0.01])
+@pytest.mark.parametrize("rho_inf", [pytest.param(0.9, marks=pytest.mark.slow), 0.01])   # the budget
 def test_low_level_chirp_agrees(rho_inf):
     ours, theirs, predicted = compare(LOW, rho_inf)
     # the codes agree far inside the 0.5 %: measured 5.55e-5 (rho 0.9),

@@ -57,10 +57,12 @@ def test_report_has_every_table_and_figure(report):
         for name in ("eta", "c", "F", "k_s", "P_eff"):
             row = next(line for line in sec.splitlines() if line.startswith(f"| {name} ["))
             cells = [c.strip() for c in row.split("|")[1:-1]]
-            # each printed to the digits its sd supports: off by at most half a unit of its last digit
+            # each printed to the digits its sd supports: off by at most half a unit of its last
+            # significant digit (an integer's trailing zeros are not significant: 160 is 16 tens)
             for cell, value in ((cells[1], post[name]["mean"]), (cells[2], post[name]["sd"])):
-                last = 10.0 ** -(len(cell.split(".")[1]) if "." in cell else 0)
-                assert abs(float(cell) - value) <= 0.5 * last * (1 + 1e-9), (f, name, row)
+                places = (len(cell.split(".")[1]) if "." in cell
+                          else -(len(cell) - len(cell.rstrip("0"))) if cell.strip("-0") else 0)
+                assert abs(float(cell) - value) <= 0.5 * 10.0 ** -places * (1 + 1e-9), (f, name, row)
             assert len(cells[2].replace(".", "").lstrip("0")) >= 2, (f, name, row)   # sd: 2 digits at least
 
 

@@ -100,7 +100,9 @@ def _check_covers(res, free):
         assert s["r_hat"] < 1.01, (name, s["r_hat"])
 
 
-@pytest.mark.parametrize("free", [("zeta", "k3"), ("fn", "zeta", "k3"), ("fn", "zeta", "gain", "k3", "k2")])
+# two and three free parameters: -m slow (53-87 s each; the 15-minute budget)
+@pytest.mark.parametrize("free", [("zeta", "k3"), pytest.param(("fn", "zeta", "k3"), marks=pytest.mark.slow),
+                                  pytest.param(("fn", "zeta", "gain", "k3", "k2"), marks=pytest.mark.slow)])
 def test_posterior_of_a_user_model_covers_the_truth(data, free):
     from bayes_update.core.posterior import PosteriorSettings, sample
 
@@ -148,6 +150,7 @@ def test_cli_refuses_a_broken_model_before_heavy_work(tmp_path, data):
     assert "Short.simulate returned shape (4095,)" in res.stderr, res.stderr
 
 
+@pytest.mark.slow   # 70 s; offsets on every channel are in the lab records of test_measured_records.py
 def test_sensor_offsets_do_not_move_the_posterior(data):
     """Offsets of 10 % of each channel's RMS on both channels of both tests, and an input offset of
     1.5 x the input's RMS (as on a measured record): a sensor offset is not physics, the posterior
