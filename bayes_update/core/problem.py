@@ -23,6 +23,7 @@ from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, FEEDTHROUGH, basis_from
 from bayes_update.core.metrics import (METRIC_SETS, STAGE_ORDERS, STAGES, n_compared_regressors, relative_error,
                                        stage_output)
 from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
+from bayes_update.data.checks import require_live_force
 from bayes_update.data.dataset import DatasetError
 from bayes_update.data.noise import dataset_noise
 
@@ -138,15 +139,8 @@ class Problem:
         self._token = uuid.uuid4().hex    # identifies this problem's projectors in worker processes
 
     def _test(self, record) -> _Test:
+        require_live_force(record)
         force, response = np.array(record.force, float), np.array(record.response, float)
-        span, top = float(np.ptp(force)), float(np.max(np.abs(force)))
-        if not span > 1e-12 * top:
-            # quiet sections are fine; a force without energy over the whole record has nothing to compare
-            what = "zero" if top == 0 else f"constant ({force[0]:.6g} N)"
-            raise DatasetError(f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
-                               f"its force is {what} over the whole record, so it excites nothing the model "
-                               "could be compared with; check the force column (channel, scaling) or remove "
-                               "the test from dataset.json")
         if self.remove_offsets:
             force -= force.mean()
             response -= response.mean(axis=0)

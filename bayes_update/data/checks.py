@@ -1,8 +1,11 @@
 """Cheap checks of one channel of a record, for the inspection report:
-offset, drift, clipping.  Plain functions of a 1-D array (any unit)."""
+offset, drift, clipping (plain functions of a 1-D array, any unit); and the
+one check every command makes of a record's force (:func:`require_live_force`)."""
 from __future__ import annotations
 
 import numpy as np
+
+from bayes_update.data.format import DatasetError
 
 #: the slow trend is read from Hann-weighted means over windows of 1/TREND_BLOCKS of
 #: the record, every half window
@@ -66,3 +69,17 @@ def clipping(x) -> dict:
         total = x.size
     many = total > max(CLIP_COUNT, CLIP_SHARE * x.size)
     return {"clipped": bool(longest >= CLIP_RUN or many), "longest_run": longest, "at_limits": total}
+
+
+def require_live_force(record) -> None:
+    """Raise :class:`DatasetError` (naming the file and the test) when a test's
+    force is zero or constant over its whole record: it excites nothing a model
+    could be compared with.  Quiet sections within a record are fine."""
+    force = np.asarray(record.force, float)
+    span, top = float(np.ptp(force)), float(np.max(np.abs(force)))
+    if not span > 1e-12 * top:
+        what = "zero" if top == 0 else f"constant ({force[0]:.6g} N)"
+        raise DatasetError(f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
+                           f"its force is {what} over the whole record, so it excites nothing the model "
+                           "could be compared with; check the force column (channel, scaling) or remove "
+                           "the test from dataset.json")

@@ -75,8 +75,9 @@ any other key
 
 A test whose force is zero, or constant, over its whole record is refused
 (:class:`DatasetError` naming the file and the test) when a problem is built
-on the data set (:class:`bayes_update.core.problem.Problem`); quiet sections
-within a record are fine.
+on the data set or it is inspected
+(:func:`bayes_update.data.checks.require_live_force`); quiet sections within
+a record are fine.
 
 Examples: a user model's displacement response::
 

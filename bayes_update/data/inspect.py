@@ -209,6 +209,8 @@ def inspect_dataset(dataset, noise: dict | None = None) -> dict:
     noise : the result of :func:`bayes_update.data.noise.dataset_noise` if
         already computed (default: computed here, not strict)."""
     fs = float(dataset.sampling_rate_hz)
+    for t in dataset.tests:
+        checks.require_live_force(t)
     noise = dataset_noise(dataset, strict=False) if noise is None else noise
     warnings = []
     tests = {t.file: _test_entry(t, fs, noise[t.name], warnings) for t in dataset.tests}
