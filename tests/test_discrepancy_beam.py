@@ -269,6 +269,7 @@ def test_cli_make_dataset_hidden_records_the_effect(hidden_bow_dataset):
     assert rel > 5 * 0.01, rel
 
 
+@pytest.mark.slow   # 140 s: the 15-minute budget; notebooks/05 names the bow in the default run
 def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset, tmp_path):
     """`bayes-update discrepancy --quick` on the make-dataset output (start=None: the
     deterministic start on coarse grids, as a user runs it)."""
