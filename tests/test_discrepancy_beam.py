@@ -89,8 +89,8 @@ def _check_explains(res):
     assert all(r <= EXPLAINED_FACTOR for r in res.misfit_ratio.values()), res.misfit_ratio
 
 
-# all four, at full settings, in benchmarks/discrepancy_cases.py; every case -m slow (75-145 s each, the 15-minute budget): the default run names the bow through
-# the CLI (test_cli_discrepancy_writes_the_decision_and_the_evidence)
+# every case -m slow (75-145 s each, the 15-minute budget), all four at full settings in
+# benchmarks/discrepancy_cases.py; the default run names the bow in notebooks/05_discrepancy.ipynb
 @pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) for n in SINGLE])
 def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     (effect,), data, res = run_case(name)
