@@ -11,7 +11,8 @@ inspect``; the numbers are :func:`bayes_update.data.inspect.inspect_dataset`).
   spectrum against its noise spectrum as estimated
   (:func:`bayes_update.data.noise.noise_spectrum`);
 * ``modes.png``: each mode's frequency and damping ratio against the
-  test's force level (the ``level_dependence`` entries).
+  test's force level, in % of the linear test's (the ``level_dependence``
+  entries).
 
 Figures are built without pyplot (nothing shown, no global state).  Units:
 Hz, the channels' SI units, force rms [N].
@@ -88,24 +89,27 @@ def plot_noise(dataset, channel: str, noise: dict) -> Figure:
 
 
 def plot_modes(dataset, inspection: dict) -> Figure:
-    """Each mode's frequency and damping ratio against the tests' force rms."""
+    """Each mode's frequency and damping ratio against the tests' force rms,
+    relative to the linear test's (in %: a shift of a few tenths of a percent,
+    what a hardening spring gives, shows; on absolute axes it would not)."""
     level = {t.file: float(np.std(t.force)) for t in dataset.tests}
     fig = Figure(figsize=(8, 5), constrained_layout=True)
     ax_f, ax_z = fig.subplots(2, 1, sharex=True)
     for i, (mode, dep) in enumerate(zip(inspection["modes"], inspection["level_dependence"])):
         files = sorted(dep["freq_hz"], key=level.get)
         x = [level[f] for f in files]
-        ax_f.plot(x, [dep["freq_hz"][f] for f in files], "o-", color=f"C{i}",
-                  label=f"mode {i + 1} ({mode['freq_hz']:.4g} Hz at the linear test)")
-        ax_z.plot(x, [dep["damping_ratio"][f] for f in files], "o-", color=f"C{i}")
-        for f, xi in zip(files, x):
-            ax_f.annotate(Path(f).stem, (xi, dep["freq_hz"][f]), fontsize=6, xytext=(3, 3),
-                          textcoords="offset points")
-    ax_f.set_ylabel("frequency [Hz]")
-    ax_z.set_ylabel("damping ratio [-]")
+        df = [100.0 * (dep["freq_hz"][f] / mode["freq_hz"] - 1.0) for f in files]
+        dz = [100.0 * (dep["damping_ratio"][f] / mode["damping_ratio"] - 1.0) for f in files]
+        ax_f.plot(x, df, "o-", color=f"C{i}",
+                  label=f"mode {i + 1}: {mode['freq_hz']:.4g} Hz, zeta {mode['damping_ratio']:.3g} at the linear test")
+        ax_z.plot(x, dz, "o-", color=f"C{i}")
+        for f, xi, yi in zip(files, x, df):
+            ax_f.annotate(Path(f).stem, (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")
+    ax_f.set_ylabel("frequency change [%]")
+    ax_z.set_ylabel("damping ratio change [%]")
     ax_z.set_xlabel("force rms [N]")
     ax_z.set_xscale("log")
-    ax_f.set_title("level dependence of the modes")
+    ax_f.set_title("level dependence of the modes (relative to the linear test)")
     for ax in (ax_f, ax_z):
         ax.grid(True, which="both", alpha=0.3)
     if inspection["modes"]:
