@@ -161,3 +161,27 @@ def test_bad_effect_parameters_are_rejected_and_the_rom_refuses_what_it_cannot_c
         AmplitudeDependentDamping(kind="viscous")
     with pytest.raises(ValueError, match="shaker_attachment"):
         fe.ModalROM(effects=(ShakerAttachment(mass=1e-3),))
+
+
+def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
+    """The wrong-form case of the new-user issue: decisive 2 ln B for an effect fitted at
+    its null (3e-32 N of friction) or on a bound of its prior (a damper at its upper limit)
+    must not name it."""
+    from types import SimpleNamespace
+
+    from bayes_update.core.fits import DECISIVE, _at_bound, _at_null, names_effect
+
+    def fit(x):   # one base coordinate, one effect coordinate on [0, 5] with null 0
+        space = SimpleNamespace(box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]),
+                                null_internal=lambda: np.array([0.5, 0.0]))
+        return SimpleNamespace(space=space, mode=SimpleNamespace(x=np.array([0.5, x])))
+
+    rows = {}
+    for label, x in (("at null", 3e-32), ("on bound", 5.0), ("inside", 2.0)):
+        f = fit(x)
+        rows[label] = {"two_ln_B": 10 * DECISIVE, "excludes_null": True, "at_null": _at_null(f, 1),
+                       "at_bound": _at_bound(f, 1)}
+    assert rows["at null"]["at_null"] and not rows["at null"]["at_bound"]
+    assert rows["on bound"]["at_bound"] and not rows["on bound"]["at_null"]
+    assert not rows["inside"]["at_null"] and not rows["inside"]["at_bound"]
+    assert [label for label, row in rows.items() if names_effect(row)] == ["inside"]
