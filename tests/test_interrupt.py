@@ -21,7 +21,8 @@ import pytest
 SAMPLE = [sys.executable, "-m", "bayes_update", "sample", "--quick", "--model", "rom", "--workers", "2"]
 #: shorter chains and no extras (28 s a run instead of 41): the interruption falls in the design either way
 SMALL = "[sample]\nn_steps = 1000\nburn = 300\nn_linear = 0\nn_global = 0\nn_predictive = 0\nn_replicates = 8\n"
-pytestmark = pytest.mark.skipif(os.name == "nt", reason="process groups and SIGINT are POSIX")
+# -m slow: three sample runs (170 s of the suite on a slow day, the 15-minute budget)
+pytestmark = [pytest.mark.skipif(os.name == "nt", reason="process groups and SIGINT are POSIX"), pytest.mark.slow]
 
 
 def _command(out):
