@@ -1,6 +1,7 @@
 """The data set's basis: its modes from the reference linear test (orders 2
 and 3 on the one that represents the nonlinear test best), the functions per
-mode and order, the feed-through (per metric set), and its JSON record.  :class:`bayes_update.core.problem.Problem` builds its metrics on it."""
+mode and order, the feed-through (per metric set), and its JSON record.
+:class:`bayes_update.core.problem.Problem` builds its metrics on it."""
 from __future__ import annotations
 
 import numpy as np
@@ -89,16 +90,16 @@ def nonlinear_mode_for(basis: volterra.KautzBasis, force, response) -> volterra.
     y = np.asarray(response, float)
     y = y[:, None] if y.ndim == 1 else y
     y = y / np.sqrt(np.mean(y ** 2, axis=0))
-    best, best_residual = None, np.inf
+    candidates, residuals = [], []
     for i in range(len(modes)):
         cand = volterra.KautzBasis.from_modes(modes, basis.n_functions, basis.feedthrough, nonlinear_modes=[i])
         proj = volterra.VolterraProjector(np.asarray(force, float), cand)
-        residual = sum(float(np.sum((y[:, j] - sum(proj.components(y[:, j]).values())) ** 2))
-                       for j in range(y.shape[1]))
-        if residual < best_residual:
-            best, best_residual = (i, cand), residual
-    # the basis as given when its own mode wins (or no projection could be made)
-    return basis if best is None or modes[best[0]] == basis.modes(2)[0] else best[1]
+        candidates.append(cand)
+        residuals.append(sum(float(np.sum((y[:, j] - sum(proj.components(y[:, j]).values())) ** 2))
+                             for j in range(y.shape[1])))
+    best = int(np.argmin(residuals))
+    # the basis as given when its own mode wins
+    return basis if modes[best] == basis.modes(2)[0] else candidates[best]
 
 
 def describe_basis(basis: volterra.KautzBasis) -> dict:
