@@ -58,7 +58,7 @@ def covariances(J, residuals, stages, scales, k_small=24) -> list:
     for k_max in (k_small, None):
         M, row = np.zeros_like(H), 0
         for st in stages:
-            D = residuals[st][:k_max] / scales[st]
+            D = residuals[st][0][:k_max] / scales[st]      # (rows, weights): all-model replicates, weights 1/K
             DJ = D @ J[row:row + D.shape[1]]
             row += D.shape[1]
             M += DJ.T @ DJ / len(D)

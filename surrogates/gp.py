@@ -214,6 +214,18 @@ class GPSurrogate:
         mu, sd = self.gp_.predict(U, return_std=True)
         return np.asarray(mu, float), np.asarray(sd, float)
 
+    def mean_transformed(self, X) -> np.ndarray:
+        """The predictive mean of ``t(y)`` at ``X`` (n, d) alone, as
+        :meth:`predict_transformed` gives it, without the sd's triangular solves
+        or scikit-learn's checks: about 25 times faster for a few points, which is
+        what an MCMC on the surrogate calls tens of thousands of times."""
+        self._check_fitted()
+        gp = self.gp_
+        mu = gp.kernel_(self.scale_inputs(np.atleast_2d(X)), gp.X_train_) @ gp.alpha_
+        if gp.normalize_y:
+            mu = gp._y_train_std * mu + gp._y_train_mean
+        return np.asarray(mu, float).reshape(-1)
+
     def predict(self, X, return_std: bool = True):
         """Prediction at ``X`` (n, d) in the original units of y.
 

@@ -204,8 +204,8 @@ def _fit(surrogate_factory, X, y):
 def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, batch: int,
            executor=None, seed=None, *, candidates=4096, target=None, min_distance: float = 0.01,
            log_weight: bool = False, power: float = 0.5, evaluate=evaluate_many,
-           progress: bool = True) -> RefinementResult:
-    """Refine a surrogate by ``n_rounds`` batches of ``batch`` new model runs.
+           progress: bool = True, until=None) -> RefinementResult:
+    """Refine a surrogate by at most ``n_rounds`` batches of ``batch`` new model runs.
 
     Each round: fit ``surrogate_factory()`` to the finite rows of (X, y); build
     ``weight = weight_from_surrogate(surrogate)``; propose ``batch`` points
@@ -234,6 +234,9 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     target : callable ``result -> float or k floats`` applied to func's
         outputs (default: ``float``), e.g. ``lambda r: r["e_lin"]``.
     min_distance, log_weight, power : as in :func:`propose_points`.
+    until : callable ``(surrogate) -> bool`` or None: asked before every round
+        (after the initial fit and after each round's); True ends the
+        refinement there (e.g. when what the surrogate is for no longer moves).
 
     Returns
     -------
@@ -253,6 +256,8 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     rounds = [{"round": 0, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X.copy(), "y_new": y.copy(),
                "results": None, "surrogate": sur}]
     for r in range(1, int(n_rounds) + 1):
+        if until is not None and until(sur):
+            break
         rng = np.random.default_rng(seeds[r - 1])
         cand = candidates(sur, rng) if callable(candidates) else candidates
         cand_seed = int(rng.integers(2 ** 63)) if isinstance(cand, (int, np.integer)) else None

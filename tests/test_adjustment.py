@@ -5,7 +5,8 @@ import pickle
 
 import numpy as np
 
-from bayes_update.core.likelihood import Likelihood, StageScale, curvature_adjustment
+from bayes_update.core.adjustment import curvature_adjustment
+from bayes_update.core.likelihood import Likelihood, StageScale
 
 N, D_PAR = 40, 4
 

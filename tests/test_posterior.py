@@ -190,7 +190,8 @@ def _sbc_truth(args):
     likelihood wrong)."""
     from bayes_update.data import signals
     from bayes_update.data.dataset import Dataset, Record
-    from bayes_update.core.likelihood import curvature_adjustment, estimate_likelihood
+    from bayes_update.core.adjustment import curvature_adjustment
+    from bayes_update.core.likelihood import estimate_likelihood
     from bayes_update.core.mode import ResidualFunction, find_mode
     from bayes_update.core.problem import Problem
     from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG

@@ -96,6 +96,7 @@ def test_gp_reproduces_the_closed_form_posterior():
     var = s ** 2 * (c + noise - np.einsum("ij,ji->i", ks, np.linalg.solve(K, ks.T)))
     mu_s, sd_s = sur.predict_transformed(Xs)
     np.testing.assert_allclose(mu_s, mu, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(sur.mean_transformed(Xs), mu, rtol=0, atol=1e-9)   # the MCMC's fast path
     np.testing.assert_allclose(sd_s, np.sqrt(var), rtol=1e-7)
 
     pred, sd = sur.predict(Xs)

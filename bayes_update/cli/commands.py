@@ -7,13 +7,15 @@ then the options on the command line.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import sys
+from pathlib import Path
 
 from bayes_update.cli import beam as beam_cli
 from bayes_update.cli.options import (add_common, add_data_out, add_metrics, add_model, add_posterior_options,
-                                      read_config, settings_from)
+                                      add_scheduler, read_config, settings_from)
 from bayes_update.data.folder import read_dataset
 
 __all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_inspect", "cmd_sample"]
@@ -34,6 +36,7 @@ def add_commands(sub) -> None:
     add_metrics(p)
     beam_cli.add_model_options(p)
     add_common(p)
+    add_scheduler(p)
     p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("sample", help="the posterior of a model's parameters (GP surrogate + emcee, or direct)",
@@ -54,6 +57,7 @@ def add_commands(sub) -> None:
     add_posterior_options(p)
     beam_cli.add_model_options(p)
     add_common(p)
+    add_scheduler(p)
     p.set_defaults(func=cmd_sample)
 
     p = sub.add_parser("inspect", help="a first look at a data set, no model needed",
@@ -84,6 +88,7 @@ def add_commands(sub) -> None:
     add_metrics(p)
     beam_cli.add_model_options(p)
     add_common(p)
+    add_scheduler(p)
     p.set_defaults(func=cmd_discrepancy)
 
 
@@ -148,6 +153,35 @@ def _workers(args):
     return args.workers
 
 
+@contextlib.contextmanager
+def _executor(args):
+    """The executor of the model runs: a Dask cluster's (``--scheduler``), else None
+    (the functions then start a local process pool over ``--workers``)."""
+    if not getattr(args, "scheduler", None):
+        yield None
+        return
+    try:
+        import distributed
+    except ImportError:
+        raise ValueError("--scheduler needs Dask's distributed scheduler: pip install 'dask[distributed]'") from None
+    try:
+        client = distributed.Client(args.scheduler, set_as_default=False, timeout="10s")
+    except (OSError, TimeoutError) as exc:
+        raise ValueError(f"--scheduler {args.scheduler}: no Dask scheduler answers there ({exc})") from None
+    try:
+        workers = len(client.scheduler_info().get("workers", {}))
+        print(f"bayes-update: model runs on the Dask cluster at {args.scheduler} ({workers} workers)",
+              file=sys.stderr)
+        where = str(getattr(args, "model", "")).rpartition(":")[0]
+        if where.endswith(".py"):
+            # a model file of the user's: the workers import it by its name, as local processes
+            # do (the files it imports beside it must be importable there too)
+            client.upload_file(str(Path(where).expanduser().resolve()), load=False)
+        yield client.get_executor()
+    finally:
+        client.close()
+
+
 # ----------------------------------------------------------------- commands
 def cmd_calibrate(args) -> int:
     workers = _workers(args)
@@ -162,7 +196,8 @@ def cmd_calibrate(args) -> int:
             raise ValueError("--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
                              "use `sample --metrics full` for the beam under the full set")
         settings = settings_from(CalibrationSettings, args.quick, config)
-        result = calibrate(data, model, settings, workers=workers)
+        with _executor(args) as pool:
+            result = calibrate(data, model, settings, workers=workers, executor=pool)
         write_result(result, data, args.out)
         print(format_tables(result))
     else:
@@ -170,7 +205,9 @@ def cmd_calibrate(args) -> int:
         from bayes_update.reports.calibration import format_calibration, write_calibration
 
         options = {"n_start": 16 if args.quick else 64, "seed": args.seed or 0, **config}
-        cal = calibrate_model(data, model, metrics=args.metrics or "full", workers=workers, **options)
+        with _executor(args) as pool:
+            cal = calibrate_model(data, model, metrics=args.metrics or "full", workers=workers, executor=pool,
+                                  **options)
         write_calibration(cal, args.out, sensors=data.sensors)
         print(format_calibration(cal))
     print(f"wrote {args.final_out}")
@@ -188,10 +225,11 @@ def cmd_sample(args) -> int:
     model, data, space, truth = _model_and_data(args)
     _first_look(data, args.out)
     settings = settings_from(PosteriorSettings, args.quick, read_config(args.config, "sample"), seed=args.seed,
-                             n_walkers=args.walkers,
+                             n_walkers=args.walkers, n_predictive=args.predictive, n_global=args.sensitivity,
                              **{("direct_steps" if args.direct else "n_steps"): args.steps})
-    res = sample(data, model, settings, workers=workers, direct=args.direct, space=space,
-                 cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
+    with _executor(args) as pool:
+        res = sample(data, model, settings, workers=workers, direct=args.direct, space=space, executor=pool,
+                     cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
     if truth is not None and args.model not in beam_cli.BEAM_MODELS:
         # the data set's own block: drawn only where it names the model's parameters in their units
         from bayes_update.reports.posterior import truth_in_model_units
@@ -224,8 +262,9 @@ def cmd_discrepancy(args) -> int:
         truth = {"parameters": truth, "effects": hidden} if truth else None
     settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"),
                              seed=args.seed)
-    res = find_discrepancy(data, model, settings=settings, workers=workers, candidates=args.candidates,
-                           metrics=args.metrics)
+    with _executor(args) as pool:
+        res = find_discrepancy(data, model, settings=settings, workers=workers, candidates=args.candidates,
+                               metrics=args.metrics, executor=pool)
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")

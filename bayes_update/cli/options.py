@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["add_common", "add_data_out", "add_metrics", "add_model", "add_posterior_options", "configure_logging",
-           "read_config", "settings_from"]
+           "add_scheduler", "read_config", "settings_from"]
 
 
 def add_data_out(p: argparse.ArgumentParser, out_required: bool = True) -> None:
@@ -33,6 +33,13 @@ def add_common(p: argparse.ArgumentParser, seed: bool = True) -> None:
     p.add_argument("--log-file", type=Path, default=None, help="also write the log to this file")
 
 
+def add_scheduler(p: argparse.ArgumentParser) -> None:
+    """--scheduler: the model runs on a Dask cluster."""
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="a Dask scheduler (e.g. tcp://10.0.0.5:8786): the model runs go to its workers "
+                        "instead of local processes (--workers is then ignored); needs dask[distributed]")
+
+
 def add_model(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model", default="fe", metavar="SPEC",
                    help="the model to update: path/to/file.py:NAME or package.module:NAME (a class or "
@@ -56,6 +63,12 @@ def add_posterior_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=None,
                    help="emcee steps per walker on the surrogate (PosteriorSettings.n_steps; "
                         "direct_steps with --direct)")
+    p.add_argument("--predictive", type=int, default=None, metavar="N",
+                   help="model runs at N posterior draws: predictive bands and the surrogate's check "
+                        "(PosteriorSettings.n_predictive; default 0, 32 is a good size)")
+    p.add_argument("--sensitivity", type=int, default=None, metavar="N",
+                   help="global Sobol' indices from a GP on N model runs over the prior box "
+                        "(PosteriorSettings.n_global; default 0, 128 is a good size)")
 
 
 def read_config(path: Path | None, section: str) -> dict:

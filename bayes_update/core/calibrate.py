@@ -35,6 +35,8 @@ Every model run goes through the executor; the least-squares engine is
 """
 from __future__ import annotations
 
+import inspect
+
 import math
 from dataclasses import dataclass, field
 
@@ -229,16 +231,20 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Prob
 
 
 def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: int = 0, executor=None,
-               progress: bool = False, log=info) -> tuple[dict, int]:
+               progress: bool = False, log=info, coarse: bool = False) -> tuple[dict, int]:
     """(theta, model runs): where ``sample`` and ``find_discrepancy`` start.
 
     The model's own ``start(dataset, executor, progress)`` when it offers one
-    (the beam: the paper's grids), else the two-stage calibration of this
-    module on the problem as built (Sobol' designs of ``n_points`` points,
-    then least squares)."""
-    if callable(getattr(problem.model, "start", None)):
-        log("start: the model's own start search")
-        return problem.model.start(dataset, executor=executor, progress=progress)
+    (the beam: the paper's grids; with ``coarse``, a cheaper start for a search
+    that goes on from it, where the hook takes ``coarse=True``), else the
+    two-stage calibration of this module on the problem as built (Sobol'
+    designs of ``n_points`` points, then least squares)."""
+    hook = getattr(problem.model, "start", None)
+    if callable(hook):
+        log("start: the model's own start search" + (" (coarse)" if coarse else ""))
+        if coarse and "coarse" in inspect.signature(hook).parameters:
+            return hook(dataset, executor=executor, progress=progress, coarse=True)
+        return hook(dataset, executor=executor, progress=progress)
     log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
     names, runs = problem.linear_parameters, 0
     if names is None:

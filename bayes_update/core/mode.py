@@ -138,7 +138,8 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
 
 
 def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
-              max_iterations: int = 40) -> ModeResult:
+              max_iterations: int = 40, cost_tolerance: float | None = None,
+              central: bool = True) -> ModeResult:
     """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
 
     Parameters
@@ -147,8 +148,15 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         thousandth of the prior width (smaller for a coordinate pinned
         tightly, such as P_eff).
     max_iterations : least-squares iterations per start.
+    cost_tolerance : stop a start when an iteration lowers ``-log L`` by less than
+        this (absolute, in log-likelihood units; default: by less than 1e-6 of
+        itself).  A posterior needs its mode to a small fraction of one log unit,
+        not to 1e-6 of a cost of several hundred.
+    central : the Jacobian at the mode by central differences (2d runs), else
+        forward ones (d runs; enough for a Laplace covariance, whose
+        finite-difference error is of the step's order, 1e-4 of the range).
 
-    Returns the best end point with its central-difference Jacobian.
+    Returns the best end point with its Jacobian.
     """
     lower, upper, steps = (np.asarray(a, float) for a in (lower, upper, steps))
     if not np.all(steps > 0):
@@ -174,15 +182,19 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     scale = upper - lower
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, float), lower, upper)
+        ftol = 1e-6
+        if cost_tolerance is not None:
+            r0 = f(x0)
+            ftol = float(np.clip(cost_tolerance / max(0.5 * float(r0 @ r0), 1e-300), 1e-10, 1e-2))
         opt = least_squares(f, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale=scale,
-                            max_nfev=max_iterations, xtol=1e-6, ftol=1e-6, gtol=1e-8)
+                            max_nfev=max_iterations, xtol=1e-6, ftol=ftol, gtol=1e-8)
         runs.append((x0, opt.x.copy(), float(opt.cost)))
         if best is None or opt.cost < best.cost:
             best = opt
     x = best.x.copy()
     r = fun(x)
     count[0] += 1
-    J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=True)
+    J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=central)
     count[0] += n
     return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
                       starts=runs)

@@ -2,23 +2,36 @@
 
 Pipeline of :func:`sample` (each step's numbers go to the result):
 
-1. start: the model's own ``start`` hook (the beam's: the paper's grids),
-   else the two-stage calibration (:mod:`bayes_update.core.calibrate`),
+The cost users feel is the number of model runs: every step records its
+runs and wall time (``run.json``); ``benchmarks/runs_per_posterior.py``
+measures them against the former sizes and a direct chain (docs/posterior.md).
+
+1. start: the model's own ``start`` hook, coarse (the beam's: eta and P_eff
+   from the low level, 6 runs), else the two-stage calibration on Sobol'
+   designs of ``n_start`` points (:mod:`bayes_update.core.calibrate`),
    unless a start point is given;
-2. likelihood scales at the start (:func:`bayes_update.core.likelihood.estimate_likelihood`:
-   noise replicates and the model error against a refined model);
+2. likelihood scales at the start (:func:`bayes_update.core.likelihood.estimate_likelihood`):
+   96 noise replicates whose force noise reaches the response through a
+   linear time-invariant estimate of the model (one run), corrected by 16
+   replicates run on the model (a control variate), the sensitivity span
+   (d runs) and the model error against a refined model (one run), per test;
 3. MAP by least squares on the metrics' residual vectors (trust-region
    Gauss-Newton on direct model runs, :mod:`bayes_update.core.mode`; from the
-   start and from the model's ``extra_starts``, e.g. the beam's c-k_s band) and the
-   Laplace covariance from the residuals' Jacobian there;
+   start, then from the model's ``extra_starts`` where they already beat that
+   mode, e.g. the beam's c-k_s band) and the Laplace covariance from the
+   residuals' Jacobian there;
 4. surrogate path: coordinates whitened by the Laplace covariance, a Sobol'
-   design in the box of +-``box_sd`` in them (points inside the prior), Gaussian processes of
-   z = log(1 + e^2 / s^2) per stage, refined in rounds where the surrogate
-   posterior has mass (:func:`surrogates.refine`, candidates from short MCMC
-   runs on the current surrogate); direct path: no surrogate;
+   design (6 points per parameter) in the box of +-``box_sd`` in them (points
+   inside the prior), Gaussian processes of z = log(1 + e^2 / s^2) per stage,
+   refined in rounds of 2 points per parameter where the surrogate posterior
+   has mass (:func:`surrogates.refine`) until that posterior stops moving
+   (means within 0.1 sd, sds within 10 %, twice in a row); direct path: no
+   surrogate;
 5. emcee (stretch move, seeded) on the surrogate's (or the model's)
    posterior, restricted to the local box; ArviZ data (the parameters in their
-   units, and derived coordinates such as the beam's P_eff).
+   units, and derived coordinates such as the beam's P_eff);
+6. opt-in diagnostics: model runs at posterior draws (``n_predictive``: bands
+   and the surrogate's check) and global Sobol' indices (``n_global``).
 
 Why a local box: a posterior can be far narrower than its prior (the beam's P_eff is ~0.03 % wide, 1e-4 of the prior
 range), so a design over the whole prior box would put no point in it.  The

@@ -1,6 +1,6 @@
 """The surrogates of the posterior: a Sobol' design in the whitened local box, Gaussian
-processes of z = log(1 + e^2 / s^2) per stage, refinement rounds where the posterior is; the
-evaluation cache an interrupted run resumes from."""
+processes of z = log(1 + e^2 / s^2) per stage, refinement rounds where the posterior is until
+the surrogate posterior stops moving; the evaluation cache an interrupted run resumes from."""
 from __future__ import annotations
 
 import time
@@ -26,14 +26,15 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     ss = np.random.SeedSequence(seed).spawn(3)
     # a Sobol' design of the u box, keeping the points inside the prior
     # (near a corner of the prior most of the box is outside: draw more)
+    n0 = n_initial(settings, len(box))
     for factor in (8, 64, 512):
-        cand = surrogates.design(box, factor * settings.n_initial, "sobol", seed=int(ss[0].generate_state(1)[0]))
+        cand = surrogates.design(box, factor * n0, "sobol", seed=int(ss[0].generate_state(1)[0]))
         inside = np.isfinite(space.log_prior(whitening.to_x(cand)))
-        if inside.sum() >= settings.n_initial:
+        if inside.sum() >= n0:
             break
     else:
         raise RuntimeError(f"only {inside.sum()} of {len(cand)} design candidates fall inside the prior box")
-    U0 = cand[inside][:settings.n_initial]
+    U0 = cand[inside][:n0]
     cache = _cache(cache_dir, ev.evaluate, "design", whitening, reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
     res = evaluate(ev, list(U0), executor=pool, progress=progress)
@@ -46,28 +47,100 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     def weight(surs):
         return WhitenedLogPosterior(dict(zip(stages, surs)), space, box, whitening)
 
+    check_rng = np.random.default_rng(ss[2])
+    stability = _Stability(weight, len(box), settings.stop_tolerance, check_rng, log)
+
     def candidates(surs, rng):
-        # draws of a short MCMC on the current surrogate posterior, plus Sobol' points
-        logp = weight(surs)
-        init = initial_walkers(logp, np.zeros(len(box)), np.eye(len(box)), 16, int(rng.integers(2 ** 31)))
-        smp = run_emcee(logp, init, 16, 400, int(rng.integers(2 ** 31)), vectorize=True, progress=False)
-        draws = smp.get_chain(discard=200, thin=2, flat=True)
+        # draws of a short MCMC on the current surrogate posterior (the stability check's),
+        # plus Sobol' points
+        draws = stability.draws(surs)
         sob = surrogates.design(box, 512, "sobol", seed=int(rng.integers(2 ** 31)))
-        return np.vstack([draws, sob])
+        return np.vstack([draws[rng.permutation(len(draws))[:1600]], sob])
 
     def factory():
         return _gp_factory(box, seed=0, names=space.coordinate_names)
 
     with threadpool_limits(2):
         t = time.perf_counter()
-        ref = surrogates.refine(ev, factory, U0, Y0, weight, settings.n_rounds, settings.batch, pool,
+        ref = surrogates.refine(ev, factory, U0, Y0, weight, settings.n_rounds, n_batch(settings, len(box)), pool,
                                 seed=int(ss[1].generate_state(1)[0]), candidates=candidates, target=target,
-                                log_weight=True, evaluate=evaluate, progress=progress)
+                                log_weight=True, evaluate=evaluate, progress=progress,
+                                until=stability if settings.stop_tolerance > 0 else None)
         t_fit = time.perf_counter() - t
     gps = dict(zip(stages, ref.surrogate))
     for st, gp in gps.items():
-        log(f"GP of z_{st}: {int(np.isfinite(ref.y[:, 0]).sum())} runs; " + gp.summary().splitlines()[0])
+        log(f"GP of z_{st}: {int(np.isfinite(ref.y[:, 0]).sum())} runs in {len(ref.rounds)} fits; "
+            + gp.summary().splitlines()[0])
     return gps, ref.X, ref.y, t_fit
+
+
+def n_initial(settings, d: int) -> int:
+    """Points of the initial design: ``settings.n_initial``, else 6 per dimension."""
+    return settings.n_initial if settings.n_initial else max(8, 6 * d)
+
+
+def n_batch(settings, d: int) -> int:
+    """Points per refinement round: ``settings.batch``, else 2 per dimension."""
+    return settings.batch if settings.batch else max(4, 2 * d)
+
+
+class _Stability:
+    """The design's stopping rule: the surrogate posterior no longer moving.
+
+    Called with the current surrogates before every refinement round: draws of
+    the previous round's surrogate posterior (an emcee run, whitened
+    coordinates, where the Laplace posterior has unit sd) are reweighted to the
+    current one (importance weights p_now / p_before on the same draws, so that
+    the comparison carries no Monte Carlo noise of two separate chains); the
+    move is the largest shift of a mean in sd and the largest relative change
+    of an sd.  Stable when both stay below ``tolerance`` twice in a row (one
+    quiet round can be luck: a round whose points all land where the surrogate
+    was already right), and the weights' effective sample size is above half
+    the draws (otherwise the posterior moved too far for the reweighting to
+    tell).  Each round's chain starts from the previous one's walkers."""
+
+    def __init__(self, weight, d: int, tolerance: float, rng, log):
+        self.weight, self.d, self.tolerance, self.rng, self.log = weight, d, tolerance, rng, log
+        self.previous, self.quiet, self._cache, self._last = None, 0, (None, None, None), None
+
+    def _run(self, surs):
+        if self._cache[0] is not surs:
+            logp = self.weight(surs)
+            # from the previous round's walkers where the new surrogate allows them (burnt in
+            # already: 400 steps, 100 discarded), else from the Laplace posterior (1000, 500)
+            last = self._last if self._last is not None and np.all(np.isfinite(logp(self._last))) else None
+            init = last if last is not None else initial_walkers(
+                logp, np.zeros(self.d), np.eye(self.d), 16, int(self.rng.integers(2 ** 31)))
+            n, burn = (400, 100) if last is not None else (1000, 500)
+            smp = run_emcee(logp, init, 16, n, int(self.rng.integers(2 ** 31)), vectorize=True, progress=False)
+            self._last = smp.get_last_sample().coords
+            self._cache = (surs, smp.get_chain(discard=burn, flat=True), smp.get_log_prob(discard=burn, flat=True))
+        return self._cache[1], self._cache[2]
+
+    def draws(self, surs) -> np.ndarray:
+        return self._run(surs)[0]
+
+    def __call__(self, surs) -> bool:
+        stable = False
+        if self.previous is not None:
+            x, lp_before = self.previous
+            lp_now = self.weight(surs)(x)
+            logw = np.where(np.isfinite(lp_now), lp_now - lp_before, -np.inf)
+            w = np.exp(logw - np.max(logw))
+            w /= w.sum()
+            ess = 1.0 / np.sum(w ** 2) / len(w)
+            m0, s0 = x.mean(axis=0), x.std(axis=0)
+            m1 = w @ x
+            s1 = np.sqrt(np.maximum(w @ (x - m1) ** 2, 1e-300))
+            shift = float(np.max(np.abs(m1 - m0) / s0))
+            spread = float(np.max(np.abs(np.log(s1 / s0))))
+            self.quiet = self.quiet + 1 if max(shift, spread) < self.tolerance and ess > 0.5 else 0
+            stable = self.quiet >= 2
+            self.log(f"  design round: the surrogate posterior moved {shift:.3f} sd (means), "
+                     f"{100 * spread:.1f} % (sds), reweighting ESS {100 * ess:.0f} %"
+                     + ("; stable: the design stops" if stable else ""))
+        self.previous = self._run(surs)
+        return stable
 
 
 def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = None, reused: dict | None = None):

@@ -8,7 +8,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from bayes_update.core.logs import info
-from bayes_update.core.likelihood import Likelihood, curvature_adjustment, estimate_likelihood, likelihood_runs
+from bayes_update.core.adjustment import curvature_adjustment
+from bayes_update.core.likelihood import Likelihood, estimate_likelihood, likelihood_runs
 from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
@@ -185,7 +186,8 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
     with run.steps("start"):
         if start is None:
             start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
-                                  seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log)
+                                  seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log,
+                                  coarse=True)
             run.steps.add_runs(n)
         else:
             space.check(start, "start")
@@ -214,8 +216,9 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
     with run.steps("likelihood_scales"):
         if likelihood is None:
             lik = estimate_likelihood(run.problem, start, model_error=s.model_error, n_replicates=s.n_replicates,
-                                      seed=run.seeds[0], space=run.space)
-            run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error))
+                                      seed=run.seeds[0], space=run.space, model_replicates=s.model_replicates)
+            run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error,
+                                               model_replicates=s.model_replicates))
         else:
             if set(likelihood.stages) != set(stages):
                 raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
@@ -303,7 +306,7 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
     kept = sampler.get_chain(discard=s.burn, thin=s.thin)
     G = logp_u.gp_points(kept.reshape(-1, d))
     # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
-    ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.predict_transformed(G)[0], 0.0)})
+    ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)})
           .reshape(kept.shape[:2]) for st, gp in gps.items()}
     return _Chain(_XSampler(sampler, whitening), s.burn, s.thin, gps, design, diag, ll)
 

@@ -10,30 +10,42 @@ class PosteriorSettings:
 
     # noise replicates for the likelihood scales and the curvature adjustment's noise covariance:
     # at 24 the sandwich from the replicates was itself too noisy (50 SBC truths: the truth beyond
-    # the 90 % chi^2_4 point in 14 %, at 96 in 8 %; benchmarks/sbc_linearised.py)
+    # the 90 % chi^2_4 point in 14 %, at 96 in 8 %; benchmarks/sbc_linearised.py).  Their force
+    # noise's response comes from a linear time-invariant estimate of the model (one run),
+    # corrected by model_replicates replicates run on the model (likelihood.estimate_likelihood;
+    # None: every replicate a model run)
     n_replicates: int = 96
-    n_initial: int = 96         # Sobol' points in the local box
-    n_rounds: int = 5           # refinement rounds
-    batch: int = 32             # points per round
+    model_replicates: int | None = 16
+    n_initial: int = 0          # Sobol' points in the local box (0: 6 per parameter)
+    n_rounds: int = 12          # refinement rounds at most
+    batch: int = 0              # points per round (0: 2 per parameter)
+    stop_tolerance: float = 0.1  # the design stops when the surrogate posterior's means move less than this
+    #                             many sd and its sds less than this share, twice in a row (0: all n_rounds)
     box_sd: float = 4.0         # half-width of the local box [Laplace marginal sd]
-    n_walkers: int = 32
-    n_steps: int = 12000        # on the surrogate; direct runs use direct_steps
-    burn: int = 2000
-    thin: int = 10              # kept draws: every thin-th step after burn-in
+    n_walkers: int = 64
+    n_steps: int = 4000         # on the surrogate; direct runs use direct_steps
+    burn: int = 1000
+    thin: int = 5               # kept draws: every thin-th step after burn-in
     direct_steps: int = 3000
     direct_burn: int = 1000
     box_attempts: int = 3       # re-centred, wider boxes when the first cuts the posterior
     n_linear: int = 64          # design of the linear-only posterior (0: skip it)
-    n_global: int = 128         # global design for the sensitivity indices (0: skip)
+    n_global: int = 0           # global design for the sensitivity indices (opt-in: 128 is a good size)
     sobol_n: int = 1024         # SALib base sample size
-    n_predictive: int = 32      # FE runs at posterior draws (bands and surrogate check)
+    n_predictive: int = 0       # model runs at posterior draws: bands and surrogate check (opt-in: 32)
     model_error: bool = True    # add the measured model error to the likelihood
-    curvature_adjustment: bool = True   # sandwich-adjust the likelihood's curvature (likelihood.curvature_adjustment)
+    curvature_adjustment: bool = True   # sandwich-adjust the likelihood's curvature (adjustment.curvature_adjustment)
     map_max_evaluations: int = 600
-    n_start: int = 64           # Sobol' points of the start search (models other than the beam)
+    n_start: int = 16           # Sobol' points of the start search (models without a start hook)
     seed: int = 0
 
     def __post_init__(self):
+        if self.model_replicates is not None and (isinstance(self.model_replicates, bool) or
+                                                  int(self.model_replicates) != self.model_replicates or
+                                                  self.model_replicates < 4):
+            raise ValueError(f"model_replicates must be None or an integer >= 4, got {self.model_replicates!r}")
+        if not self.stop_tolerance >= 0:
+            raise ValueError(f"stop_tolerance must be >= 0, got {self.stop_tolerance!r}")
         for name in ("n_replicates", "n_initial", "n_rounds", "batch", "n_walkers", "n_steps", "burn", "thin",
                      "direct_steps", "direct_burn", "box_attempts",
                      "n_linear", "n_global", "sobol_n", "n_predictive", "map_max_evaluations", "n_start"):
@@ -44,15 +56,16 @@ class PosteriorSettings:
             raise ValueError("need n_walkers >= 8, n_steps > burn and direct_steps > direct_burn")
         if self.thin < 1 or self.box_attempts < 1:
             raise ValueError("thin and box_attempts must be >= 1")
-        if self.n_initial < 8:
-            raise ValueError("n_initial must be at least 8")
+        if 0 < self.n_initial < 8:
+            raise ValueError("n_initial must be 0 (8 per parameter) or at least 8")
         if not self.box_sd > 1:
             raise ValueError("box_sd must be > 1")
 
     @classmethod
     def quick(cls, **kw) -> "PosteriorSettings":
         """Small sizes for tests and a first look (about a fifth of the runs)."""
-        base = dict(n_replicates=12, n_initial=40, n_rounds=2, batch=16, n_walkers=24, n_steps=3000,
+        base = dict(n_replicates=48, model_replicates=8, n_initial=40, n_rounds=2, batch=16, stop_tolerance=0.0,
+                    n_walkers=24, n_steps=3000,
                     burn=1000, thin=5, direct_steps=1000, direct_burn=400, n_linear=32, n_global=48,
                     sobol_n=256, n_predictive=8, map_max_evaluations=250)
         base.update(kw)

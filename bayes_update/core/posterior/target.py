@@ -6,7 +6,8 @@ import math
 from dataclasses import dataclass
 import numpy as np
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.likelihood import CurvatureAdjustment, Likelihood
+from bayes_update.core.adjustment import CurvatureAdjustment
+from bayes_update.core.likelihood import Likelihood
 from bayes_update.core.problem import Problem
 
 
@@ -79,7 +80,7 @@ class SurrogateLogPosterior:
         inside = np.all((X >= self.box[:, 0]) & (X <= self.box[:, 1]), axis=1) & np.isfinite(lp)
         out = np.full(len(X), -np.inf)
         if inside.any():
-            z = {st: gp.predict_transformed(X[inside])[0] for st, gp in self.gps.items()}
+            z = {st: gp.mean_transformed(X[inside]) for st, gp in self.gps.items()}
             out[inside] = lp[inside] + Likelihood.log_likelihood_from_z(z)
         return out
 
@@ -153,6 +154,6 @@ class WhitenedLogPosterior:
         inside = np.all((G >= self.box[:, 0]) & (G <= self.box[:, 1]), axis=1) & np.isfinite(lp)
         out = np.full(len(U), -np.inf)
         if inside.any():
-            z = {st: gp.predict_transformed(G[inside])[0] for st, gp in self.gps.items()}
+            z = {st: gp.mean_transformed(G[inside]) for st, gp in self.gps.items()}
             out[inside] = lp[inside] + Likelihood.log_likelihood_from_z(z)
         return out

@@ -232,13 +232,13 @@ class Beam:
                         float)
 
     def from_internal(self, x) -> dict:
-        x = np.asarray(x, float)
-        return {"eta": float(x[0]), "c": float(x[1]), "F": float(x[2] * (self.kb + x[3]) / self.kb),
-                "k_s": float(x[3])}
+        kb, (eta, c, p_eff, k_s) = self.kb, (float(v) for v in x)
+        return {"eta": eta, "c": c, "F": p_eff * (kb + k_s) / kb, "k_s": k_s}
 
     def log_jacobian(self, x) -> float:
         """``log |d(eta, c, F, k_s) / d(eta, c, P_eff, k_s)| = log((K_b + k_s) / K_b)``."""
-        return math.log((self.kb + float(x[3])) / self.kb)
+        kb = self.kb
+        return math.log((kb + float(x[3])) / kb)
 
     # -- optional members ---------------------------------------------------
     def refined(self) -> "Beam":
@@ -274,11 +274,16 @@ class Beam:
                     out.append(p)
         return out
 
-    def start(self, dataset, executor=None, progress: bool = False) -> tuple[dict, int]:
+    def start(self, dataset, executor=None, progress: bool = False, coarse: bool = False) -> tuple[dict, int]:
         """(theta, model runs): the paper's two-stage updating on coarse grids,
-        the start of ``sample`` and ``find_discrepancy`` for the beam."""
-        from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate
+        the start of ``find_discrepancy`` for the beam; with ``coarse`` (the start
+        of ``sample``, whose MAP search goes on from it) only eta and P_eff from
+        the low level (:func:`~bayes_update.models.beam.calibrate.coarse_start`,
+        6 runs against about 280)."""
+        from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, coarse_start
 
+        if coarse:
+            return coarse_start(dataset, self, executor, progress)
         cal = calibrate(dataset, self, CalibrationSettings.quick(), executor=executor, progress=progress,
                         log=lambda *a: None)
         return cal.final_theta, cal.setup["n_model_runs"]

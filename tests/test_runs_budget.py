@@ -1,0 +1,117 @@
+"""The posterior's run budget (the runs-per-posterior issue): the likelihood
+scales' control variate, the design's stopping rule and the count of model
+runs each step reports."""
+import numpy as np
+import pytest
+
+from bayes_update.core.likelihood import _lti_response, estimate_likelihood, likelihood_runs
+
+
+class _Counting:
+    """A model of the contract that counts its runs (around the Duffing oscillator of test_user_model)."""
+
+    def __init__(self, inner):
+        self.inner, self.parameters, self.runs = inner, inner.parameters, 0
+
+    def simulate(self, theta, force, fs):
+        self.runs += 1
+        return self.inner.simulate(theta, force, fs)
+
+
+@pytest.fixture(scope="module")
+def linear_problem():
+    """A linear oscillator (the Duffing of test_user_model with k2 = k3 = 0) and its data."""
+    from test_user_model import Duffing, make_dataset
+
+    from bayes_update.core.calibrate import problem_for
+
+    data = make_dataset(seed=23, truth={"k2": 0.0, "k3": 0.0})
+    model = _Counting(Duffing(("fn", "zeta"), fixed={"k2": 0.0, "k3": 0.0, "gain": 1.3}))
+    return problem_for(data, model, None, None), model
+
+
+def test_the_lti_estimate_is_the_linear_models_response(linear_problem):
+    """For a linear model the probe's transfer function is the model's: the response to a
+    fresh force noise record from it matches a model run to the window's leakage (an
+    independent check: the model's own RK4 integration)."""
+    problem, _ = linear_problem
+    theta = {"fn": 41.3, "zeta": 0.021}
+    stage = "linear"
+    force = problem.tests[stage].force
+    v0 = problem.simulate(theta, stage)
+    sig = 0.01 * np.sqrt(np.mean(force ** 2))
+    rng = np.random.default_rng(5)
+    lti = _lti_response(problem, theta, stage, v0, sig, rng)
+    du = sig * rng.standard_normal(force.size)
+    dv_model = problem.run(theta, force + du) - v0
+    dv_lti = lti(du)
+    # the metric sees the projection on the regressors: compare there
+    out = [problem.output(stage, problem.components(stage, v)) for v in (dv_model, dv_lti)]
+    assert np.linalg.norm(out[1] - out[0]) <= 0.01 * np.linalg.norm(out[0])     # measured: 0.1 %
+
+
+def test_the_control_variate_counts_and_agrees_with_model_replicates(linear_problem):
+    """The scales from 96 replicates run on the model and from the control variate
+    (96 LTI replicates corrected by 16 model ones) agree within their Monte Carlo
+    error (sd of s_n about 1/sqrt(2 K r) = 7 % for K = 96, r = 1-2 directions), and
+    each takes the runs likelihood_runs says."""
+    problem, model = linear_problem
+    theta = {"fn": 41.3, "zeta": 0.021}
+    space = problem.space
+    got = {}
+    for key, k in (("model", None), ("control_variate", 16)):
+        model.runs = 0
+        lik = estimate_likelihood(problem, theta, n_replicates=96, seed=3, space=space, model_replicates=k,
+                                  model_error=False)
+        assert model.runs == likelihood_runs(problem, 96, space, model_error=False, model_replicates=k)
+        got[key] = {st: sc.noise_sd for st, sc in lik.scales.items()}
+    for st in got["model"]:
+        assert got["control_variate"][st] == pytest.approx(got["model"][st], rel=0.2), (st, got)
+
+
+def test_the_design_stops_when_the_surrogate_posterior_stops_moving():
+    """The stopping rule on a target that does not change stops at the third check
+    (two quiet rounds in a row); a target that moves by 0.5 sd each round never stops."""
+    from bayes_update.core.posterior.design import _Stability
+
+    def weight_for(shift):
+        return lambda X: -0.5 * np.sum((np.atleast_2d(X) - shift) ** 2, axis=1)
+
+    still = _Stability(lambda s: weight_for(0.0), 2, 0.1, np.random.default_rng(0), lambda *a: None)
+    assert [still(object()) for _ in range(3)] == [False, False, True]
+    moving = _Stability(lambda s: weight_for(s), 2, 0.1, np.random.default_rng(0), lambda *a: None)
+    assert not any(moving(0.5 * i) for i in range(5))
+
+
+def test_refine_stops_when_asked():
+    """surrogates.refine runs no round once ``until`` says so."""
+    import surrogates
+
+    box = np.array([[0.0, 1.0], [0.0, 1.0]])
+    X = surrogates.design(box, 12, "sobol", seed=1)
+    f = lambda x: float(np.sum((np.asarray(x) - 0.3) ** 2))     # noqa: E731
+    y = np.array([f(x) for x in X])
+    calls = []
+
+    def until(sur):
+        calls.append(1)
+        return len(calls) >= 2
+
+    ref = surrogates.refine(f, lambda: surrogates.GPSurrogate(box, transform="none"), X, y,
+                            lambda s: (lambda Z: np.ones(len(Z))), n_rounds=5, batch=3, until=until, progress=False)
+    assert len(ref.rounds) == 2 and len(ref.X) == 15
+
+
+def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
+    """The coarse start (no grid over c and k_s) puts eta and P_eff where the full
+    two-stage calibration does (Table 3 of docs/beam_study.md: eta 3.007 MPa s,
+    P_eff 74.03 N), from the low level alone, in six runs."""
+    from bayes_update.models.beam.model import beam_model
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
+
+    data = load_default_dataset()
+    beam = beam_model(data, "rom")
+    theta, runs = beam.start(data, coarse=True)
+    p_eff = beam.to_internal(theta)[2]
+    assert runs == 6
+    assert abs(p_eff - 74.03) < 0.1 and abs(theta["eta"] - 3.007) < 0.05, theta
