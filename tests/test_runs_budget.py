@@ -4,7 +4,8 @@ runs each step reports."""
 import numpy as np
 import pytest
 
-from bayes_update.core.likelihood import _lti_response, estimate_likelihood, likelihood_runs
+from bayes_update.core.likelihood import estimate_likelihood, likelihood_runs
+from bayes_update.core.replicates import lti_response
 
 
 class _Counting:
@@ -41,7 +42,7 @@ def test_the_lti_estimate_is_the_linear_models_response(linear_problem):
     v0 = problem.simulate(theta, stage)
     sig = 0.01 * np.sqrt(np.mean(force ** 2))
     rng = np.random.default_rng(5)
-    lti = _lti_response(problem, theta, stage, v0, sig, rng)
+    lti = lti_response(problem, theta, stage, v0, sig, rng)
     du = sig * rng.standard_normal(force.size)
     dv_model = problem.run(theta, force + du) - v0
     dv_lti = lti(du)

@@ -47,7 +47,7 @@ from surrogates.evaluation import default_executor, evaluate_many
 from bayes_update.core.logs import info
 import volterra
 
-from bayes_update.core.checks import fit_warnings, output_errors, test_disagreement
+from bayes_update.core.checks import disagreement_sentence, fit_warnings, output_errors, test_disagreement
 from bayes_update.core.mode import ResidualFunction, find_mode
 from bayes_update.core.model import check_model_on
 from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
@@ -235,10 +235,9 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
     """(theta, model runs): where ``sample`` and ``find_discrepancy`` start.
 
     The model's own ``start(dataset, executor, progress)`` when it offers one
-    (the beam: the paper's grids; with ``coarse``, a cheaper start for a search
-    that goes on from it, where the hook takes ``coarse=True``), else the
-    two-stage calibration of this module on the problem as built (Sobol'
-    designs of ``n_points`` points, then least squares)."""
+    (the beam: the paper's grids; ``coarse``: a start for a search that goes on
+    from it, passed where the hook takes it), else this module's two-stage
+    calibration (Sobol' designs of ``n_points`` points, then least squares)."""
     hook = getattr(problem.model, "start", None)
     if callable(hook):
         log("start: the model's own start search" + (" (coarse)" if coarse else ""))
@@ -250,16 +249,9 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
     if names is None:
         names, problem.linear_sensitivity, runs = screen_linear(problem, space, executor)
         problem.linear_parameters = tuple(names)
-    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=executor, progress=progress)
+    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=executor, progress=progress,
+                      **({"n_best": 2, "polish": False} if coarse else {}))
     return space.to_parameters(found.x), runs + found.n_model_runs
-
-
-def disagreement_sentence(d: dict) -> str:
-    """One line for a parameter two tests pull apart (:func:`test_disagreement`)."""
-    a, b = d["tests"]
-    return (f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
-            "apart, beyond their noise; an amplitude-dependent effect the model lacks (damping or stiffness "
-            "that changes with level) is the usual cause: run `bayes-update discrepancy`")
 
 
 @dataclass
@@ -275,8 +267,10 @@ class TwoStage:
 
 
 def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_best: int = 3,
-              max_iterations: int = 40, seed: int = 0, executor=None, progress: bool = True) -> TwoStage:
-    """Stages 2-4 of the module docstring on a built problem."""
+              max_iterations: int = 40, seed: int = 0, executor=None, progress: bool = True,
+              polish: bool = True) -> TwoStage:
+    """Stages 2-4 of the module docstring on a built problem; without ``polish`` (a start
+    for the posterior's MAP) stage 2 ends at the best of its starts."""
     box = space.box()
     lower, upper = box[:, 0], box[:, 1]
     steps = 1e-3 * (upper - lower)
@@ -301,9 +295,15 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     fun2 = _residual(problem, ("linear", "nonlinear"), map2, weighted)
     rest = tuple(i for i in free2 if i not in free1) or free2
     map_rest = _PointMap(space, x1, rest)
-    starts, n = _starts(_residual(problem, ("linear", "nonlinear"), map_rest, weighted), space, rest, n_start,
-                        n_best - 1, seed + 1, executor, progress, "stage 2 design")
+    # without polish half the design (over the parameters the linear test leaves free)
+    starts, n = _starts(_residual(problem, ("linear", "nonlinear"), map_rest, weighted), space, rest,
+                        n_start if polish else max(4, n_start // 2), n_best - 1, seed + 1, executor, progress,
+                        "stage 2 design")
     starts = [map_rest.full(x) for x in starts]
+    if not polish:
+        cost = [0.5 * float(r @ r) for r in evaluate_many(fun2, [x1] + starts, executor, progress=False)]
+        runs += n + 2 * (1 + len(starts))
+        return TwoStage(x1=x1, x=([x1] + starts)[int(np.argmin(cost))], unidentified=unident, n_model_runs=runs)
     mode2 = find_mode(fun2, [x1] + starts, lower, upper, steps, executor, max_iterations)
     runs += n + mode2.n_evaluations
     rows = _noise_rows(problem, fun2)

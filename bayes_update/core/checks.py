@@ -23,7 +23,8 @@ import math
 
 import numpy as np
 
-__all__ = ["FIT_FACTOR", "DISAGREEMENT_SD", "ModelFitError", "fit_warnings", "output_errors", "test_disagreement"]
+__all__ = ["FIT_FACTOR", "DISAGREEMENT_SD", "ModelFitError", "disagreement_sentence", "fit_warnings", "output_errors",
+           "test_disagreement"]
 
 #: a test is missed when its output error exceeds this many times its noise floor ...
 FIT_FACTOR = 3.0
@@ -164,3 +165,11 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
                     out.append({"parameter": name, "tests": [a, b], "sd": float(abs(z)),
                                 "shift_from_joint": {a: float(xa[k]), b: float(xb[k])}})
     return out
+
+
+def disagreement_sentence(d: dict) -> str:
+    """One line for a parameter two tests pull apart (:func:`test_disagreement`)."""
+    a, b = d["tests"]
+    return (f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
+            "apart, beyond their noise; an amplitude-dependent effect the model lacks (damping or stiffness "
+            "that changes with level) is the usual cause: run `bayes-update discrepancy`")

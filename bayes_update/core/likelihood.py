@@ -50,11 +50,13 @@ posterior sd.
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
 from bayes_update.core.problem import Problem
+from bayes_update.core.replicates import control_variate_rows
 
 
 @dataclass(frozen=True)
@@ -132,7 +134,6 @@ class Likelihood:
         (orthogonal to the parameters' sensitivities): the misfit a model
         comparison should count as explained.  The posterior keeps the whole
         model error, so that its bias moves a parameter by at most one sd."""
-        import dataclasses
         return Likelihood({st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
                            if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()})
 
@@ -190,7 +191,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         the force noise of the ``n_replicates`` replicates from a linear
         time-invariant estimate of the model's response (one model run), its
         error corrected by k replicates run on the model as well
-        (:func:`_control_variate_rows`): 2 + k model runs per stage instead of K.
+        (:func:`bayes_update.core.replicates.control_variate_rows`): 2 + k model runs per stage instead of K.
     refined : the model the model error is measured against (default
         :meth:`Problem.refined_model`); ignored with ``model_error=False`` (e.g. when
         the data come from the updating model itself).
@@ -237,8 +238,8 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
                 D.append(row(noise, problem.run(params, test.force + du) - v0 if sig_f else 0.0))
             D, w = np.array(D), np.full(int(n_replicates), 1.0 / n_replicates)
         else:
-            D, w = _control_variate_rows(problem, params, stage, v0, row, draw, int(n_replicates),
-                                         int(model_replicates), sig_f, rng)
+            D, w = control_variate_rows(problem, params, stage, v0, row, draw, int(n_replicates),
+                                        int(model_replicates), sig_f, rng)
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
         _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
@@ -263,60 +264,32 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     return Likelihood(scales, residuals)
 
 
-def _lti_response(problem: Problem, params, stage: str, v0, amplitude: float, rng):
-    """``du -> the model's response change to a small force change du`` as a linear
-    time-invariant system: one model run with a white probe of sd ``amplitude``
-    added to the recorded force; the impulse response g (half the record long)
-    that fits the run's response change by least squares, ``dv = g * probe``
-    causal and from rest as the model ran it (LSQR on the convolution,
-    FFT products); then ``g * du``.  Exact for a linear model whose impulse
-    response has decayed within half the record; for a nonlinear one it is the
-    linearisation about the record, averaged over time."""
-    from scipy import signal
-    from scipy.sparse.linalg import LinearOperator, lsqr
-
-    force = problem.tests[stage].force
-    n = force.size
-    length = n // 2
-    probe = amplitude * rng.standard_normal(n)
-    dv = problem.run(params, force + probe) - v0
-    cols = dv[:, None] if dv.ndim == 1 else dv
-    reverse = probe[::-1]
-    op = LinearOperator((n, length), dtype=float,
-                        matvec=lambda g: signal.fftconvolve(probe, np.ravel(g))[:n],
-                        rmatvec=lambda y: signal.fftconvolve(np.ravel(y), reverse)[n - 1:n - 1 + length])
-    g = [lsqr(op, cols[:, j], atol=1e-10, btol=1e-10, iter_lim=200)[0] for j in range(cols.shape[1])]
-
-    def response(du):
-        out = np.column_stack([signal.fftconvolve(du, gj)[:n] for gj in g])
-        return out[:, 0] if dv.ndim == 1 else out
-    return response
-
-
-def _control_variate_rows(problem: Problem, params, stage: str, v0, row, draw, n_replicates: int, k: int,
-                          sig_f: float, rng) -> tuple[np.ndarray, np.ndarray]:
-    """The replicates' residual rows and their weights with the force noise's
-    response taken from :func:`_lti_response` (one model run) and corrected by a
-    control variate: ``k`` replicates run on the model and, with the same noise,
-    on the LTI estimate.  The second moment ``sum_i w_i d_i d_i^T`` is then
-    ``E_LTI[dd^T]`` from the ``n_replicates`` cheap rows (weight 1/K) plus
-    ``E_model[dd^T] - E_LTI[dd^T]`` from the k pairs (weights +1/k, -1/k):
-    unbiased for the model, and precise where the LTI estimate follows the
-    model replicate by replicate.  On the beam's default data set (ROM) the
-    pairs' rows differ by 1.8 % of their norm at the low level and by 39 % at
-    the high one (the linearisation varies along the record there); s_n over
-    three seeds: 0.0493-0.0516 % and 0.182-0.205 % against 0.0503-0.0540 % and
-    0.179-0.195 % from 96 replicates all run on the model (36 runs against 192)."""
-    lti = _lti_response(problem, params, stage, v0, sig_f, rng)
-    rows = [row(noise, lti(du)) for du, noise in (draw() for _ in range(n_replicates))]
-    pairs_model, pairs_lti = [], []
-    for _ in range(k):
-        du, noise = draw()
-        pairs_model.append(row(noise, problem.run(params, problem.tests[stage].force + du) - v0))
-        pairs_lti.append(row(noise, lti(du)))
-    D = np.array(rows + pairs_model + pairs_lti)
-    w = np.concatenate([np.full(n_replicates, 1.0 / n_replicates), np.full(k, 1.0 / k), np.full(k, -1.0 / k)])
-    return D, w
+def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian) -> Likelihood:
+    """``likelihood`` with its model-error terms measured again at ``params`` (the
+    mode): the model error depends on where it is measured, and a start for the
+    mode's search may lie far from it.  The model's output there comes from the
+    mode's scaled residual (no run), the refined model's from one run per stage,
+    the span of the parameters' sensitivities from the mode's Jacobian; the
+    noise terms stay.  Without a refined model (or its term switched off) the
+    likelihood is returned as it is."""
+    ref_model = problem.refined_model()
+    if ref_model is None or all(sc.model_error == 0.0 for sc in likelihood.scales.values()):
+        return likelihood
+    scales, row = {}, 0
+    for stage in problem.stages:
+        sc = likelihood.scales[stage]
+        ref = problem.output(stage, problem.reference_components(stage))
+        norm, n = np.linalg.norm(ref), ref.size
+        r, J = np.asarray(residual[row:row + n]), np.asarray(jacobian[row:row + n])
+        row += n
+        at_mode = ref - r * norm * sc.sd
+        d = at_mode - problem.output(stage, problem.components(
+            stage, problem.run(params, problem.tests[stage].force, model=ref_model)))
+        U, S, _ = np.linalg.svd(J, full_matrices=False)
+        Q = U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
+        scales[stage] = dataclasses.replace(sc, model_error=float(np.linalg.norm(d) / norm),
+                                            model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
+    return Likelihood(scales, likelihood.noise_residuals)
 
 
 def _noise_levels(estimates: dict, sensors) -> dict:

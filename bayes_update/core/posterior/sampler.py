@@ -1,6 +1,7 @@
 """The pipeline of :func:`sample` (the package docstring) and its result."""
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
@@ -9,7 +10,7 @@ import numpy as np
 
 from bayes_update.core.logs import info
 from bayes_update.core.adjustment import curvature_adjustment
-from bayes_update.core.likelihood import Likelihood, estimate_likelihood, likelihood_runs
+from bayes_update.core.likelihood import Likelihood, estimate_likelihood, likelihood_runs, model_error_at
 from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
@@ -132,7 +133,7 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
         start, start_info = _start(run, start)
         lik = _likelihood(run, start, likelihood)
-        mp, box, adj = _mode(run, lik, start)
+        mp, box, adj, lik = _mode(run, lik, start, remeasure=likelihood is None)
         chain = _direct_chain(run, lik, mp, adj) if direct else _surrogate_chain(run, lik, mp, adj)
         res = _result(run, chain, lik, mp, box, adj, start_info, direct)
         _extras(run, res)
@@ -229,14 +230,19 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
     return lik
 
 
-def _mode(run: _Run, lik: Likelihood, start):
-    """3. MAP, Laplace covariance, local box and the curvature adjustment."""
+def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
+    """3. MAP, Laplace covariance, local box and the curvature adjustment; the
+    model-error terms of a measured likelihood measured again at the MAP
+    (:func:`~bayes_update.core.likelihood.model_error_at`) and the Laplace
+    covariance rescaled to them."""
     space, s = run.space, run.settings
     with run.steps("map_laplace"):
         ev = Evaluate(run.problem, space, run.problem.stages)
         mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False)
-        box = local_box(space, mp.x, mp.covariance, s.box_sd)
         run.steps.add_runs(len(run.problem.stages) * mp.n_evaluations)
+        if remeasure and mp.mode is not None and s.model_error:
+            lik, mp = _rescaled(run, lik, mp)
+        box = local_box(space, mp.x, mp.covariance, s.box_sd)
     run.log("MAP: " + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
             + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
     adj = None
@@ -247,7 +253,27 @@ def _mode(run: _Run, lik: Likelihood, start):
             run.log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
                     + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
                     + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
-    return mp, box, adj
+    return mp, box, adj, lik
+
+
+def _rescaled(run: _Run, lik: Likelihood, mp):
+    """(the likelihood with its model error measured at the MAP, the MAP result with
+    its residual and Jacobian rescaled to it): the mode stays (the scales move
+    little), its Laplace covariance follows the new scales."""
+    stages = run.problem.stages
+    new = model_error_at(run.problem, lik, run.space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian)
+    if new is lik:
+        return lik, mp
+    run.steps.add_runs(len(stages))
+    n = [run.problem.output(st, run.problem.reference_components(st)).size for st in stages]
+    factor = np.concatenate([np.full(k, lik.scales[st].sd / new.scales[st].sd) for k, st in zip(n, stages)])
+    mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
+                               cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)))
+    widths = np.diff(run.space.box(), axis=1)[:, 0]
+    run.log("model error at the MAP: " + ", ".join(
+        f"{st} {100 * lik.scales[st].model_error:.3f} -> {100 * new.scales[st].model_error:.3f} %" for st in stages))
+    return new, dataclasses.replace(mp, mode=mode, covariance=mode.covariance(scale=widths),
+                                    steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)))
 
 
 def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:

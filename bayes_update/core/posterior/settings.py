@@ -23,7 +23,7 @@ class PosteriorSettings:
     #                             many sd and its sds less than this share, twice in a row (0: all n_rounds)
     box_sd: float = 4.0         # half-width of the local box [Laplace marginal sd]
     n_walkers: int = 64
-    n_steps: int = 4000         # on the surrogate; direct runs use direct_steps
+    n_steps: int = 6000         # on the surrogate; direct runs use direct_steps
     burn: int = 1000
     thin: int = 5               # kept draws: every thin-th step after burn-in
     direct_steps: int = 3000
