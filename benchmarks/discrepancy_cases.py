@@ -71,7 +71,9 @@ def judge(case, effects, res) -> dict:
             "named_ok": named_ok, "shrink_e": shrink_e, "shrink_validation": shrink_v,
             "parameters": inside, "success": named_ok and gap_ok and all(r["inside"] for r in inside),
             "time_s": res.timing["total"], "gap_before": b, "gap_after": a,
-            "evidence": [{k: c[k] for k in ("name", "two_ln_B")} for c in res.rounds[0]["candidates"]]}
+            "evidence": [{k: c[k] for k in ("name", "two_ln_B")} for c in res.rounds[0]["candidates"]],
+            "pairs": [{k: c[k] for k in ("names", "two_ln_B", "partner_alone", "named")}
+                      for rnd in res.rounds for c in rnd.get("pairs", [])]}
 
 
 def main(argv=None):

@@ -172,9 +172,9 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
     from bayes_update.core.fits import DECISIVE, _at_bound, _at_null, names_effect
 
     def fit(x):   # one base coordinate, one effect coordinate on [0, 5] with null 0
-        space = SimpleNamespace(box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]),
-                                null_internal=lambda: np.array([0.5, 0.0]))
-        return SimpleNamespace(space=space, mode=SimpleNamespace(x=np.array([0.5, x])))
+        space = SimpleNamespace(box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]), n_base=1,
+                                null_internal=lambda: np.array([0.0]))     # the added parameters' nulls
+        return SimpleNamespace(space=space, mode=SimpleNamespace(x=np.array([0.5, x])), covariance=np.eye(2) * 0.01)
 
     rows = {}
     for label, x in (("at null", 3e-32), ("on bound", 5.0), ("inside", 2.0)):
@@ -185,3 +185,18 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
     assert rows["on bound"]["at_bound"] and not rows["on bound"]["at_null"]
     assert not rows["inside"]["at_null"] and not rows["inside"]["at_bound"]
     assert [label for label, row in rows.items() if names_effect(row)] == ["inside"]
+
+
+def test_a_pair_is_named_only_inside_its_priors_and_beyond_its_partner_alone():
+    """The rule for an effect on a bound tried with a partner (a damper taking a bow's
+    share): the pair must be decisive against the partner alone, and both members
+    inside their priors, away from their nulls."""
+    from bayes_update.core.fits import DECISIVE, names_pair
+
+    inside = {"excludes_null": True, "at_null": False, "at_bound": False}
+    row = {"two_ln_B": 900.0, "members": {"damper": dict(inside), "bow": dict(inside)}}
+    assert names_pair(row, partner_alone=545.0)
+    assert not names_pair(row, partner_alone=900.0 - DECISIVE / 2)        # the damper adds nothing decisive
+    assert not names_pair({**row, "members": {"damper": {**inside, "at_bound": True}, "bow": inside}}, 545.0)
+    assert not names_pair({**row, "members": {"damper": inside, "bow": {**inside, "excludes_null": False}}}, 545.0)
+    assert not names_pair({**row, "two_ln_B": DECISIVE / 2}, partner_alone=-100.0)

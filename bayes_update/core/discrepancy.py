@@ -25,7 +25,12 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    ``2 ln B >`` :data:`~bayes_update.core.effects.DECISIVE`, the Laplace
    interval (mode +- 2 sd) of one of its parameters excludes the null, and the
    fit is neither at its null nor on a bound of its prior (both reported as
-   such); then a next round looks for a second effect (``max_effects``);
+   such); then a next round looks for a second effect (``max_effects``).
+   When the strongest candidate is decisive but on a bound of its prior, it
+   may be taking another effect's share as well: it is fitted together with
+   each other decisive candidate, and a pair is named when it is decisive
+   against the partner alone and both members sit inside their priors, away
+   from their nulls (:func:`~bayes_update.core.fits.names_pair`);
 3. **re-update**: the likelihood scales re-measured with the named effects in
    the model, the extended mode and its Laplace posterior;
 4. **verdict**: the named effects must bring e_lin and e_nlin within
@@ -50,11 +55,11 @@ import numpy as np
 
 from bayes_update.core.logs import info
 from bayes_update.core.calibrate import find_start, problem_for
-from bayes_update.core.effects import (EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
+from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
                                        candidate_effects, misfit_ratios)
 from bayes_update.core.likelihood import estimate_likelihood, likelihood_runs
 from bayes_update.core.fits import (Fit, _at_bound, _at_null, _best_extra_starts, _effect_starts, _excludes_null,
-                                    _signature_check, fit_model, gap, names_effect, noise_floor)
+                                    _signature_check, fit_model, gap, names_effect, names_pair, noise_floor)
 from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.problem import DatasetError, Problem
@@ -195,26 +200,74 @@ class _Workflow:
         rows.sort(key=lambda r: -r["two_ln_B"])
         return best_base, rows, fits
 
+    def pairs(self, current: Fit, best_base: Fit, first: dict, rows: list, fits: dict, lik) -> tuple[list, dict]:
+        """``first`` (a decisive candidate on a bound of its prior) fitted together with
+        each other decisive candidate: an effect on a bound may be taking another's
+        share as well (a damper asked to carry a bow too).  The pair starts from the
+        partner's own fit with ``first`` near its null.  Returns (the pair rows, best
+        first, and their fits by (first, partner))."""
+        e1, n = first["name"], len(current.mode.x)
+        k1 = len(self.effects[e1])
+        out, pair_fits = [], {}
+        for row in rows:
+            e2 = row["name"]
+            if e2 == e1 or row["two_ln_B"] <= DECISIVE or row["at_null"]:
+                continue
+            k2 = len(self.effects[e2])
+            trial = ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e1]) + list(self.effects[e2]))
+            x2 = fits[e2].mode.x
+            starts = [np.concatenate([x2[:n], v, x2[n:]]) for v in _effect_starts(
+                ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e1])), k1,
+                self.settings.effect_start)]
+            starts.append(np.concatenate([x2[:n], fits[e1].mode.x[n:], x2[n:]]))
+            f = pair_fits[(e1, e2)] = self.fit(current.names + [e1, e2], lik, starts)
+            values = f.space.values(f.mode.x, f.covariance)
+            members = {e: {"excludes_null": _excludes_null(f, k, end), "at_null": _at_null(f, k, end),
+                           "at_bound": _at_bound(f, k, end),
+                           "parameters": {p.name: values[p.name] for p in self.effects[e]}}
+                       for e, k, end in ((e1, k1, n + k1), (e2, k2, None))}
+            out.append({"names": [e1, e2], "two_ln_B": 2.0 * (f.log_evidence - best_base.log_evidence),
+                        "partner_alone": row["two_ln_B"], "members": members,
+                        "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"]})
+            out[-1]["named"] = names_pair(out[-1], row["two_ln_B"])
+            flags = "; ".join(f"{e} " + ("at its null" if m["at_null"] else "on a bound" if m["at_bound"] else
+                                         "inside its prior") for e, m in members.items())
+            self.log(f"  {e1} + {e2}: 2 ln B = {out[-1]['two_ln_B']:.1f} ({e2} alone {row['two_ln_B']:.1f}); {flags}")
+        out.sort(key=lambda r: -r["two_ln_B"])
+        return out, pair_fits
+
     def name_effects(self, baseline: Fit, lik, names) -> tuple[Fit, Fit, list, list]:
         """Rounds of naming; returns (the model with the named effects, the baseline
         as re-converged in the first round, the rounds, the named effects)."""
         current, rounds, named, remaining = baseline, [], [], list(names)
-        for i in range(self.settings.max_effects):
-            current, rows, fits = self.round(current, remaining, lik)
-            if i == 0:
-                baseline = current
+        while len(named) < self.settings.max_effects and remaining:
+            best_base, rows, fits = self.round(current, remaining, lik)
+            if not rounds:
+                baseline = best_base
+            current = best_base
             rounds.append({"base": list(current.names), "candidates": rows})
             best = rows[0] if rows else None
-            if best is None or not names_effect(best):
+            pick, picked = [], None
+            if best is not None and names_effect(best):
+                pick, picked = [best["name"]], fits[best["name"]]
+            elif (best is not None and best["at_bound"] and best["two_ln_B"] > DECISIVE and best["excludes_null"]
+                  and len(named) + 2 <= self.settings.max_effects):
+                pair_rows, pair_fits = self.pairs(current, best_base, best, rows, fits, lik)
+                rounds[-1]["pairs"] = pair_rows
+                good = [r for r in pair_rows if r["named"]]
+                if good:
+                    pick, picked = good[0]["names"], pair_fits[tuple(good[0]["names"])]
+            if not pick:
                 break
-            named.append(best["name"])
-            remaining.remove(best["name"])
-            current = fits[best["name"]]
+            named += pick
+            for e in pick:
+                remaining.remove(e)
+            current = picked
             if len(named) < self.settings.max_effects and remaining:
                 # polish the named fit (it started from the baseline's mode): the next round must
                 # not name a second effect for what this one's unfinished fit left over
                 current = self.fit(current.names, lik, [current.mode.x])
-            self.log(f"named: {best['name']}")
+            self.log(f"named: {' + '.join(pick)}")
         return current, baseline, rounds, named
 
     def diagnose(self, theta) -> dict | None:

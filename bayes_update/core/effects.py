@@ -214,6 +214,18 @@ def evidence_table(res) -> str:
             lines.append(f"| {c['name']} | {c['two_ln_B']:.1f} | {c['delta_log_likelihood']:.1f} | {pars} | "
                          f"{'yes' if c['excludes_null'] else 'no'} | {note} |")
         lines.append("")
+        if rnd.get("pairs"):
+            lines += ["The strongest candidate on a bound of its prior, fitted with each other decisive one:", "",
+                      "| pair | 2 ln B | partner alone | members (mode +- Laplace sd; where) | named |",
+                      "|---|---|---|---|---|"]
+            for c in rnd["pairs"]:
+                members = "; ".join(
+                    ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in m["parameters"].items())
+                    + (" (at its null)" if m["at_null"] else " (on a bound)" if m["at_bound"] else "")
+                    for m in c["members"].values())
+                lines.append(f"| {' + '.join(c['names'])} | {c['two_ln_B']:.1f} | {c['partner_alone']:.1f} | "
+                             f"{members} | {'yes' if c['named'] else 'no'} |")
+            lines.append("")
     ratios = ", ".join(f"{k} {v:.2g}x" for k, v in res.misfit_ratio.items())
     if res.named:
         named = ", ".join(res.named)

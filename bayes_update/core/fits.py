@@ -14,7 +14,7 @@ from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, fin
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
-__all__ = ["AT_VALUE", "Fit", "fit_model", "gap", "names_effect", "noise_floor"]
+__all__ = ["AT_VALUE", "Fit", "fit_model", "gap", "names_effect", "names_pair", "noise_floor"]
 
 
 @dataclass
@@ -70,27 +70,37 @@ def _effect_starts(space: ExtendedSpace, k: int, fraction: float) -> list:
     return out or [null]
 
 
-def _excludes_null(fit: Fit, k: int) -> bool:
-    x, sd = fit.mode.x[-k:], np.sqrt(np.diag(fit.covariance))[-k:]
-    return bool(np.any(np.abs(x - fit.space.null_internal()[-k:]) > 2.0 * sd))
+def _member(fit: Fit, k: int, end: int | None) -> tuple:
+    """One added effect's ``k`` parameters ending at coordinate ``end`` (default:
+    the last effect added): (their mode, their null values, their prior box,
+    their Laplace sd), all internal coordinates."""
+    stop = len(fit.mode.x) if end is None else end
+    s, n = slice(stop - k, stop), fit.space.n_base
+    return (fit.mode.x[s], fit.space.null_internal()[s.start - n:s.stop - n], fit.space.box()[s],
+            np.sqrt(np.diag(fit.covariance))[s])
+
+
+def _excludes_null(fit: Fit, k: int, end: int | None = None) -> bool:
+    x, null, _, sd = _member(fit, k, end)
+    return bool(np.any(np.abs(x - null) > 2.0 * sd))
 
 
 #: an effect's parameter within this share of its prior range of a value sits at it
 AT_VALUE = 1e-3
 
 
-def _at_null(fit: Fit, k: int) -> bool:
-    """Every parameter of the last added effect fitted at its null value: the data
-    asked nothing of it."""
-    box = fit.space.box()[-k:]
-    return bool(np.all(np.abs(fit.mode.x[-k:] - fit.space.null_internal()[-k:])
-                       <= AT_VALUE * (box[:, 1] - box[:, 0])))
+def _at_null(fit: Fit, k: int, end: int | None = None) -> bool:
+    """Every parameter of an added effect (default: the last) fitted at its null
+    value: the data asked nothing of it."""
+    x, null, box, _ = _member(fit, k, end)
+    return bool(np.all(np.abs(x - null) <= AT_VALUE * (box[:, 1] - box[:, 0])))
 
 
-def _at_bound(fit: Fit, k: int) -> bool:
-    """A parameter of the last added effect on a bound of its prior (other than its
-    null): the fit wanted more than the prior allows, a sign of a wrong model."""
-    box, x, null = fit.space.box()[-k:], fit.mode.x[-k:], fit.space.null_internal()[-k:]
+def _at_bound(fit: Fit, k: int, end: int | None = None) -> bool:
+    """A parameter of an added effect (default: the last) on a bound of its prior
+    (other than its null): the fit wanted more than the prior allows, a sign of a
+    wrong model, or of an effect taking another's share as well."""
+    x, null, box, _ = _member(fit, k, end)
     tol = AT_VALUE * (box[:, 1] - box[:, 0])
     on = (np.abs(x - box[:, 0]) <= tol) | (np.abs(x - box[:, 1]) <= tol)
     return bool(np.any(on & (np.abs(x - null) > tol)))
@@ -102,6 +112,18 @@ def names_effect(row: dict) -> bool:
     fit neither at its null nor on a bound of its prior."""
     return bool(row["two_ln_B"] > DECISIVE and row["excludes_null"] and not row["at_null"]
                 and not row["at_bound"])
+
+
+def names_pair(row: dict, partner_alone: float) -> bool:
+    """The naming rule for two effects fitted together, tried when the strongest
+    single candidate sat on a bound of its prior (``row["members"]``: each
+    member's flags): decisive against the model without both, decisive against
+    the partner alone (``partner_alone``, its 2 ln B: the effect on the bound
+    must add what the partner cannot), and each member more than 2 sd from its
+    null, neither at its null nor on a bound."""
+    return bool(row["two_ln_B"] > DECISIVE and row["two_ln_B"] - partner_alone > DECISIVE
+                and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"]
+                        for m in row["members"].values()))
 
 
 def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
