@@ -20,6 +20,7 @@ def duffing_data(tmp_path_factory):
     return path
 
 
+@pytest.mark.slow   # about 45 s (a cluster and two calibrations): outside the 15-minute default run
 def test_calibrate_on_a_dask_cluster_gives_the_local_numbers(duffing_data, tmp_path):
     from bayes_update.cli import main
 

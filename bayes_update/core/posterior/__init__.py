@@ -3,30 +3,32 @@
 Pipeline of :func:`sample` (each step's numbers go to the result):
 
 The cost users feel is the number of model runs: every step records its
-runs and wall time (``run.json``); ``benchmarks/runs_per_posterior.py``
-measures them against the former sizes and a direct chain (docs/posterior.md).
+runs and wall time (``run.json``).  :meth:`PosteriorSettings.budget` (``sample
+--budget``) cuts them 4-5 fold for expensive models (not yet calibrated by an
+SBC; ``benchmarks/runs_per_posterior.py``, docs/posterior.md); the default
+sizes are the calibrated ones.
 
-1. start: the model's own ``start`` hook, coarse (the beam's: eta and P_eff
-   from the low level, 6 runs), else the two-stage calibration on Sobol'
-   designs of ``n_start`` points (:mod:`bayes_update.core.calibrate`),
-   unless a start point is given;
+1. start: the model's own ``start`` hook (the beam's: the paper's grids; with
+   ``coarse_start`` eta and P_eff from the low level, 6 runs), else the
+   two-stage calibration on Sobol' designs of ``n_start`` points
+   (:mod:`bayes_update.core.calibrate`), unless a start point is given;
 2. likelihood scales at the start (:func:`bayes_update.core.likelihood.estimate_likelihood`):
-   96 noise replicates whose force noise reaches the response through a
-   linear time-invariant estimate of the model (one run), corrected by 16
-   replicates run on the model (a control variate), the sensitivity span
-   (d runs) and the model error against a refined model (one run), per test;
+   ``n_replicates`` noise replicates run on the model (or, with
+   ``model_replicates``, through a linear time-invariant estimate of the model
+   corrected by that many model runs: a control variate), the sensitivity span
+   (d runs) and the model error against a refined model, per test; the model
+   error measured again at the MAP;
 3. MAP by least squares on the metrics' residual vectors (trust-region
    Gauss-Newton on direct model runs, :mod:`bayes_update.core.mode`; from the
-   start, then from the model's ``extra_starts`` where they already beat that
-   mode, e.g. the beam's c-k_s band) and the Laplace covariance from the
-   residuals' Jacobian there;
+   start and from the model's ``extra_starts``, e.g. the beam's c-k_s band;
+   ``frugal_map``: from the others only where they beat the first mode) and the
+   Laplace covariance from the residuals' Jacobian there;
 4. surrogate path: coordinates whitened by the Laplace covariance, a Sobol'
-   design (6 points per parameter) in the box of +-``box_sd`` in them (points
-   inside the prior), Gaussian processes of z = log(1 + e^2 / s^2) per stage,
-   refined in rounds of 2 points per parameter where the surrogate posterior
-   has mass (:func:`surrogates.refine`) until that posterior stops moving
-   (means within 0.1 sd, sds within 10 %, twice in a row); direct path: no
-   surrogate;
+   design in the box of +-``box_sd`` in them (points inside the prior),
+   Gaussian processes of z = log(1 + e^2 / s^2) per stage, refined in rounds
+   where the surrogate posterior has mass (:func:`surrogates.refine`), all
+   ``n_rounds`` or, with ``stop_tolerance``, until that posterior stops moving;
+   direct path: no surrogate;
 5. emcee (stretch move, seeded) on the surrogate's (or the model's)
    posterior, restricted to the local box; ArviZ data (the parameters in their
    units, and derived coordinates such as the beam's P_eff);

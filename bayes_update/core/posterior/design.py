@@ -51,11 +51,18 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     stability = _Stability(weight, len(box), settings.stop_tolerance, check_rng, log)
 
     def candidates(surs, rng):
-        # draws of a short MCMC on the current surrogate posterior (the stability check's),
-        # plus Sobol' points
-        draws = stability.draws(surs)
+        # draws of a short MCMC on the current surrogate posterior (the stability check's when
+        # the design stops on it), plus Sobol' points
+        if settings.stop_tolerance > 0:
+            draws = stability.draws(surs)
+            draws = draws[rng.permutation(len(draws))[:1600]]
+        else:
+            logp = weight(surs)
+            init = initial_walkers(logp, np.zeros(len(box)), np.eye(len(box)), 16, int(rng.integers(2 ** 31)))
+            smp = run_emcee(logp, init, 16, 400, int(rng.integers(2 ** 31)), vectorize=True, progress=False)
+            draws = smp.get_chain(discard=200, thin=2, flat=True)
         sob = surrogates.design(box, 512, "sobol", seed=int(rng.integers(2 ** 31)))
-        return np.vstack([draws[rng.permutation(len(draws))[:1600]], sob])
+        return np.vstack([draws, sob])
 
     def factory():
         return _gp_factory(box, seed=0, names=space.coordinate_names)

@@ -22,16 +22,18 @@ class MapResult:
 
 
 def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
-             progress: bool = False, cost_tolerance: float | None = 1e-3) -> MapResult:
+             progress: bool = False, frugal: bool = False) -> MapResult:
     """MAP by least squares on the residual vectors (:mod:`bayes_update.core.mode`)
-    and its Gauss-Newton Laplace covariance; each start stops when an iteration
-    gains less than ``cost_tolerance`` in log L (:func:`~bayes_update.core.mode.find_mode`).
+    and its Gauss-Newton Laplace covariance.
 
-    Starts: ``x0``; then the model's ``extra_starts`` at that mode when it
-    offers them (the beam: a 3 x 3 grid on the (c, k_s) band at the mode's
+    Starts: ``x0`` and the two best of the model's ``extra_starts(x0)`` when it
+    offers them (the beam: a 3 x 3 grid on the (c, k_s) band at x0's
     (eta, P_eff): the low level pins eta and P_eff, and along the band the
-    nonlinear misfit can have more than one valley), searched from (the best
-    two) only where they already beat the mode by more than one log unit.  The prior's density in
+    nonlinear misfit can have more than one valley).  ``frugal``: ``x0`` alone
+    (each search stopping when an iteration gains less than 1e-3 in log L,
+    forward differences at the mode), then the extra starts at the mode's
+    (eta, P_eff), searched from (the best two) only where they beat the mode
+    by more than one log unit.  The prior's density in
     the internal coordinates is left out of the mode (the beam's
     (K_b + k_s) / K_b varies by < 1 % over its posterior) and kept in ``value``."""
     from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode
@@ -43,11 +45,20 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     box = space.box()
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])
+    extra = getattr(evaluate.problem.model, "extra_starts", None)
+    if not frugal:
+        starts = [x0]
+        grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
+        if grid and len(stages) > 1:
+            cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
+            starts += [grid[i] for i in np.argsort(cost)[:2]]
+        iterations = max(5, int(max_evaluations) // (len(starts) * (len(x0) + 1)))
+        mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations)
+        return _map_result(mode, space, box, mode.n_evaluations + len(grid))
     iterations = max(5, int(max_evaluations) // (3 * (len(x0) + 1)))
     mode = find_mode(fun, [x0], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                     cost_tolerance=cost_tolerance, central=False)
+                     cost_tolerance=1e-3, central=False)
     n_evaluations = mode.n_evaluations
-    extra = getattr(evaluate.problem.model, "extra_starts", None)
     grid = [np.asarray(g, float) for g in extra(mode.x)] if callable(extra) and len(stages) > 1 else []
     if grid:
         # the model's other starts, at the mode's pinned coordinates: a search from those that
@@ -57,9 +68,13 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         better = [grid[i] for i in np.argsort(cost)[:2] if cost[i] < mode.cost - 1.0]
         if better:
             other = find_mode(fun, better, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                              cost_tolerance=cost_tolerance, central=False)
+                              cost_tolerance=1e-3, central=False)
             n_evaluations += other.n_evaluations
             mode = other if other.cost < mode.cost else mode
+    return _map_result(mode, space, box, n_evaluations)
+
+
+def _map_result(mode, space, box, n_evaluations: int) -> MapResult:
     cov = mode.covariance(scale=box[:, 1] - box[:, 0])
     value = mode.cost - float(space.log_prior(mode.x)[0])
     return MapResult(x=mode.x, value=value, steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)),

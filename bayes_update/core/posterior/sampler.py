@@ -188,7 +188,7 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
         if start is None:
             start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
                                   seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log,
-                                  coarse=True)
+                                  coarse=run.settings.coarse_start)
             run.steps.add_runs(n)
         else:
             space.check(start, "start")
@@ -238,7 +238,8 @@ def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
     space, s = run.space, run.settings
     with run.steps("map_laplace"):
         ev = Evaluate(run.problem, space, run.problem.stages)
-        mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False)
+        mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False,
+                      frugal=s.frugal_map)
         run.steps.add_runs(len(run.problem.stages) * mp.n_evaluations)
         if remeasure and mp.mode is not None and s.model_error:
             lik, mp = _rescaled(run, lik, mp)
