@@ -16,7 +16,7 @@ from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors,
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates
-from bayes_update.core.posterior.laplace import MapResult, capped_covariance, find_map, local_box
+from bayes_update.core.posterior.laplace import MapResult, _map_result, capped_covariance, find_map, local_box
 from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
                                               add_posterior_predictive, initial_walkers, run_emcee, summarize,
                                               to_inference_data)
@@ -270,11 +270,9 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     factor = np.concatenate([np.full(k, lik.scales[st].sd / new.scales[st].sd) for k, st in zip(n, stages)])
     mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
                                cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)))
-    widths = np.diff(run.space.box(), axis=1)[:, 0]
     run.log("model error at the MAP: " + ", ".join(
         f"{st} {100 * lik.scales[st].model_error:.3f} -> {100 * new.scales[st].model_error:.3f} %" for st in stages))
-    return new, dataclasses.replace(mp, mode=mode, covariance=mode.covariance(scale=widths),
-                                    steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)))
+    return new, _map_result(mode, run.space, run.space.box(), mp.n_evaluations)
 
 
 def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
