@@ -1,6 +1,6 @@
 """Model runs per posterior: the pipeline's default sizes against its former ones and a long direct chain.
 
-    python benchmarks/runs_per_posterior.py [--cases beam_rom duffing3 duffing5] [--seed 0]
+    python benchmarks/runs_per_posterior.py [--cases beam_rom duffing3 chain6] [--seed 0]
 
 Per case (a model and a data set made from a finer model plus noise on both
 channels):
@@ -13,16 +13,27 @@ channels):
   runs, a 128-point Sobol' design, 32 x 12000 steps) on the likelihood the
   budget run measured (its own scales step, 2 (96 + d + 2) runs, is counted,
   not run);
+* **pyvbmc** (Acerbi 2018; a benchmark extra, ``pip install pyvbmc``, skipped
+  with a note when absent) on the same log posterior (the direct one, with the
+  same curvature adjustment), started at the budget run's MAP with plausible
+  bounds MAP +- 3 Laplace sd, its default budget of 50 (2 + d) evaluations;
+  its runs are counted from the budget run's start and scales on (it needs
+  them: the same likelihood);
 * **reference**: emcee on the model itself (no surrogate) under the same
-  likelihood, 48 walkers x 3000 steps (1000 burnt).
+  likelihood, 48 walkers x 8000 steps (2000 burnt).
 
 Against the reference, per parameter: the mean's shift in reference sd, the
 overlap of the 94 % HDIs (intersection / union) and the Kolmogorov-Smirnov
-distance between draws thinned to about one per autocorrelation time.  And
-the likelihood scales' check: each stage's s measured with every replicate a
-model run (96) against the control-variate estimate the pipeline uses.
-Not here yet: pyvbmc and a log-evidence reference (the issue's other
-columns).  Writes ``benchmarks/results/runs_per_posterior.md`` and ``.json``.
+distance between draws thinned to about one per autocorrelation time (with
+the KS distance between the reference's own two halves, its Monte Carlo
+floor).  The log evidence (up to the prior's constant, the same for all):
+the budget run's from its surrogate (importance sampling, no model run:
+``PosteriorResult.log_evidence``), the reference by the same importance
+sampler on the model itself (4000 points from a Student-t fitted to the
+reference draws), pyvbmc's ELBO.  And the likelihood scales' check: each
+stage's s measured with every replicate a model run (96) against the
+control-variate estimate the pipeline uses.  Writes
+``benchmarks/results/runs_per_posterior.md`` and ``.json``.
 """
 from __future__ import annotations
 
@@ -41,11 +52,15 @@ sys.path.insert(0, str(ROOT / "tests"))
 
 from bayes_update.core.likelihood import estimate_likelihood, likelihood_runs  # noqa: E402
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
+from bayes_update.core.posterior.evidence import log_evidence  # noqa: E402
+from bayes_update.core.posterior.target import DirectLogPosterior, Evaluate  # noqa: E402
+from surrogates.evaluation import default_executor  # noqa: E402
 
 from _machine import machine  # noqa: E402
 
 BEFORE = dict(n_predictive=32, n_global=128)
-REFERENCE = dict(n_walkers=48, direct_steps=3000, direct_burn=1000, n_global=0, n_predictive=0)
+REFERENCE = dict(n_walkers=48, direct_steps=8000, direct_burn=2000, n_global=0, n_predictive=0)
+N_EVIDENCE = 4000
 
 
 def case(name: str):
@@ -58,9 +73,40 @@ def case(name: str):
         return data, beam_model(data, "rom"), "beam, default data set, modal ROM (d = 4)"
     from test_user_model import TRUTH, Duffing, make_dataset
 
+    if name == "chain6":
+        import tempfile
+
+        import test_measured_records as lab_chain
+
+        records = lab_chain.lab_tests(quadratic_damping=lab_chain.QUADRATIC_DAMPER)
+        data = lab_chain.read_back(records, Path(tempfile.mkdtemp()) / "chain6")
+        return data, LabChain6(), ("3-DOF chain on lab records (3 accelerometers, noisy force, offsets, drifts, "
+                                   "2.5x sampling; d = 6)")
     free = {"duffing3": ("fn", "zeta", "k3"), "duffing5": ("fn", "zeta", "gain", "k3", "k2")}[name]
     model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
     return make_dataset(seed=11), model, f"Duffing oscillator, user model (d = {len(free)})"
+
+
+class LabChain6:
+    """The lab chain of tests/test_measured_records.py with k2 and the quadratic damper
+    free as well (d = 6; the records hold the damper: the model has the data's form)."""
+
+    def __init__(self):
+        import test_measured_records as lab_chain
+        from bayes_update import Parameter
+
+        self.parameters = [*lab_chain.LabChain.parameters[:1], Parameter("k2", 45.0, 75.0, unit="kN/m"),
+                           *lab_chain.LabChain.parameters[1:],
+                           *lab_chain.LabChain().candidate_effects()["quadratic_damper"]]
+
+    def simulate(self, theta, force, fs):
+        import test_measured_records as lab_chain
+
+        old, lab_chain.K2 = lab_chain.K2, float(theta["k2"])       # the user model reads the module's K2
+        try:
+            return lab_chain.LabChain().simulate(theta, force, fs)
+        finally:
+            lab_chain.K2 = old
 
 
 def compare(draws: dict, ref: dict, rng) -> dict:
@@ -110,7 +156,23 @@ def run_case(name: str, seed: int) -> dict:
     refd = _report(ref)
     thin = max(1, int(np.ceil(max(ref.diagnostics.get("autocorr_time_steps", {}).values() or [1]))))
     refd_thin = {k: v.reshape(-1, 48)[::thin].ravel() if v.size % 48 == 0 else v for k, v in refd.items()}
+    half = {k: v.size // 2 for k, v in refd_thin.items()}
+    floor = compare({k: v[:half[k]] for k, v in refd_thin.items()}, {k: v[half[k]:] for k, v in refd_thin.items()},
+                    rng)
+    target = DirectLogPosterior(Evaluate(now.problem, now.space, now.problem.stages), lik, ref.adjustment)
+    t = time.perf_counter()
+    with default_executor(2) as pool:
+        ref_evidence = log_evidence(lambda X: np.array([v[0] for v in pool.map(target, list(X), chunksize=50)]),
+                                    ref.draws, n=N_EVIDENCE, seed=seed + 3)
+    t_evidence = time.perf_counter() - t
+    vb = _vbmc(target, now, refd_thin, rng, seed)
     return {"case": name, "what": what, "d": d,
+            "reference_floor": {"ks": max(v["ks"] for v in floor.values()),
+                                "hdi_overlap": min(v["hdi_overlap"] for v in floor.values())},
+            "evidence": {"reference": {**ref_evidence.to_dict(), "runs": N_EVIDENCE * len(now.problem.stages),
+                                       "wall_s": t_evidence},
+                         "budget": now.log_evidence(seed=seed + 4).to_dict()},
+            "vbmc": vb,
             "now": {"runs": now.n_model_runs, "wall_s": t_now, "compare": compare(_report(now), refd_thin, rng),
                     "max_r_hat": now.diagnostics["max_r_hat"]},
             "before": {"runs": {**before.n_model_runs, "likelihood_scales": before_scales,
@@ -123,9 +185,43 @@ def run_case(name: str, seed: int) -> dict:
                        for st in full.scales}}
 
 
+def _vbmc(target, now, refd, rng, seed) -> dict | None:
+    """pyvbmc on ``target`` from the budget run's MAP (None when pyvbmc is absent)."""
+    try:
+        from pyvbmc import VBMC
+    except ImportError as exc:
+        return {"skipped": f"pyvbmc not installed ({exc}); pip install pyvbmc"}
+    box = now.space.box()
+    sd = np.sqrt(np.diag(now.map.covariance))
+    inner = box[:, 0] + 1e-6 * (box[:, 1] - box[:, 0]), box[:, 1] - 1e-6 * (box[:, 1] - box[:, 0])
+    x0 = np.clip(now.map.x, *inner)
+    plb, pub = np.maximum(x0 - 3 * sd, inner[0]), np.minimum(x0 + 3 * sd, inner[1])
+    count = [0]
+
+    def fun(x):
+        count[0] += 1
+        return float(target(np.asarray(x, float).ravel())[0])
+
+    np.random.seed(seed)            # pyvbmc draws from numpy's global generator
+    t = time.perf_counter()
+    vbmc = VBMC(fun, x0[None, :], box[:, 0][None, :], box[:, 1][None, :], plb[None, :], pub[None, :],
+                options={"display": "off"})
+    vp, results = vbmc.optimize()
+    wall = time.perf_counter() - t
+    X = vp.sample(20000)[0]
+    draws = now.space.report(X)
+    stages = len(now.problem.stages)
+    before = sum(now.n_model_runs.get(k, 0) for k in ("check_and_screen", "start", "likelihood_scales"))
+    return {"runs": {"start_and_scales": before, "vbmc": stages * count[0], "total": before + stages * count[0]},
+            "wall_s": wall, "elbo": float(results["elbo"]), "elbo_sd": float(results["elbo_sd"]),
+            "success": bool(results.get("success_flag", False)),
+            "compare": compare({k: np.asarray(v, float) for k, v in draws.items()}, refd, rng)}
+
+
 def table(rows) -> list:
     lines = ["| case | pipeline | model runs (start / scales / MAP / design / other) | wall | worst mean shift "
-             "[ref sd] | worst 94 % HDI overlap | worst KS | max R-hat |", "|---|---|---|---|---|---|---|---|"]
+             "[ref sd] | worst 94 % HDI overlap | worst KS | max R-hat | log evidence |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         for key, label in (("before", "default"), ("now", "budget")):
             p = r[key]
@@ -133,11 +229,26 @@ def table(rows) -> list:
             other = n["total"] - sum(n.get(k, 0) for k in ("start", "likelihood_scales", "map_laplace",
                                                             "design_and_gp"))
             c = p["compare"].values()
+            ev = r["evidence"]["budget"]["log_evidence"] if key == "now" else None
             lines.append(f"| {r['what']} | {label} | **{n['total']}** ({n.get('start', 0)} / "
                          f"{n.get('likelihood_scales', 0)} / {n.get('map_laplace', 0)} / {n.get('design_and_gp', 0)}"
                          f" / {other}) | {p['wall_s']:.0f} s | {max(abs(v['shift_sd']) for v in c):.3f} | "
                          f"{min(v['hdi_overlap'] for v in c):.3f} | {max(v['ks'] for v in c):.3f} | "
-                         f"{p['max_r_hat']:.3f} |")
+                         f"{p['max_r_hat']:.3f} | {'' if ev is None else f'{ev:.3f}'} |")
+        vb = r["vbmc"]
+        if "skipped" in vb:
+            lines.append(f"| {r['what']} | pyvbmc | {vb['skipped']} | | | | | | |")
+        else:
+            n, c = vb["runs"], vb["compare"].values()
+            lines.append(f"| {r['what']} | pyvbmc | **{n['total']}** ({n['start_and_scales']} start and scales / "
+                         f"{n['vbmc']} VBMC) | {vb['wall_s']:.0f} s | {max(abs(v['shift_sd']) for v in c):.3f} | "
+                         f"{min(v['hdi_overlap'] for v in c):.3f} | {max(v['ks'] for v in c):.3f} | - | "
+                         f"{vb['elbo']:.3f} +- {vb['elbo_sd']:.3f} (ELBO) |")
+        e = r["evidence"]["reference"]
+        lines.append(f"| {r['what']} | reference | {r['reference']['runs']} (+ {e['runs']} for the evidence) | "
+                     f"{r['reference']['wall_s'] + e['wall_s']:.0f} s | its halves: 0 | "
+                     f"{r['reference_floor']['hdi_overlap']:.3f} | {r['reference_floor']['ks']:.3f} | "
+                     f"{r['reference']['max_r_hat']:.3f} | {e['log_evidence']:.3f} +- {e['sd']:.3f} |")
     return lines
 
 
@@ -152,7 +263,8 @@ def main(argv=None):
         print("\n".join(table(rows[-1:])), flush=True)
     lines = ["# Model runs per posterior", "", f"`python benchmarks/runs_per_posterior.py --cases "
              f"{' '.join(args.cases)} --seed {args.seed}`; {machine()}", "",
-             "Against a direct emcee chain on the model under the same likelihood (48 x 3000 steps, 1000 burnt); "
+             "Against a direct emcee chain on the model under the same likelihood (48 x 8000 steps, 2000 burnt; "
+             "its row: the distances between its own two halves, the floor of KS and overlap); "
              "'default': the default sizes with the diagnostics of 2026-11-25, its scales step counted as 96 "
              "model-run replicates per stage; 'budget': PosteriorSettings.budget().", "", *table(rows), "",
              "Per parameter (budget against the reference):", "",

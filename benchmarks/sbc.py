@@ -1,6 +1,6 @@
 """Simulation-based calibration of `bayes-update sample` (Talts et al. 2018).
 
-    python benchmarks/sbc.py [--truths 50] [--seed 0] [--budget former|default]
+    python benchmarks/sbc.py [--truths 50] [--seed 0] [--budget former|default|budget]
 
 For each of N truths drawn from the prior (uniform in eta, c, F, k_s on the
 prior box of docs/design.md): a data set of the two updating tests (chirp 20-50 Hz, 0.02 N
@@ -66,9 +66,10 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--truths", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--budget", choices=("former", "default"), default="former",
+    ap.add_argument("--budget", choices=("former", "default", "budget"), default="former",
                     help="former: the sizes of the first SBC (96 model replicates, 64 + 3 x 24 design, 24 x 5000 "
-                         "steps; results/sbc.md); default: PosteriorSettings() as shipped (results/sbc_default.md)")
+                         "steps; results/sbc.md); default: PosteriorSettings() as shipped (results/sbc_default.md); "
+                         "budget: PosteriorSettings.budget() (results/sbc_budget.md)")
     args = ap.parse_args(argv)
     rig = PAPER_EQUIVALENT_RIG
     model = Beam(fe.ModalROM(rig))
@@ -79,9 +80,11 @@ def main(argv=None):
         settings = PosteriorSettings(n_initial=64, n_rounds=3, batch=24, n_walkers=24, n_steps=5000, burn=1000,
                                      thin=5, n_linear=0, n_global=0, n_predictive=0, model_error=False,
                                      n_replicates=96, model_replicates=None, stop_tolerance=0.0)
-    else:
+    elif args.budget == "default":
         settings = PosteriorSettings(n_linear=0, model_error=False)
-    tag = "" if args.budget == "former" else "_default"
+    else:
+        settings = PosteriorSettings.budget(n_linear=0, model_error=False)
+    tag = "" if args.budget == "former" else f"_{args.budget}"
     rows = []
     t_all = time.perf_counter()
     for k, x in enumerate(truths):

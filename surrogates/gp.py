@@ -146,6 +146,18 @@ class GPSurrogate:
                 * Matern(length_scale=np.full(d, 0.3), length_scale_bounds=self.length_scale_bounds, nu=self.nu)
                 + WhiteKernel(self.noise_level, self.noise_level_bounds))
 
+    def warm_from(self, previous: "GPSurrogate") -> "GPSurrogate":
+        """A copy of this (unfitted) surrogate whose fit starts from ``previous``'s
+        fitted hyperparameters, one optimisation and no restarts (a refinement
+        round adds a few points to a design the last fit already described)."""
+        import copy
+
+        if not hasattr(previous, "gp_"):
+            return self
+        warm = copy.copy(self)
+        warm.kernel, warm.n_restarts_optimizer = previous.gp_.kernel_, 0
+        return warm
+
     def fit(self, X, y) -> "GPSurrogate":
         """Fit to points ``X`` (n, d) in input units and values ``y`` (n,).
 

@@ -192,19 +192,29 @@ class RefinementResult:
     rounds: list = field(default_factory=list)
 
 
-def _fit(surrogate_factory, X, y):
+def _fit(surrogate_factory, X, y, previous=None):
+    """Fit one surrogate per output on the finite rows; with ``previous`` (the last
+    round's, same layout) each starts from it (``warm_from``) where it can."""
     ok = np.all(np.isfinite(y.reshape(len(y), -1)), axis=1)
     if ok.sum() < 2:
         raise ValueError(f"only {ok.sum()} finite values to fit the surrogate on")
+
+    def one(prev):
+        sur = surrogate_factory()
+        if prev is not None and hasattr(sur, "warm_from"):
+            sur = sur.warm_from(prev)
+        return sur
+
     if y.ndim == 1:
-        return surrogate_factory().fit(X[ok], y[ok]), int(ok.sum())
-    return [surrogate_factory().fit(X[ok], y[ok, k]) for k in range(y.shape[1])], int(ok.sum())
+        return one(previous).fit(X[ok], y[ok]), int(ok.sum())
+    prev = previous if previous is not None else [None] * y.shape[1]
+    return [one(prev[k]).fit(X[ok], y[ok, k]) for k in range(y.shape[1])], int(ok.sum())
 
 
 def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, batch: int,
            executor=None, seed=None, *, candidates=4096, target=None, min_distance: float = 0.01,
            log_weight: bool = False, power: float = 0.5, evaluate=evaluate_many,
-           progress: bool = True, until=None) -> RefinementResult:
+           progress: bool = True, until=None, warm_start: bool = False) -> RefinementResult:
     """Refine a surrogate by at most ``n_rounds`` batches of ``batch`` new model runs.
 
     Each round: fit ``surrogate_factory()`` to the finite rows of (X, y); build
@@ -268,7 +278,10 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
         if y_new.shape[1:] != y.shape[1:]:
             raise ValueError(f"target gave values of shape {y_new.shape[1:]}, y has {y.shape[1:]}")
         X, y = np.vstack([X, X_new]), np.concatenate([y, y_new])
-        sur, n_ok = _fit(surrogate_factory, X, y)
+        sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None)
         rounds.append({"round": r, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X_new,
                        "y_new": y_new, "results": results, "surrogate": sur})
+    if warm_start and len(rounds) > 1:
+        sur, _ = _fit(surrogate_factory, X, y)
+        rounds[-1]["surrogate"] = sur
     return RefinementResult(X=X, y=y, surrogate=sur, rounds=rounds)

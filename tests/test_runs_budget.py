@@ -143,3 +143,27 @@ def test_the_budget_and_quick_options_exclude_each_other(tmp_path, capsys):
 
     assert main(["sample", "--model", "rom", "--budget", "--quick", "--out", str(tmp_path / "x")]) == 2
     assert "--budget and --quick: choose one" in capsys.readouterr().err
+
+
+def test_a_forward_difference_mode_reuses_the_searchs_last_jacobian():
+    # a nonlinear least-squares problem with a known minimum: the Jacobian handed back (the
+    # search's own at its end point) equals a fresh forward-difference one there, at d + 1 fewer runs
+    from bayes_update.core.mode import _jacobian, find_mode
+
+    t = np.linspace(0.0, 1.0, 40)
+    truth = np.array([1.3, -0.7, 2.1])
+    y = truth[0] * np.exp(truth[1] * t) + truth[2] * t ** 2
+
+    def fun(x):
+        return (x[0] * np.exp(x[1] * t) + x[2] * t ** 2 - y) / 0.01
+
+    lower, upper = np.array([0.0, -3.0, 0.0]), np.array([3.0, 1.0, 4.0])
+    steps = 1e-4 * (upper - lower)
+    fwd = find_mode(fun, [np.array([1.0, 0.0, 1.0])], lower, upper, steps, central=False)
+    J, n = _jacobian(fun, fwd.x, fun(fwd.x), steps, lower, upper, None, central=False)
+    np.testing.assert_allclose(fwd.jacobian, J, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(fwd.residual, fun(fwd.x), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(fwd.x, truth, rtol=1e-5)
+    cen = find_mode(fun, [np.array([1.0, 0.0, 1.0])], lower, upper, steps, central=True)
+    # same search, then central differences (2d runs) and the point itself, against none
+    assert cen.n_evaluations - fwd.n_evaluations == 1 + 2 * len(truth)

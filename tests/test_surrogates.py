@@ -306,6 +306,35 @@ def test_refinement_beats_a_one_shot_design_in_a_thin_curved_valley():
     assert in_valley.mean() > 0.5
 
 
+def test_warm_started_rounds_end_in_a_full_fit_and_refine_as_well():
+    """warm_start: the rounds' GPs start from the last round's hyperparameters without
+    restarts; the final surrogate is the factory's own fit on all the points (equal to a
+    fit made afresh), and it describes the valley as well as the cold refinement's."""
+    prob = CurvedValley(d=2, width=0.02)
+    T = prob.sample_posterior(500, seed=54321)
+    yT = prob.values(T)
+
+    def factory():
+        return GPSurrogate(prob.bounds, n_restarts_optimizer=2, seed=0)
+
+    def weight_from(sur):
+        return lambda P: -0.5 * (sur.predict(P, return_std=False) / prob.floor - 1)
+
+    X0 = design(prob.bounds, 32, seed=1)
+    kw = dict(n_rounds=6, batch=16, executor=None, seed=1, log_weight=True, progress=False)
+    warm = refine(prob, factory, X0, prob.values(X0), weight_from, warm_start=True, **kw)
+    cold = refine(prob, factory, X0, prob.values(X0), weight_from, **kw)
+    assert warm.rounds[1]["surrogate"].n_restarts_optimizer == 0      # a round: warm, no restarts
+    assert warm.surrogate.n_restarts_optimizer == 2                   # the end: the factory's fit
+    fresh = factory().fit(warm.X, warm.y)
+    np.testing.assert_allclose(warm.surrogate.predict(T, return_std=False), fresh.predict(T, return_std=False),
+                               rtol=1e-10, atol=0)
+    err = {k: float(np.median(np.abs(r.surrogate.predict(T, return_std=False) - yT) / yT))
+           for k, r in (("warm", warm), ("cold", cold))}
+    print(err)
+    assert err["warm"] < 0.15 and err["warm"] < 2 * err["cold"]
+
+
 def _flaky(x):
     # NaN (a "failed run") in one corner
     return math.nan if x[0] > 0.9 and x[1] > 0.9 else float(1 + x[0] ** 2 + x[1])

@@ -192,10 +192,15 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         if best is None or opt.cost < best.cost:
             best = opt
     x = best.x.copy()
-    r = fun(x)
-    count[0] += 1
-    J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=central)
-    count[0] += n
+    if central:
+        r = fun(x)
+        count[0] += 1
+        J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=True)
+        count[0] += n
+    else:
+        # trf leaves the residual and the forward-difference Jacobian (our jac) at its end point:
+        # the same numbers a new evaluation would give, without its d + 1 runs
+        r, J = np.asarray(best.fun, float).copy(), np.asarray(best.jac, float).copy()
     return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
                       starts=runs)
 

@@ -11,6 +11,10 @@ from bayes_update.core.posterior.target import Evaluate
 
 
 # ------------------------------------------------------------------ MAP, box
+#: a frugal search stops when an iteration gains less than this in log L: its end point is
+#: then within some 0.15 sd of the mode along the last step, which the design in the box
+#: around it absorbs (the surrogate posterior, not the MAP, is the answer)
+FRUGAL_TOLERANCE = 0.01
 @dataclass
 class MapResult:
     x: np.ndarray
@@ -30,7 +34,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     offers them (the beam: a 3 x 3 grid on the (c, k_s) band at x0's
     (eta, P_eff): the low level pins eta and P_eff, and along the band the
     nonlinear misfit can have more than one valley).  ``frugal``: ``x0`` alone
-    (each search stopping when an iteration gains less than 1e-3 in log L,
+    (each search stopping when an iteration gains less than 0.01 in log L,
     forward differences at the mode), then the extra starts at the mode's
     (eta, P_eff), searched from (the best two) only where they beat the mode
     by more than one log unit.  The prior's density in
@@ -57,7 +61,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         return _map_result(mode, space, box, mode.n_evaluations + len(grid))
     iterations = max(5, int(max_evaluations) // (3 * (len(x0) + 1)))
     mode = find_mode(fun, [x0], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                     cost_tolerance=1e-3, central=False)
+                     cost_tolerance=FRUGAL_TOLERANCE, central=False)
     n_evaluations = mode.n_evaluations
     grid = [np.asarray(g, float) for g in extra(mode.x)] if callable(extra) and len(stages) > 1 else []
     if grid:
@@ -68,7 +72,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         better = [grid[i] for i in np.argsort(cost)[:2] if cost[i] < mode.cost - 1.0]
         if better:
             other = find_mode(fun, better, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                              cost_tolerance=1e-3, central=False)
+                              cost_tolerance=FRUGAL_TOLERANCE, central=False)
             n_evaluations += other.n_evaluations
             mode = other if other.cost < mode.cost else mode
     return _map_result(mode, space, box, n_evaluations)

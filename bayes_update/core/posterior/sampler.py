@@ -54,6 +54,25 @@ class PosteriorResult:
     predictive: dict = field(repr=False, default_factory=dict)
     sensitivity: dict = field(repr=False, default_factory=dict)
     n_model_runs_reused: dict = field(default_factory=dict)  # found in the cache instead of run
+    target: object = field(repr=False, default=None)   # the surrogate log posterior the chain sampled (in u)
+    adjustment: object = field(repr=False, default=None)   # the likelihood's curvature adjustment, if any
+
+    def log_evidence(self, n: int = 4000, seed: int = 0):
+        """log p(data) of the surrogate posterior (:mod:`~bayes_update.core.posterior.evidence`:
+        importance sampling from a Student-t fitted to the draws, no model run), in
+        the internal coordinates, up to the prior's constant (the log priors drop
+        it): for comparing models under one prior.  A direct result has no
+        surrogate: evaluate :class:`~bayes_update.core.posterior.target.DirectLogPosterior`
+        with :func:`~bayes_update.core.posterior.evidence.log_evidence` (n model runs per test)."""
+        from bayes_update.core.posterior.evidence import Evidence, log_evidence
+
+        if self.target is None:
+            raise ValueError("this posterior was sampled on the model itself (direct): it has no surrogate to "
+                             "integrate; use evidence.log_evidence with a DirectLogPosterior (n model runs per test)")
+        w = self.design["whitening"]
+        ev = log_evidence(self.target, w.to_u(self.draws), n=n, seed=seed)
+        # x = center + L u: dx = |det L| du
+        return Evidence(ev.log_z + float(np.linalg.slogdet(w.L)[1]), ev.sd, ev.ess_share, ev.n)
 
     def summary_json(self) -> dict:
         return {"parameters": self.summary, "map": dict(zip(self.space.coordinate_names, map(float, self.map.x))),
@@ -179,6 +198,7 @@ class _Chain:
     design: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
     log_likelihood: dict = field(default_factory=dict)    # stage -> (steps, walkers) of the kept draws
+    target: object = None                                 # the surrogate log posterior (u coordinates)
 
 
 def _start(run: _Run, start) -> tuple[dict, dict]:
@@ -333,7 +353,7 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
     # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
     ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)})
           .reshape(kept.shape[:2]) for st, gp in gps.items()}
-    return _Chain(_XSampler(sampler, whitening), s.burn, s.thin, gps, design, diag, ll)
+    return _Chain(_XSampler(sampler, whitening), s.burn, s.thin, gps, design, diag, ll, logp_u)
 
 
 def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> PosteriorResult:
@@ -366,7 +386,8 @@ def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> 
                            start=start_info, diagnostics=diag, timing={}, n_model_runs={},
                            n_model_runs_reused=run.reused, settings=run.settings, direct=direct,
                            problem=run.problem, surrogates=chain.gps, design=chain.design,
-                           draws=draws.reshape(-1, draws.shape[-1]), seeds=run.seeds)
+                           draws=draws.reshape(-1, draws.shape[-1]), seeds=run.seeds, target=chain.target,
+                           adjustment=adj)
 
 
 def _extras(run: _Run, res: PosteriorResult) -> None:
