@@ -1,23 +1,23 @@
 """Model runs per posterior: the pipeline's default sizes against its former ones and a long direct chain.
 
-    python benchmarks/runs_per_posterior.py [--cases beam_rom duffing3 chain6] [--seed 0]
+    python benchmarks/runs_per_posterior.py [--cases beam_rom duffing3 chain6] [--seed 0] [--tag _part]
 
 Per case (a model and a data set made from a finer model plus noise on both
 channels):
 
-* **budget**: ``sample`` with ``PosteriorSettings.budget()`` (its own start,
+* **default** ("now"): ``sample`` with ``PosteriorSettings()`` (its own start,
   likelihood scales, MAP, design that stops when the surrogate posterior stops
   moving, chain on the surrogates);
-* **default**: ``sample`` with the default sizes and the diagnostics of
-  2026-11-25 (96 model-run replicates, a 96 + 5 x 32 design, 32 predictive
+* **thorough** ("before"): ``sample`` with ``PosteriorSettings.thorough()`` (the
+  former default sizes) and the diagnostics of 2026-11-25 (96 model-run replicates, a 96 + 5 x 32 design, 32 predictive
   runs, a 128-point Sobol' design, 32 x 12000 steps) on the likelihood the
-  budget run measured (its own scales step, 2 (96 + d + 2) runs, is counted,
+  default run measured (its own scales step, 2 (96 + d + 2) runs, is counted,
   not run);
 * **pyvbmc** (Acerbi 2018; a benchmark extra, ``pip install pyvbmc``, skipped
   with a note when absent) on the same log posterior (the direct one, with the
-  same curvature adjustment), started at the budget run's MAP with plausible
+  same curvature adjustment), started at the default run's MAP with plausible
   bounds MAP +- 3 Laplace sd, its default budget of 50 (2 + d) evaluations;
-  its runs are counted from the budget run's start and scales on (it needs
+  its runs are counted from the default run's start and scales on (it needs
   them: the same likelihood);
 * **reference**: emcee on the model itself (no surrogate) under the same
   likelihood, 48 walkers x 8000 steps (2000 burnt).
@@ -27,7 +27,7 @@ overlap of the 94 % HDIs (intersection / union) and the Kolmogorov-Smirnov
 distance between draws thinned to about one per autocorrelation time (with
 the KS distance between the reference's own two halves, its Monte Carlo
 floor).  The log evidence (up to the prior's constant, the same for all):
-the budget run's from its surrogate (importance sampling, no model run:
+the default run's from its surrogate (importance sampling, no model run:
 ``PosteriorResult.log_evidence``), the reference by the same importance
 sampler on the model itself (4000 points from a Student-t fitted to the
 reference draws), pyvbmc's ELBO.  And the likelihood scales' check: each
@@ -136,17 +136,19 @@ def _report(res) -> dict:
 def run_case(name: str, seed: int) -> dict:
     data, model, what = case(name)
     t = time.perf_counter()
-    now = sample(data, model, PosteriorSettings.budget(seed=seed), workers=2, progress=False, log=lambda *a: None)
+    now = sample(data, model, PosteriorSettings(seed=seed), workers=2, progress=False, log=lambda *a: None)
     t_now = time.perf_counter() - t
     lik, start = now.likelihood, now.space.to_parameters(now.map.x)
     d = len(now.space.names)
     t = time.perf_counter()
-    before = sample(data, model, PosteriorSettings(seed=seed, **BEFORE), likelihood=lik, workers=2, progress=False,
+    before = sample(data, model, PosteriorSettings.thorough(seed=seed, **BEFORE), likelihood=lik, workers=2, progress=False,
                     log=lambda *a: None)
     t_before = time.perf_counter() - t
     before_scales = likelihood_runs(now.problem, 96, now.space, True)
     t = time.perf_counter()
-    ref = sample(data, model, PosteriorSettings(seed=seed + 1, **REFERENCE), direct=True, likelihood=lik, start=start,
+    # the d = 6 chain's runs cost 5 ms: a shorter reference (its halves' distances say what that costs)
+    sizes = {**REFERENCE, **({"direct_steps": 4000, "direct_burn": 1000} if name == "chain6" else {})}
+    ref = sample(data, model, PosteriorSettings(seed=seed + 1, **sizes), direct=True, likelihood=lik, start=start,
                  workers=2, progress=False, log=lambda *a: None)
     t_ref = time.perf_counter() - t
     # the scales' check: every replicate a model run, at the same point
@@ -171,7 +173,7 @@ def run_case(name: str, seed: int) -> dict:
                                 "hdi_overlap": min(v["hdi_overlap"] for v in floor.values())},
             "evidence": {"reference": {**ref_evidence.to_dict(), "runs": N_EVIDENCE * len(now.problem.stages),
                                        "wall_s": t_evidence},
-                         "budget": now.log_evidence(seed=seed + 4).to_dict()},
+                         "default": now.log_evidence(seed=seed + 4).to_dict()},
             "vbmc": vb,
             "now": {"runs": now.n_model_runs, "wall_s": t_now, "compare": compare(_report(now), refd_thin, rng),
                     "max_r_hat": now.diagnostics["max_r_hat"]},
@@ -186,7 +188,7 @@ def run_case(name: str, seed: int) -> dict:
 
 
 def _vbmc(target, now, refd, rng, seed) -> dict | None:
-    """pyvbmc on ``target`` from the budget run's MAP (None when pyvbmc is absent)."""
+    """pyvbmc on ``target`` from the default run's MAP (None when pyvbmc is absent)."""
     try:
         from pyvbmc import VBMC
     except ImportError as exc:
@@ -223,13 +225,13 @@ def table(rows) -> list:
              "[ref sd] | worst 94 % HDI overlap | worst KS | max R-hat | log evidence |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        for key, label in (("before", "default"), ("now", "budget")):
+        for key, label in (("before", "thorough (before)"), ("now", "default (now)")):
             p = r[key]
             n = p["runs"]
             other = n["total"] - sum(n.get(k, 0) for k in ("start", "likelihood_scales", "map_laplace",
                                                             "design_and_gp"))
             c = p["compare"].values()
-            ev = r["evidence"]["budget"]["log_evidence"] if key == "now" else None
+            ev = r["evidence"]["default"]["log_evidence"] if key == "now" else None
             lines.append(f"| {r['what']} | {label} | **{n['total']}** ({n.get('start', 0)} / "
                          f"{n.get('likelihood_scales', 0)} / {n.get('map_laplace', 0)} / {n.get('design_and_gp', 0)}"
                          f" / {other}) | {p['wall_s']:.0f} s | {max(abs(v['shift_sd']) for v in c):.3f} | "
@@ -254,8 +256,9 @@ def table(rows) -> list:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="+", default=["beam_rom", "duffing3", "duffing5"])
+    ap.add_argument("--cases", nargs="+", default=["beam_rom", "duffing3", "chain6"])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--tag", default="", help="suffix of the result files (a run of some cases)")
     args = ap.parse_args(argv)
     rows = []
     for name in args.cases:
@@ -264,10 +267,11 @@ def main(argv=None):
     lines = ["# Model runs per posterior", "", f"`python benchmarks/runs_per_posterior.py --cases "
              f"{' '.join(args.cases)} --seed {args.seed}`; {machine()}", "",
              "Against a direct emcee chain on the model under the same likelihood (48 x 8000 steps, 2000 burnt; "
+             "the d = 6 chain 48 x 4000, 1000 burnt; "
              "its row: the distances between its own two halves, the floor of KS and overlap); "
-             "'default': the default sizes with the diagnostics of 2026-11-25, its scales step counted as 96 "
-             "model-run replicates per stage; 'budget': PosteriorSettings.budget().", "", *table(rows), "",
-             "Per parameter (budget against the reference):", "",
+             "'thorough': PosteriorSettings.thorough() (the former defaults) with the diagnostics of 2026-11-25, "
+             "its scales step counted as 96 model-run replicates per stage; 'default': PosteriorSettings().", "",
+             *table(rows), "", "Per parameter (default against the reference):", "",
              "| case | parameter | mean / reference | sd / reference | shift [sd] | HDI overlap | KS |",
              "|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -281,7 +285,7 @@ def main(argv=None):
         for st, v in r["scales"].items():
             lines.append(f"| {r['case']} | {st} | {100 * v['all_model']:.4f} | {100 * v['control_variate']:.4f} | "
                          f"{v['control_variate'] / v['all_model']:.3f} |")
-    out = ROOT / "benchmarks" / "results" / "runs_per_posterior"
+    out = ROOT / "benchmarks" / "results" / ("runs_per_posterior" + args.tag)
     out.with_suffix(".json").write_text(json.dumps(rows, indent=1, default=float))
     out.with_suffix(".md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

@@ -99,6 +99,13 @@ def test_sample_stops_after_its_start_with_a_message(hysteretic_data):
     assert "discrepancy" in str(info.value) or "model" in str(info.value)
 
 
+def test_with_a_coarse_start_sample_stops_after_its_map(hysteretic_data):
+    # the default start is coarse (it fits part of the parameters): the check waits for the MAP
+    with pytest.raises(ModelFitError, match="MAP") as info:
+        bu.sample(hysteretic_data, Spring(), bu.PosteriorSettings(), workers=1, progress=False, log=lambda *a: None)
+    assert "strong" in str(info.value), info.value
+
+
 def test_the_command_line_ends_in_one_line_with_status_2(hysteretic_data, tmp_path, capsys):
     from bayes_update.cli import main
     from bayes_update.data.folder import write_dataset

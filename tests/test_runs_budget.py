@@ -1,6 +1,9 @@
 """The posterior's run budget (the runs-per-posterior issue): the likelihood
 scales' control variate, the design's stopping rule and the count of model
 runs each step reports."""
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -120,7 +123,7 @@ def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
 
 @pytest.mark.slow   # about 60 s; benchmarks/runs_per_posterior.py measures the budget against a direct chain
 def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
-    """PosteriorSettings.budget on the Duffing oscillator of test_user_model (fn, zeta, k3
+    """The default sizes on the Duffing oscillator of test_user_model (fn, zeta, k3
     free): the truth inside every 94 % HDI, converged chains, and fewer than 300 model runs
     in total (measured 254-256; the default sizes take about 1350)."""
     from test_user_model import TRUTH, Duffing, make_dataset
@@ -129,7 +132,7 @@ def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
 
     free = ("fn", "zeta", "k3")
     model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
-    res = sample(make_dataset(seed=11), model, PosteriorSettings.budget(), workers=2, progress=False,
+    res = sample(make_dataset(seed=11), model, PosteriorSettings(), workers=2, progress=False,
                  log=lambda *a: None)
     assert res.n_model_runs["total"] < 300, res.n_model_runs
     for name in free:
@@ -137,12 +140,12 @@ def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
         assert s["hdi_3%"] <= TRUTH[name] <= s["hdi_97%"] and s["r_hat"] < 1.02, (name, s)
 
 
-def test_the_budget_and_quick_options_exclude_each_other(tmp_path, capsys):
-    """`sample --budget --quick` is refused in one line (status 2) before any model run."""
+def test_the_thorough_and_quick_options_exclude_each_other(tmp_path, capsys):
+    """`sample --thorough --quick` is refused in one line (status 2) before any model run."""
     from bayes_update.cli import main
 
-    assert main(["sample", "--model", "rom", "--budget", "--quick", "--out", str(tmp_path / "x")]) == 2
-    assert "--budget and --quick: choose one" in capsys.readouterr().err
+    assert main(["sample", "--model", "rom", "--thorough", "--quick", "--out", str(tmp_path / "x")]) == 2
+    assert "--thorough and --quick: choose one" in capsys.readouterr().err
 
 
 def test_a_forward_difference_mode_reuses_the_searchs_last_jacobian():
@@ -167,3 +170,56 @@ def test_a_forward_difference_mode_reuses_the_searchs_last_jacobian():
     cen = find_mode(fun, [np.array([1.0, 0.0, 1.0])], lower, upper, steps, central=True)
     # same search, then central differences (2d runs) and the point itself, against none
     assert cen.n_evaluations - fwd.n_evaluations == 1 + 2 * len(truth)
+
+
+class _Stub:
+    """What misfit_beyond_noise reads of a problem: its stages, output sizes and model."""
+
+    def __init__(self, n):
+        self.stages, self.n, self.model = ("linear", "nonlinear"), n, object()
+
+    def reference_components(self, stage):
+        return stage
+
+    def output(self, stage, components):
+        return np.zeros(self.n)
+
+
+def test_without_a_refined_model_the_misfit_beyond_the_noise_is_the_model_error():
+    from bayes_update.core.likelihood import Likelihood, StageScale, misfit_beyond_noise
+
+    n, s_n = 200, 1e-4                              # 200 regressors, noise 1e-4 per direction
+    scales = {st: StageScale(stage=st, noise_mean_square=n * s_n ** 2, noise_dof=n, model_error=0.0,
+                             n_regressors=n, n_replicates=96, span_variance=s_n ** 2, span_rank=4,
+                             model_error_source="none: no refined()") for st in ("linear", "nonlinear")}
+    lik = Likelihood(scales)
+    rng = np.random.default_rng(4)
+    noise_only = rng.standard_normal(n)                         # a misfit the noise explains (scaled by s = s_n)
+    misfit = noise_only + 30.0 * rng.standard_normal(n)        # ~30x the noise per direction
+    new = misfit_beyond_noise(_Stub(n), lik, np.concatenate([noise_only, misfit]))
+    assert new.scales["linear"] is lik.scales["linear"]          # within the noise: unchanged
+    e_map2 = float(misfit @ misfit) * s_n ** 2
+    expected = np.sqrt(e_map2 - n * s_n ** 2)
+    assert new.scales["nonlinear"].model_error == pytest.approx(expected, rel=1e-12)
+    assert new.scales["nonlinear"].sd > 20 * lik.scales["nonlinear"].sd
+    assert "misfit at the MAP" in new.scales["nonlinear"].model_error_source
+    # just above the noise's chance excess (3 sd of a chi-square of 200 directions: 30 %): not counted
+    border = noise_only / np.linalg.norm(noise_only) * np.sqrt(n * 1.25)
+    assert misfit_beyond_noise(_Stub(n), lik, np.concatenate([border, border])).scales["nonlinear"].model_error == 0
+
+
+@pytest.mark.slow   # 1-3 minutes (a 5 ms model, some 300-450 runs)
+def test_a_posterior_on_lab_records_covers_the_truth_without_a_refined_model():
+    """The lab records of test_measured_records (drifting sensors, coloured noise, a noisy
+    force; the user's chain has no refined()): with noise-only scales the posterior put the
+    truth 10-55 sd away; with the misfit beyond the noise as model error it covers it."""
+    import test_measured_records as lab_chain
+
+    from bayes_update.core.posterior import PosteriorSettings, sample
+
+    data = lab_chain.read_back(lab_chain.lab_tests(), Path(tempfile.mkdtemp()) / "lab")
+    res = sample(data, lab_chain.LabChain(), PosteriorSettings(), workers=2, progress=False, log=lambda *a: None)
+    for name, truth in lab_chain.TRUTH.items():
+        s = res.summary[name]
+        assert s["hdi_3%"] <= truth <= s["hdi_97%"], (name, truth, s)
+    assert any("misfit at the MAP" in sc.model_error_source for sc in res.likelihood.scales.values())

@@ -50,9 +50,9 @@ def add_commands(sub) -> None:
     p.add_argument("--direct", action="store_true",
                    help="sample on the model itself, no surrogate (for a model of a few ms per run)")
     p.add_argument("--quick", action="store_true", help="small designs and chains (a first look, or CI)")
-    p.add_argument("--budget", action="store_true",
-                   help="some 250-300 model runs instead of 1200-1400, for an expensive model "
-                        "(PosteriorSettings.budget; not yet calibrated: docs/posterior.md)")
+    p.add_argument("--thorough", action="store_true",
+                   help="the former sizes, some 1200-1400 model runs instead of 230-300 "
+                        "(PosteriorSettings.thorough: a reference for the default's)")
     p.add_argument("--no-cache", action="store_true",
                    help="do not keep model runs in OUT/cache (by default an interrupted run resumes)")
     add_model(p)
@@ -219,7 +219,7 @@ def cmd_calibrate(args) -> int:
 
 def cmd_sample(args) -> int:
     from bayes_update.core.posterior import PosteriorSettings, sample
-    from bayes_update.core.posterior.settings import BUDGET
+    from bayes_update.core.posterior.settings import THOROUGH
     from bayes_update.reports.posterior import write_posterior
 
     workers = _workers(args)
@@ -228,9 +228,9 @@ def cmd_sample(args) -> int:
               "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
     model, data, space, truth = _model_and_data(args)
     _first_look(data, args.out)
-    if args.budget and args.quick:
-        raise ValueError("--budget and --quick: choose one")
-    config = {**(BUDGET if args.budget else {}), **read_config(args.config, "sample")}
+    if args.thorough and args.quick:
+        raise ValueError("--thorough and --quick: choose one")
+    config = {**(THOROUGH if args.thorough else {}), **read_config(args.config, "sample")}
     settings = settings_from(PosteriorSettings, args.quick, config, seed=args.seed,
                              n_walkers=args.walkers, n_predictive=args.predictive, n_global=args.sensitivity,
                              **{("direct_steps" if args.direct else "n_steps"): args.steps})

@@ -270,10 +270,14 @@ def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, j
     mode's search may lie far from it.  The model's output there comes from the
     mode's scaled residual (no run), the refined model's from one run per stage,
     the span of the parameters' sensitivities from the mode's Jacobian; the
-    noise terms stay.  Without a refined model (or its term switched off) the
-    likelihood is returned as it is."""
+    noise terms stay.  With the term switched off the likelihood is returned as it
+    is; without a refined model, see :func:`misfit_beyond_noise`."""
     ref_model = problem.refined_model()
-    if ref_model is None or all(sc.model_error == 0.0 for sc in likelihood.scales.values()):
+    if all((sc.model_error_source or "").startswith("off") for sc in likelihood.scales.values()):
+        return likelihood
+    if ref_model is None:
+        return misfit_beyond_noise(problem, likelihood, residual)
+    if all(sc.model_error == 0.0 for sc in likelihood.scales.values()):
         return likelihood
     scales, row = {}, 0
     for stage in problem.stages:
@@ -289,6 +293,43 @@ def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, j
         Q = U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
         scales[stage] = dataclasses.replace(sc, model_error=float(np.linalg.norm(d) / norm),
                                             model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
+    return Likelihood(scales, likelihood.noise_residuals)
+
+
+#: the misfit at the mode counts as model error when its square exceeds the noise's by more
+#: than this many sd of the noise's (a chi-square of n_reg directions: sd sqrt(2 / n_reg) of it)
+MISFIT_SIGNIFICANCE = 3.0
+
+
+def misfit_beyond_noise(problem: Problem, likelihood: Likelihood, residual) -> Likelihood:
+    """The model error of a model without ``refined()``, from the mode's misfit.
+
+    A measured record is never matched to its noise: drift, a sensor's
+    dynamics, an effect the model lacks leave a misfit the noise replicates do
+    not know of, and with noise-only scales the posterior is then narrower than
+    the error it leaves (on lab records of a 3-DOF chain with drifting sensors, the
+    truth 10-55 posterior sd away; ``benchmarks/runs_per_posterior.py``, chain6).
+    Per stage: e_mode^2 = ||r||^2 s^2 (the mode's relative misfit) against the
+    noise's mean square e_n^2 (its replicates, all n_reg directions); where
+    e_mode^2 - e_n^2 exceeds ``MISFIT_SIGNIFICANCE`` sd of e_n^2 (sqrt(2 / n_reg) e_n^2),
+    e_model = sqrt(e_mode^2 - e_n^2) (budgeted as the refined model's would be:
+    one sd in any direction); else the stage keeps a zero model error.  The
+    residual is the scaled one of the mode search (order of ``problem.stages``)."""
+    scales, row = {}, 0
+    for stage in problem.stages:
+        sc = likelihood.scales[stage]
+        n = problem.output(stage, problem.reference_components(stage)).size
+        r = np.asarray(residual[row:row + n], float)
+        row += n
+        e2 = float(r @ r) * sc.sd ** 2
+        excess = e2 - sc.noise_mean_square
+        if excess > MISFIT_SIGNIFICANCE * math.sqrt(2.0 / max(sc.n_regressors, 1)) * sc.noise_mean_square:
+            scales[stage] = dataclasses.replace(
+                sc, model_error=math.sqrt(excess), model_error_unabsorbed=math.sqrt(excess),
+                model_error_source=f"the misfit at the MAP beyond the noise ({type(problem.model).__name__} has "
+                                   "no refined(): e_model^2 = e_MAP^2 - e_noise^2)")
+        else:
+            scales[stage] = sc
     return Likelihood(scales, likelihood.noise_residuals)
 
 

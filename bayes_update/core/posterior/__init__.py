@@ -3,10 +3,10 @@
 Pipeline of :func:`sample` (each step's numbers go to the result):
 
 The cost users feel is the number of model runs: every step records its
-runs and wall time (``run.json``).  :meth:`PosteriorSettings.budget` (``sample
---budget``) cuts them 4-5 fold for expensive models (not yet calibrated by an
-SBC; ``benchmarks/runs_per_posterior.py``, docs/posterior.md); the default
-sizes are the calibrated ones.
+runs and wall time (``run.json``).  The default sizes take some 230-300 runs
+(``benchmarks/runs_per_posterior.py``, an SBC in ``benchmarks/sbc.py``,
+docs/posterior.md); :meth:`PosteriorSettings.thorough` (``sample --thorough``)
+the former 1200-1400.
 
 1. start: the model's own ``start`` hook (the beam's: the paper's grids; with
    ``coarse_start`` eta and P_eff from the low level, 6 runs), else the

@@ -215,20 +215,27 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
         info = {n: float(start[n]) for n in space.names}
         if not space.contains(start):
             start = space.to_parameters(np.clip(space.to_internal(start), space.box()[:, 0], space.box()[:, 1]))
-        # does the model fit at all? a model of the wrong form is told here, not after the design
-        errors = output_errors(run.problem, start)
-        run.steps.add_runs(len(errors))
-    run.warnings = fit_warnings(run.problem, start, errors)
+        if not run.settings.coarse_start:
+            _fit_check(run, start, "start point")
+    return start, info
+
+
+def _fit_check(run: _Run, theta, where: str) -> None:
+    """Does the model fit at all?  A model of the wrong form is told here (after the
+    start, or after the MAP when the start is coarse: it fits only part of the
+    parameters), not after the design."""
+    errors = output_errors(run.problem, theta)
+    run.steps.add_runs(len(errors))
+    run.warnings = fit_warnings(run.problem, theta, errors)
     for w in run.warnings:
         run.log(f"WARNING: {w}")
     severe = severe_misfit(errors, run.problem)
     if severe:
         raise ModelFitError(
-            "the model cannot fit the data: at its best start point it misses " + "; ".join(
+            f"the model cannot fit the data: at its best {where} it misses " + "; ".join(
                 f"test {k} by {100 * e:.0f} % of its rms (noise allows {100 * f:.1f} %)" for k, (e, f) in severe.items())
             + ". A posterior of this model would describe nothing real: check the model's form and units and "
               "the data set's roles, or run `bayes-update discrepancy` with the effects the model may miss")
-    return start, info
 
 
 def _likelihood(run: _Run, start, likelihood) -> Likelihood:
@@ -261,6 +268,8 @@ def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
         mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False,
                       frugal=s.frugal_map)
         run.steps.add_runs(len(run.problem.stages) * mp.n_evaluations)
+        if s.coarse_start:
+            _fit_check(run, space.to_parameters(mp.x), "MAP (from a coarse start)")
         if remeasure and mp.mode is not None and s.model_error:
             lik, mp = _rescaled(run, lik, mp)
         box = local_box(space, mp.x, mp.covariance, s.box_sd)
@@ -285,7 +294,8 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     new = model_error_at(run.problem, lik, run.space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian)
     if new is lik:
         return lik, mp
-    run.steps.add_runs(len(stages))
+    if run.problem.refined_model() is not None:      # one refined run per stage (else from the misfit)
+        run.steps.add_runs(len(stages))
     n = [run.problem.output(st, run.problem.reference_components(st)).size for st in stages]
     factor = np.concatenate([np.full(k, lik.scales[st].sd / new.scales[st].sd) for k, st in zip(n, stages)])
     mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],

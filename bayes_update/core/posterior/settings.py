@@ -8,6 +8,11 @@ from dataclasses import dataclass
 class PosteriorSettings:
     """Sizes of every step (model runs are counted per test)."""
 
+    # The defaults are sized for expensive models: some 230-300 model runs per posterior
+    # (benchmarks/runs_per_posterior.py), calibrated by an SBC over 50 truths
+    # (benchmarks/sbc.py --budget default; docs/posterior.md).  thorough() gives the former,
+    # four to five times costlier sizes (the reference the defaults were measured against).
+    #
     # noise replicates for the likelihood scales and the curvature adjustment's noise covariance:
     # at 24 the sandwich from the replicates was itself too noisy (50 SBC truths: the truth beyond
     # the 90 % chi^2_4 point in 14 %, at 96 in 8 %; benchmarks/sbc_linearised.py).  With
@@ -15,17 +20,17 @@ class PosteriorSettings:
     # of the model (one run), corrected by k replicates run on the model (likelihood.estimate_likelihood;
     # None: every replicate a model run)
     n_replicates: int = 96
-    model_replicates: int | None = None
-    n_initial: int = 96         # Sobol' points in the local box (0: 6 per parameter)
-    n_rounds: int = 5           # refinement rounds (at most, with stop_tolerance)
-    batch: int = 32             # points per round (0: 2 per parameter)
-    stop_tolerance: float = 0.0  # > 0: the design stops when the surrogate posterior's means move less than
-    #                             this many sd and its sds less than this share, twice in a row
+    model_replicates: int | None = 16
+    n_initial: int = 0          # Sobol' points in the local box (0: 6 per parameter)
+    n_rounds: int = 12          # refinement rounds (at most, with stop_tolerance)
+    batch: int = 0              # points per round (0: 2 per parameter)
+    stop_tolerance: float = 0.1  # > 0: the design stops when the surrogate posterior's means move less than
+    #                             this many sd and its sds less than this share, twice in a row (0: all rounds)
     box_sd: float = 4.0         # half-width of the local box [Laplace marginal sd]
-    n_walkers: int = 32
-    n_steps: int = 12000        # on the surrogate; direct runs use direct_steps
-    burn: int = 2000
-    thin: int = 10              # kept draws: every thin-th step after burn-in
+    n_walkers: int = 64
+    n_steps: int = 6000         # on the surrogate; direct runs use direct_steps
+    burn: int = 1000
+    thin: int = 5               # kept draws: every thin-th step after burn-in
     direct_steps: int = 3000
     direct_burn: int = 1000
     box_attempts: int = 3       # re-centred, wider boxes when the first cuts the posterior
@@ -36,9 +41,9 @@ class PosteriorSettings:
     model_error: bool = True    # add the measured model error to the likelihood
     curvature_adjustment: bool = True   # sandwich-adjust the likelihood's curvature (adjustment.curvature_adjustment)
     map_max_evaluations: int = 600
-    n_start: int = 64           # Sobol' points of the start search (models without a start hook)
-    coarse_start: bool = False  # the start a search goes on from (the beam: eta and P_eff only; others: no polish)
-    frugal_map: bool = False    # the MAP from the start alone, its model's other starts only where they beat it
+    n_start: int = 16           # Sobol' points of the start search (models without a start hook)
+    coarse_start: bool = True   # the start a search goes on from (the beam: eta and P_eff only; others: no polish)
+    frugal_map: bool = True     # the MAP from the start alone, its model's other starts only where they beat it
     seed: int = 0
 
     def __post_init__(self):
@@ -64,25 +69,29 @@ class PosteriorSettings:
             raise ValueError("box_sd must be > 1")
 
     @classmethod
+    def thorough(cls, **kw) -> "PosteriorSettings":
+        """The former default sizes, some 1200-1400 model runs: every noise replicate
+        a model run, the full two-stage start, the MAP from every start the model
+        offers, a 96 + 5 x 32 design, 32 x 12000 steps (the reference the defaults
+        were measured against in ``benchmarks/runs_per_posterior.py``)."""
+        return cls(**{**THOROUGH, **kw})
+
+    @classmethod
     def budget(cls, **kw) -> "PosteriorSettings":
-        """The posterior for expensive models: some 250-300 model runs instead of
-        1200-1400 (``benchmarks/runs_per_posterior.py``): control-variate scales,
-        a coarse start, one MAP search, a design of 6 + 2 x rounds points per
-        parameter that stops when the surrogate posterior stops moving, 64 x 6000
-        steps.  NOT YET CALIBRATED: a first SBC on the beam's ROM (12 truths)
-        covered F and k_s with 7 of 12 90 % intervals (docs/posterior.md)."""
-        return cls(**{**BUDGET, **kw})
+        """The default sizes (the name of a release in which they were opt-in)."""
+        return cls(**kw)
 
     @classmethod
     def quick(cls, **kw) -> "PosteriorSettings":
-        """Small sizes for tests and a first look (about a fifth of the runs)."""
-        base = dict(n_replicates=12, n_initial=40, n_rounds=2, batch=16, n_walkers=24, n_steps=3000,
+        """Small sizes of the thorough pipeline for tests and a first look on a cheap model
+        (12 model-run replicates, a 40 + 2 x 16 design, short chains)."""
+        base = dict(THOROUGH, n_replicates=12, n_initial=40, n_rounds=2, batch=16, n_walkers=24, n_steps=3000,
                     burn=1000, thin=5, direct_steps=1000, direct_burn=400, n_linear=32, n_global=48,
                     sobol_n=256, n_predictive=8, map_max_evaluations=250)
         base.update(kw)
         return cls(**base)
 
 
-#: the sizes of :meth:`PosteriorSettings.budget` (``bayes-update sample --budget``)
-BUDGET = dict(model_replicates=16, n_initial=0, n_rounds=12, batch=0, stop_tolerance=0.1, n_walkers=64,
-              n_steps=6000, burn=1000, thin=5, n_start=16, coarse_start=True, frugal_map=True)
+#: the sizes of :meth:`PosteriorSettings.thorough` (``bayes-update sample --thorough``)
+THOROUGH = dict(model_replicates=None, n_initial=96, n_rounds=5, batch=32, stop_tolerance=0.0, n_walkers=32,
+                n_steps=12000, burn=2000, thin=10, n_start=64, coarse_start=False, frugal_map=False)
