@@ -102,11 +102,16 @@ class LabChain6:
     def simulate(self, theta, force, fs):
         import test_measured_records as lab_chain
 
+        from bayes_update import ModelError
+
         old, lab_chain.K2 = lab_chain.K2, float(theta["k2"])       # the user model reads the module's K2
         try:
-            return lab_chain.LabChain().simulate(theta, force, fs)
+            y = lab_chain.LabChain().simulate(theta, force, fs)
         finally:
             lab_chain.K2 = old
+        if not np.all(np.isfinite(y)):      # a negative quadratic damper can feed energy in: no response
+            raise ModelError(f"the response diverges (cq = {theta['cq']} N s^2/m^2, zeta = {theta['zeta']})")
+        return y
 
 
 def compare(draws: dict, ref: dict, rng) -> dict:

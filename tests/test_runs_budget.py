@@ -211,8 +211,10 @@ def test_without_a_refined_model_the_misfit_beyond_the_noise_is_the_model_error(
 @pytest.mark.slow   # 1-3 minutes (a 5 ms model, some 300-450 runs)
 def test_a_posterior_on_lab_records_covers_the_truth_without_a_refined_model():
     """The lab records of test_measured_records (drifting sensors, coloured noise, a noisy
-    force; the user's chain has no refined()): with noise-only scales the posterior put the
-    truth 10-55 sd away; with the misfit beyond the noise as model error it covers it."""
+    force; the user's chain has no refined()): the default posterior covers the truth.  (Here
+    the misfit at the MAP is within the noise's chance, so the model error stays 0; on the
+    records with a damper and k2 and the damper free, d = 6, it did not, and noise-only scales
+    put the truth 10-55 sd away: benchmarks/runs_per_posterior.py, chain6.)"""
     import test_measured_records as lab_chain
 
     from bayes_update.core.posterior import PosteriorSettings, sample
@@ -222,4 +224,35 @@ def test_a_posterior_on_lab_records_covers_the_truth_without_a_refined_model():
     for name, truth in lab_chain.TRUTH.items():
         s = res.summary[name]
         assert s["hdi_3%"] <= truth <= s["hdi_97%"], (name, truth, s)
-    assert any("misfit at the MAP" in sc.model_error_source for sc in res.likelihood.scales.values())
+    print({st: (sc.model_error, sc.model_error_source) for st, sc in res.likelihood.scales.items()})
+
+
+@pytest.mark.slow   # 2-5 minutes: two ROM posteriors
+@pytest.mark.parametrize("truth", [
+    # two SBC truths with k_s near its upper bound: the coarse start (c and k_s at the prior's
+    # centre) missed the high level by 55-73 % there, and a search from the best start ended at k_s = 0
+    {"eta": 1.0735, "c": 25.909, "F": 94.342, "k_s": 574.33},
+    {"eta": 3.3999, "c": 6.9712, "F": 88.066, "k_s": 554.12}])
+def test_the_default_posterior_finds_the_valley_near_the_k_s_bound(truth):
+    import fe
+    from bayes_update.core.posterior import PosteriorSettings, sample
+    from bayes_update.data import signals
+    from bayes_update.data.dataset import Dataset, Record
+    from bayes_update.models.beam.model import Beam
+    from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
+
+    model = Beam(fe.ModalROM(PAPER_EQUIVALENT_RIG))
+    rng = np.random.default_rng(2718)
+    tests = []
+    for name, amp, role in (("chirp_low", 0.02, "linear"), ("chirp_high", 0.2, "nonlinear")):
+        f = signals.chirp(amp)
+        v = model.simulate(truth, f, 1024.0)
+        tests.append(Record(f"{name}.csv", "chirp", name.split("_")[1], role, np.arange(f.size) / 1024.0,
+                            signals.add_noise(f, 40.0, rng), signals.add_noise(v, 40.0, rng)))
+    data = Dataset("near-bound", 1024.0, model.rig, tests)
+    res = sample(data, model, PosteriorSettings(n_linear=0, model_error=False), workers=2, progress=False,
+                 log=lambda *a: None)
+    for name in ("eta", "c", "F", "k_s"):
+        s = res.summary[name]
+        assert s["hdi_3%"] <= truth[name] <= s["hdi_97%"], (name, truth[name], s)
+    print(res.n_model_runs)     # 271-371 measured (a second search where the first ends on a bound)
