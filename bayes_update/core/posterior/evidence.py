@@ -29,9 +29,13 @@ class Evidence:
 def log_evidence(log_density, draws, n: int = 4000, seed=0, df: float = 5.0, widen: float = 1.2) -> Evidence:
     """Importance-sampling estimate of log int exp(log_density(x)) dx.
 
-    log_density : vectorised, (n, d) -> (n,), -inf outside the support (a model run
-        per point if it is the model's posterior: n of them).
-    draws : (m, d) draws of the normalised density, m > d, to fit the proposal.
+    Parameters
+    ----------
+    log_density : callable
+        Vectorised, (n, d) -> (n,), -inf outside the support (a model run per
+        point if it is the model's posterior: n of them).
+    draws : array (m, d)
+        Draws of the normalised density, m > d, to fit the proposal.
     """
     draws = np.atleast_2d(np.asarray(draws, float))
     m, d = draws.shape

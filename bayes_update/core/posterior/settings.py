@@ -8,10 +8,10 @@ from dataclasses import dataclass
 class PosteriorSettings:
     """Sizes of every step (model runs are counted per test)."""
 
-    # The defaults are sized for expensive models: some 230-300 model runs per posterior
-    # (benchmarks/runs_per_posterior.py), calibrated by an SBC over 50 truths
-    # (benchmarks/sbc.py --budget default; docs/posterior.md).  thorough() gives the former,
-    # four to five times costlier sizes (the reference the defaults were measured against).
+    # The defaults are sized for expensive models: some 220-310 model runs per posterior of
+    # four parameters (docs/posterior.md); an SBC of 28 truths (benchmarks/sbc.py --budget budget)
+    # covered as the former sizes on the same truths, with sds 8-15 % narrower.  thorough()
+    # gives the former, four to five times costlier sizes (the reference for the defaults).
     #
     # noise replicates for the likelihood scales and the curvature adjustment's noise covariance:
     # at 24 the sandwich from the replicates was itself too noisy (50 SBC truths: the truth beyond
