@@ -59,3 +59,19 @@ def log_evidence(log_density, draws, n: int = 4000, seed=0, df: float = 5.0, wid
     ess = float(w.sum() ** 2 / np.sum(w ** 2))
     sd = float(np.std(w) / (np.sqrt(n) * np.mean(w)))
     return Evidence(log_z, sd, ess / n, int(n))
+
+
+def surrogate_log_evidence(result, n: int = 4000, seed: int = 0) -> Evidence:
+    """log p(data) of a :class:`~bayes_update.core.posterior.sampler.PosteriorResult`
+    from its surrogate (no model run), in the internal coordinates, up to the
+    prior's constant (the log priors drop it): for comparing models under one
+    prior.  A direct result has no surrogate: evaluate
+    :class:`~bayes_update.core.posterior.target.DirectLogPosterior` with
+    :func:`log_evidence` (n model runs per test)."""
+    if result.target is None:
+        raise ValueError("this posterior was sampled on the model itself (direct): it has no surrogate to "
+                         "integrate; use evidence.log_evidence with a DirectLogPosterior (n model runs per test)")
+    w = result.design["whitening"]
+    ev = log_evidence(result.target, w.to_u(result.draws), n=n, seed=seed)
+    # the surrogate lives in u, x = center + L u: dx = |det L| du
+    return Evidence(ev.log_z + float(np.linalg.slogdet(w.L)[1]), ev.sd, ev.ess_share, ev.n)

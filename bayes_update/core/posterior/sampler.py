@@ -58,21 +58,11 @@ class PosteriorResult:
     adjustment: object = field(repr=False, default=None)   # the likelihood's curvature adjustment, if any
 
     def log_evidence(self, n: int = 4000, seed: int = 0):
-        """log p(data) of the surrogate posterior (:mod:`~bayes_update.core.posterior.evidence`:
-        importance sampling from a Student-t fitted to the draws, no model run), in
-        the internal coordinates, up to the prior's constant (the log priors drop
-        it): for comparing models under one prior.  A direct result has no
-        surrogate: evaluate :class:`~bayes_update.core.posterior.target.DirectLogPosterior`
-        with :func:`~bayes_update.core.posterior.evidence.log_evidence` (n model runs per test)."""
-        from bayes_update.core.posterior.evidence import Evidence, log_evidence
+        """log p(data) of the surrogate posterior, no model run
+        (:func:`~bayes_update.core.posterior.evidence.surrogate_log_evidence`)."""
+        from bayes_update.core.posterior.evidence import surrogate_log_evidence
 
-        if self.target is None:
-            raise ValueError("this posterior was sampled on the model itself (direct): it has no surrogate to "
-                             "integrate; use evidence.log_evidence with a DirectLogPosterior (n model runs per test)")
-        w = self.design["whitening"]
-        ev = log_evidence(self.target, w.to_u(self.draws), n=n, seed=seed)
-        # x = center + L u: dx = |det L| du
-        return Evidence(ev.log_z + float(np.linalg.slogdet(w.L)[1]), ev.sd, ev.ess_share, ev.n)
+        return surrogate_log_evidence(self, n, seed)
 
     def summary_json(self) -> dict:
         return {"parameters": self.summary, "map": dict(zip(self.space.coordinate_names, map(float, self.map.x))),
