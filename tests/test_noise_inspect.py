@@ -144,3 +144,34 @@ def test_the_figures_are_written(which, lab_set, default_set, tmp_path):
     assert set(paths) == names
     assert all(p.stat().st_size > 10_000 for n, p in paths.items() if n.endswith(".png"))
     assert json.loads(paths["inspection.json"].read_text())["tests"].keys() == out["tests"].keys()
+
+
+def _multisine(fs, n, band, seed):
+    """A random-phase multisine with flat lines in ``band`` [Hz], one period of n samples, unit rms."""
+    f = np.fft.rfftfreq(n, 1 / fs)
+    lines = np.zeros(f.size, complex)
+    sel = (f >= band[0]) & (f <= band[1])
+    lines[sel] = np.exp(2j * np.pi * np.random.default_rng(seed).random(sel.sum()))
+    x = np.fft.irfft(lines, n)
+    return x / x.std()
+
+
+@pytest.mark.parametrize("fs, seconds, band", [(512.0, 2.0, (2.0, 40.0)), (1024.0, 2.0, (2.0, 110.0)),
+                                               (200.0, 8.0, (0.5, 60.0))])
+def test_low_multisine_lines_are_not_a_drift(fs, seconds, band):
+    """Records of a few seconds whose lowest excited line has a few cycles in them (a
+    portal frame's 2-s multisines from 2 Hz): windows of 1/8 of the record read
+    40-65 % of the rms as a drift there; windows over two cycles of the lowest line
+    do not, and a drift added is still measured."""
+    n = int(fs * seconds)
+    x = np.tile(_multisine(fs, n // 2, band, seed=31), 2)        # two periods
+    assert checks.drift(x) > 0.1                                   # what the fixed windows said
+    assert checks.drift(x, fs, band[0]) < 0.02
+    ramp = 0.3 * np.linspace(-0.5, 0.5, n)                          # a drift of 30 % of the rms
+    got = checks.drift(x + ramp, fs, band[0])
+    truth_span = np.ptp(checks.trend(ramp, int(np.ceil(2 * fs / band[0])))) / np.std(x + ramp)
+    assert got == pytest.approx(truth_span, rel=0.1) and got > 0.1
+    # a record with fewer than two windows of two cycles: the drift cannot be told from the lines
+    assert np.isnan(checks.drift(x[: int(3.9 * fs / band[0])], fs, band[0]))
+    with pytest.raises(ValueError, match="fs > 0 and lowest_hz > 0"):
+        checks.drift(x, None, band[0])

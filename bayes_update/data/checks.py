@@ -10,6 +10,12 @@ from bayes_update.data.format import DatasetError
 #: the slow trend is read from Hann-weighted means over windows of 1/TREND_BLOCKS of
 #: the record, every half window
 TREND_BLOCKS = 8
+#: ... and no shorter than this many periods of the lowest excited frequency: a Hann
+#: window over two or more cycles leaves at most 2.4 % of a line's amplitude (its
+#: transform is sinc(k) / (1 - k^2) at k cycles a window); over half a cycle (a 2 Hz
+#: multisine line in 1/8 of a 2-s record) it leaves most of it, which read as a drift
+#: of 40-65 % of the rms on records without any
+TREND_CYCLES = 2.0
 #: a run of this many consecutive samples at the channel's max or min is clipping, and so
 #: are more samples at them than CLIP_COUNT and CLIP_SHARE of the record (a clipped
 #: record sampled at 2.5x its band has runs of 1-2 samples only)
@@ -24,28 +30,44 @@ def offset(x) -> float:
     return float(np.mean(np.asarray(x, float)))
 
 
-def trend(x) -> np.ndarray:
+def trend(x, min_window: int = 0) -> np.ndarray:
     """The slow trend of a record: its Hann-weighted means over windows of
-    1/:data:`TREND_BLOCKS` of the record, one every half window (centres from
-    1/16 to 15/16 of the record), minus the record's mean [its unit].  An
-    oscillation with a few cycles per window averages out (the Hann window
-    leaks little); a drift does not."""
+    1/:data:`TREND_BLOCKS` of the record or ``min_window`` samples, the longer,
+    one every half window, minus the record's mean [its unit].  An oscillation
+    with two or more cycles per window averages out (the Hann window leaks
+    little); a drift does not.  Raises ``ValueError`` when the record holds
+    fewer than two such windows."""
     x = np.asarray(x, float)
-    m = x.size // TREND_BLOCKS
-    if m < 4:
-        raise ValueError(f"a record of {x.size} samples is too short for a trend over {TREND_BLOCKS} windows")
+    m = max(x.size // TREND_BLOCKS, int(min_window))
+    if m < 4 or 2 * m > x.size:
+        raise ValueError(f"a record of {x.size} samples is too short for a trend over windows of {max(m, 4)} "
+                         "samples (at least two)")
     w = np.hanning(m + 2)[1:-1]
     starts = np.arange(0, x.size - m + 1, m // 2)
     return np.array([w @ x[s:s + m] for s in starts]) / w.sum() - x.mean()
 
 
-def drift(x) -> float:
+def drift(x, fs: float | None = None, lowest_hz: float | None = None) -> float:
     """Peak-to-peak of the slow trend (:func:`trend`) over the record, as a share
     of the record's rms about its mean [-] (0.05: the channel drifts by 5 % of
-    its rms)."""
+    its rms).  With the sampling rate ``fs`` [Hz] and the lowest excited
+    frequency ``lowest_hz`` [Hz], the trend's windows span at least
+    :data:`TREND_CYCLES` periods of it, so the excitation is not read as a
+    drift; ``nan`` when the record is too short for two such windows (a drift
+    cannot then be told from the excitation's lowest lines)."""
     x = np.asarray(x, float)
+    window = 0
+    if lowest_hz is not None:
+        if fs is None or not (fs > 0 and lowest_hz > 0):
+            raise ValueError(f"drift needs fs > 0 and lowest_hz > 0 together (got fs={fs}, lowest_hz={lowest_hz})")
+        window = int(np.ceil(TREND_CYCLES * fs / lowest_hz))
     rms = float(np.std(x))
-    span = float(np.ptp(trend(x)))
+    try:
+        span = float(np.ptp(trend(x, window)))
+    except ValueError:
+        if window and 2 * window > x.size:
+            return float("nan")
+        raise
     return span / rms if rms > 0 else 0.0
 
 

@@ -133,7 +133,7 @@ def _test_entry(record, fs, noise, warnings) -> dict:
     units = record.units
     for ch in record.channels:
         x = record.force if ch == "force" else record.channel(ch)
-        off, dr, clip = checks.offset(x), checks.drift(x), checks.clipping(x)
+        off, dr, clip = checks.offset(x), checks.drift(x, fs, band[0]), checks.clipping(x)
         entry["offset"][ch], entry["drift"][ch], entry["clipping"][ch] = off, dr, clip
         rms = float(np.std(x))
         where = f"test {record.file}, channel {ch!r}"
