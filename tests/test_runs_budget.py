@@ -256,3 +256,45 @@ def test_the_default_posterior_finds_the_valley_near_the_k_s_bound(truth):
         s = res.summary[name]
         assert s["hdi_3%"] <= truth[name] <= s["hdi_97%"], (name, truth[name], s)
     print(res.n_model_runs)     # 271-371 measured (a second search where the first ends on a bound)
+
+
+def _rosenbrock(x):
+    """Residual of the Rosenbrock valley (minimum 0 at (1, 1)), shifted by a constant
+    residual so the minimum cost is 50 (a misfit, as a data set's noise leaves)."""
+    return np.array([10.0 * (x[1] - x[0] ** 2), 1.0 - x[0], 10.0])
+
+
+def test_an_absolute_cost_tolerance_stops_the_search_within_it():
+    """scipy's ftol is relative to the current cost: set from a far start's cost it stops
+    late.  With cost_tolerance the search stops at the first iteration that gains less
+    than it: its cost is within a few tolerances of the converged one (measured against
+    the search run to its end), and it took fewer evaluations."""
+    from bayes_update.core.mode import find_mode
+
+    lower, upper, steps = np.array([-2.0, -1.0]), np.array([2.0, 3.0]), np.array([1e-7, 1e-7])
+    start = [np.array([-1.5, 2.5])]
+    full = find_mode(_rosenbrock, start, lower, upper, steps, max_iterations=200, central=False)
+    assert full.cost == pytest.approx(50.0, abs=1e-8)                     # the closed-form minimum
+    for tol in (1e-1, 1e-3):
+        frugal = find_mode(_rosenbrock, start, lower, upper, steps, max_iterations=200, cost_tolerance=tol,
+                           central=False)
+        print(tol, frugal.cost - full.cost, frugal.n_evaluations, full.n_evaluations)
+        assert frugal.cost - full.cost < 10 * tol
+        assert frugal.n_evaluations < full.n_evaluations
+
+
+def test_first_inside_searches_from_the_next_start_only_after_a_bound():
+    """Two starts: when the first search ends inside the box the second is not run
+    (fewer evaluations, one entry in ``starts``); when the box's upper bound cuts the
+    valley (x0 <= 0.5) the first ends on it and the second is searched too."""
+    from bayes_update.core.mode import find_mode, on_bound
+
+    steps = np.array([1e-7, 1e-7])
+    starts = [np.array([1.6, 2.0]), np.array([-1.5, 2.5])]
+    inside = find_mode(_rosenbrock, starts, np.array([-2.0, -1.0]), np.array([2.0, 3.0]), steps,
+                       cost_tolerance=1e-3, central=False, first_inside=True)
+    assert len(inside.starts) == 1 and not on_bound(inside.x, [-2.0, -1.0], [2.0, 3.0])
+    both = find_mode(_rosenbrock, starts, np.array([-2.0, -1.0]), np.array([0.5, 3.0]), steps,
+                     cost_tolerance=1e-3, central=False, first_inside=True)
+    assert len(both.starts) == 2 and on_bound(both.x, [-2.0, -1.0], [0.5, 3.0])
+    assert on_bound([0.5, 1.0], [0.0, 0.0], [0.5, 2.0]) and not on_bound([0.25, 1.0], [0.0, 0.0], [0.5, 2.0])

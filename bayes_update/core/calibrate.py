@@ -281,9 +281,11 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     map1 = _PointMap(space, space.to_internal(space.center()), free1)
     fun1 = _residual(problem, ("linear",), map1, weighted)
     starts, n = _starts(fun1, space, free1, n_start, n_best, seed, executor, progress, "stage 1 design")
-    # without polish (a start for the posterior's search) stage 1 stops at 0.01 in log L, forward differences
+    # without polish (a start for the posterior's search) stage 1 stops at 0.01 in log L, forward
+    # differences, and searches from the next best start only while a search ends on a bound
     mode1 = find_mode(fun1, starts, lower[list(free1)], upper[list(free1)], steps[list(free1)], executor,
-                      max_iterations, **({} if polish else {"cost_tolerance": 0.01, "central": False}))
+                      max_iterations, **({} if polish else {"cost_tolerance": 0.01, "central": False,
+                                                            "first_inside": True}))
     runs += n + mode1.n_evaluations
     x1 = map1.full(mode1.x)
     unident = {"linear": unidentified_directions(mode1.jacobian, (upper - lower)[list(free1)], linear_names,

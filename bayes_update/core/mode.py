@@ -139,7 +139,7 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
 
 def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
               max_iterations: int = 40, cost_tolerance: float | None = None,
-              central: bool = True) -> ModeResult:
+              central: bool = True, first_inside: bool = False) -> ModeResult:
     """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
 
     Parameters
@@ -155,6 +155,9 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     central : the Jacobian at the mode by central differences (2d runs), else
         forward ones (d runs; enough for a Laplace covariance, whose
         finite-difference error is of the step's order, 1e-4 of the range).
+    first_inside : go on to the next start only while the searches end on a
+        bound of the box (a search that ends inside has found a valley; one
+        on a bound may be in the wrong one).
 
     Returns the best end point with its Jacobian.
     """
@@ -182,15 +185,18 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     scale = upper - lower
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, float), lower, upper)
-        ftol = 1e-6
+        ftol, stop = 1e-6, None
         if cost_tolerance is not None:
             r0 = f(x0)
             ftol = float(np.clip(cost_tolerance / max(0.5 * float(r0 @ r0), 1e-300), 1e-10, 1e-2))
+            stop = _AbsoluteTolerance(0.5 * float(r0 @ r0), cost_tolerance)
         opt = least_squares(f, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale=scale,
-                            max_nfev=max_iterations, xtol=1e-6, ftol=ftol, gtol=1e-8)
+                            max_nfev=max_iterations, xtol=1e-6, ftol=ftol, gtol=1e-8, callback=stop)
         runs.append((x0, opt.x.copy(), float(opt.cost)))
         if best is None or opt.cost < best.cost:
             best = opt
+        if first_inside and not on_bound(opt.x, lower, upper):
+            break
     x = best.x.copy()
     if central:
         r = fun(x)
@@ -203,6 +209,29 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         r, J = np.asarray(best.fun, float).copy(), np.asarray(best.jac, float).copy()
     return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
                       starts=runs)
+
+
+class _AbsoluteTolerance:
+    """least_squares' callback: stop after an iteration that lowers the cost by less
+    than ``tolerance`` (absolute).  scipy's ``ftol`` is relative to the current cost,
+    which falls by orders of magnitude from a far start (7e5 to 1.1 on a portal
+    frame's stage 1): set from the first cost it stops late, from the last it
+    cannot be set in advance."""
+
+    def __init__(self, cost: float, tolerance: float):
+        self.cost, self.tolerance = cost, float(tolerance)
+
+    def __call__(self, intermediate_result):
+        gain, self.cost = self.cost - float(intermediate_result.cost), float(intermediate_result.cost)
+        if 0.0 <= gain < self.tolerance:
+            raise StopIteration
+
+
+def on_bound(x, lower, upper, rtol: float = 1e-6) -> bool:
+    """Whether ``x`` lies on a face of the box [lower, upper] (within rtol of its width)."""
+    x, lower, upper = (np.asarray(a, float) for a in (x, lower, upper))
+    width = upper - lower
+    return bool(np.any((x - lower < rtol * width) | (upper - x < rtol * width)))
 
 
 def laplace_log_evidence(mode: ModeResult, log_prior_density: float, widths) -> float:

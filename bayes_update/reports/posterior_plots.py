@@ -108,10 +108,12 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     indices of log e_lin and log e_nlin over the prior box."""
     fig = Figure(figsize=(11, 4.5), constrained_layout=True)
     ax1, ax2 = fig.subplots(1, 2)
+    drawn = False
     for st, key, color in (("linear", "e_lin", "C0"), ("nonlinear", "e_nlin", "C3")):
         pairs = predictive.get(f"_{st}_pairs")
         if pairs is None:
             continue
+        drawn = True
         e_model, e_gp = pairs
         ax1.loglog(100 * e_model, 100 * e_gp, "o", ms=4, color=color,
                    label=f"{key}: median |error| {100 * predictive[f'{key}_gp_median_rel_error']:.1f} %")
@@ -120,7 +122,11 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     ax1.set_xlabel("metric from the model [%]")
     ax1.set_ylabel("metric from the GP [%]")
     ax1.set_title("surrogate honesty at posterior draws")
-    ax1.legend(fontsize=8)
+    if drawn:
+        ax1.legend(fontsize=8)
+    else:       # the predictive runs are opt-in (PosteriorSettings.n_predictive)
+        ax1.text(0.5, 0.5, "no predictive model runs\n(opt-in: n_predictive > 0)", ha="center", va="center",
+                 transform=ax1.transAxes)
     names = [n for n in next((v["S1"] for v in sensitivity.values() if isinstance(v, dict) and "S1" in v), {})]
     units = sensitivity.get("units", {})
     width = 0.2
@@ -137,6 +143,9 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     ax2.set_title("global sensitivity over the prior box")
     if names:
         ax2.legend(fontsize=8)
+    else:
+        ax2.text(0.5, 0.5, "no Sobol' indices\n(opt-in: n_global > 0)", ha="center", va="center",
+                 transform=ax2.transAxes)
     return fig
 
 

@@ -39,7 +39,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     the next best only where the first ends on a bound of the prior.  The prior's density in
     the internal coordinates is left out of the mode (the beam's
     (K_b + k_s) / K_b varies by < 1 % over its posterior) and kept in ``value``."""
-    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode
+    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode, on_bound
 
     space = evaluate.space
     stages = tuple(evaluate.stages)
@@ -73,9 +73,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     mode = find_mode(fun, [start], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
                      cost_tolerance=FRUGAL_TOLERANCE, central=False)
     n_evaluations += mode.n_evaluations
-    width = box[:, 1] - box[:, 0]
-    on_bound = np.any((mode.x - box[:, 0] < 1e-6 * width) | (box[:, 1] - mode.x < 1e-6 * width))
-    if grid and on_bound:
+    if grid and on_bound(mode.x, box[:, 0], box[:, 1]):
         # a mode on the prior's bound may be the wrong valley of the band (an SBC truth at
         # k_s = 554 N/mm: the search from the best start ended at k_s = 0): the next best start too
         other = find_mode(fun, [cands[order[1]]], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
