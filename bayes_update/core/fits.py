@@ -50,7 +50,9 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
     box = space.box()
     lo, hi = box[:, 0], box[:, 1]
-    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations)
+    tol = getattr(settings, "cost_tolerance", None)
+    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations,
+                     cost_tolerance=tol, central=tol is None)
     cov = mode.covariance(scale=hi - lo)
     logz = laplace_log_evidence(mode, space.log_prior_density(mode.x), hi - lo)
     r, n = mode.residual, len(mode.residual) // len(stages)
