@@ -392,7 +392,8 @@ def multisine(period: int, n_periods: int, fs: float, band_hz, rng, oversampling
 
 
 def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period: int = RIG_PERIOD,
-                 n_periods: int = RIG_PERIODS, rig=None, measure_share: bool = True, log=print) -> dict:
+                 n_periods: int = RIG_PERIODS, fs: float = RIG_FS_HZ, band_hz=RIG_BAND_HZ, rig=None,
+                 measure_share: bool = True, log=print) -> dict:
     """The virtual rig: three tests of the frame written as a data folder
     (``dataset.json`` and one CSV per test, docs/models.md "The data").
 
@@ -401,8 +402,8 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
     exact multisine at every time step, not an interpolation of its samples),
     at ``truth`` (default ``RIG_TRUTH``) plus ``hidden`` (e.g. ``{"k2": 8.0}``,
     an effect of ``candidate_effects()`` the baseline model lacks).  Each test
-    is ``n_periods`` periods of ``period`` samples of a random-phase
-    multisine over ``RIG_BAND_HZ`` (declared as ``period_samples``) at the
+    is ``n_periods`` periods of ``period`` samples (at ``fs`` [Hz]) of a
+    random-phase multisine over ``band_hz`` (declared as ``period_samples``) at the
     level of ``levels`` (force rms [N], default ``RIG_LEVELS_N``), starting
     from rest with the generator's fade-in (the first period holds the start
     transient); the recorded channels get white noise
@@ -424,13 +425,12 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
     levels = dict(RIG_LEVELS_N if levels is None else levels)
     rig = rig or PortalFrame(**RIG_MODEL)
     q = rig.substeps
-    fs = RIG_FS_HZ
     rng = np.random.default_rng(seed)
     n_samples = period * n_periods
     names = [n for n, _ in PortalFrame.sensors]
     tests, times, clean = [], {}, {}
     for level in ("low", "high", "medium"):
-        shape = multisine(period, n_periods, fs, RIG_BAND_HZ, rng, oversampling=q)
+        shape = multisine(period, n_periods, fs, band_hz, rng, oversampling=q)
         fine = levels[level] * shape
         t0 = time.perf_counter()
         y = rig.respond(full_truth, fine, fs * q, q)
@@ -466,7 +466,7 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
         "tests": tests,
         "truth": {**full_truth, "units": {k: units[k] for k in full_truth}},
         "rig": None,
-        "virtual_rig": {"model": repr(rig), "seed": seed, "band_hz": list(RIG_BAND_HZ),
+        "virtual_rig": {"model": repr(rig), "seed": seed, "band_hz": list(band_hz),
                         "noise_sd_added": RIG_NOISE_SD, "nonlinear_share": share,
                         "note": "notebooks/portal_frame.py make_dataset"},
     }
