@@ -56,6 +56,7 @@ from __future__ import annotations
 
 import json
 import os
+import time
 from pathlib import Path
 
 import numpy as np
@@ -400,7 +401,7 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
     The data come from a finer frame (``RIG_MODEL``: more elements, more time
     steps, a denser joint table) driven by the generator's force itself (the
     exact multisine at every time step, not an interpolation of its samples),
-    at ``truth`` (default ``RIG_TRUTH``) plus ``hidden`` (e.g. ``{"k2": 8.0}``,
+    at ``truth`` (default ``RIG_TRUTH``) plus ``hidden`` (e.g. ``{"k2": 40.0}``,
     an effect of ``candidate_effects()`` the baseline model lacks).  Each test
     is ``n_periods`` periods of ``period`` samples (at ``fs`` [Hz]) of a
     random-phase multisine over ``band_hz`` (declared as ``period_samples``) at the
@@ -414,10 +415,10 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
     report the nonlinear share of the high-level response,
     ||y_high - (high / low) y_low|| / ||y_high|| per sensor (noise-free).
 
-    Returns a summary: the truth, the run times [s], the nonlinear share,
-    the noise added and the files."""
-    import time
+    ``rig``: the frame that makes the data (default ``PortalFrame(**RIG_MODEL)``).
 
+    Returns a summary: the truth, the run times [s], the nonlinear share,
+    the noise sd added and the files."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     truth = dict(RIG_TRUTH if truth is None else truth)
@@ -465,17 +466,15 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
         "sensors": [{"name": n, "response": k} for n, k in PortalFrame.sensors],
         "tests": tests,
         "truth": {**full_truth, "units": {k: units[k] for k in full_truth}},
-        "rig": None,
         "virtual_rig": {"model": repr(rig), "seed": seed, "band_hz": list(band_hz),
                         "noise_sd_added": RIG_NOISE_SD, "nonlinear_share": share,
                         "note": "notebooks/portal_frame.py make_dataset"},
     }
-    del doc["rig"]
     (folder / "dataset.json").write_text(json.dumps(doc, indent=2))
     if log:
         log(f"virtual rig {rig!r} at {full_truth}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
         if share:
             log("nonlinear share of the high-level response: " + ", ".join(f"{k} {100 * v:.1f} %"
                                                                            for k, v in share.items()))
-    return {"truth": full_truth, "times_s": times, "nonlinear_share": share, "folder": str(folder),
-            "files": [t["file"] for t in tests]}
+    return {"truth": full_truth, "times_s": times, "nonlinear_share": share, "noise_sd": dict(RIG_NOISE_SD),
+            "folder": str(folder), "files": [t["file"] for t in tests]}

@@ -391,3 +391,23 @@ def test_refined_model_against_the_default_at_the_rig_truth():
     # lightly damped modes at 83 and 91 Hz in the accelerometer are what costs time steps)
     assert np.all(out["low"] < 1.0) and np.all(out["high"] < 1.0)
     assert out["high"][0] > 0.3                          # and measurably different: really finer
+
+
+def test_virtual_rig_writes_a_seeded_data_folder(tmp_path):
+    """make_dataset: a folder read_dataset takes (two sensors of two kinds, the three roles, the
+    period declared, the truth with its units), the same files from the same seed, the noise and
+    offsets in the records (a small rig here: the folder's form, not its physics)."""
+    kw = dict(hidden={"k2": 40.0}, period=128, n_periods=2, fs=256.0, band_hz=(2.0, 40.0),
+              rig=pf.PortalFrame(2, 4, 201), log=None)
+    summary = pf.make_dataset(tmp_path / "a", seed=3, **kw)
+    pf.make_dataset(tmp_path / "b", seed=3, **kw)
+    data = bu.read_dataset(tmp_path / "a")
+    assert data.sensors == [("acc_top", "acceleration"), ("disp_mid", "displacement")]
+    assert sorted(t.role for t in data.tests) == ["linear", "nonlinear", "validation"]
+    assert all(t.period_samples == 128 and t.force.size == 256 for t in data.tests)
+    assert data.extra["truth"]["k2"] == 40.0 and data.extra["truth"]["units"]["k2"] == "kN m/rad^2"
+    for f in summary["files"]:
+        assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
+    assert summary["nonlinear_share"]["acc_top"] > 0.01
+    low = next(t for t in data.tests if t.role == "linear")
+    assert abs(low.force[0]) > 0 and abs(low.force.mean()) > 1e-4      # noise and an offset from t = 0
