@@ -20,7 +20,7 @@ checked against things it does not share code with.
 * (f) the refined model against the default one at the virtual rig's truth,
   in units of the rig's noise.
 
-About 50 s on one core (the OpenSees runs dominate).
+About 15 s on one core (the OpenSees runs dominate).
 """
 import math
 import pickle
