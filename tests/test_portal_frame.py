@@ -411,3 +411,31 @@ def test_virtual_rig_writes_a_seeded_data_folder(tmp_path):
     assert summary["nonlinear_share"]["acc_top"] > 0.01
     low = next(t for t in data.tests if t.role == "linear")
     assert abs(low.force[0]) > 0 and abs(low.force.mean()) > 1e-4      # noise and an offset from t = 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed, truth", [
+    (11, pf.RIG_TRUTH),
+    (12, {"k_j": 0.8, "k3": 90.0, "zeta": 0.015, "m_top": 1.3}),
+])
+def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
+    """(g) ``sample`` at its default sizes and seed, from its own start (as the command
+    line runs it), on the notebook's QUICK rig (the sway mode, 2-40 Hz at 512 Hz; a
+    finer frame, noise on every channel, offsets) without a hidden effect: every
+    parameter's 90 % interval covers the rig's truth.  The runs are printed (the
+    issue's bar is 250; measured 301 at seed 11, see docs/models.md)."""
+    data_dir = tmp_path / "rig"
+    pf.make_dataset(data_dir, seed=seed, truth=truth, fs=512.0, period=512, band_hz=(2.0, 40.0),
+                    levels={"low": 0.25, "medium": 2.0, "high": 4.0}, rig=pf.PortalFrame(4, 12, 4001),
+                    measure_share=False, log=lambda *a: None)
+    model = pf.PortalFrame(n_elements=2, substeps=4)
+    post = bu.sample(bu.read_dataset(data_dir), model, bu.PosteriorSettings(seed=0), workers=2, progress=False,
+                     log=lambda *a: None)
+    print("runs:", post.n_model_runs)
+    for p in model.parameters:
+        x = post.idata.posterior[p.name].values.ravel()
+        lo, hi = np.quantile(x, [0.05, 0.95])
+        print(f"{p.name}: {x.mean():.5g} +- {x.std():.2g}, truth {truth[p.name]:g} "
+              f"({(x.mean() - truth[p.name]) / x.std():+.2f} sd)")
+        assert lo <= truth[p.name] <= hi, (p.name, lo, hi, truth[p.name])
+    assert post.diagnostics["max_r_hat"] < 1.05
