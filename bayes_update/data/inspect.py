@@ -134,7 +134,8 @@ def _test_entry(record, fs, noise, warnings) -> dict:
     for ch in record.channels:
         x = record.force if ch == "force" else record.channel(ch)
         off, dr, clip = checks.offset(x), checks.drift(x, fs, band[0]), checks.clipping(x)
-        entry["offset"][ch], entry["drift"][ch], entry["clipping"][ch] = off, dr, clip
+        # None (JSON null): too short for two trend windows of two cycles of the lowest line
+        entry["offset"][ch], entry["drift"][ch], entry["clipping"][ch] = off, None if np.isnan(dr) else dr, clip
         rms = float(np.std(x))
         where = f"test {record.file}, channel {ch!r}"
         if rms > 0 and abs(off) > OFFSET_WARN * rms:
