@@ -181,8 +181,15 @@ class PortalFrame:
                 f"table_points={self.table_points}, element={self.element!r})")
 
     def refined(self) -> "PortalFrame":
-        """Twice the elements per member and twice the time steps per sample."""
-        return PortalFrame(2 * self.n_elements, 2 * self.substeps, self.table_points, self.element)
+        """Three times the elements per member and four times the time steps per sample.
+
+        ``sample`` takes the model's error to be its difference to this frame, so
+        this frame must be much closer to converged than the model: with twice the
+        elements and steps the difference was 0.67-0.69 of the default frame's
+        error against a finer one (the rig's frame), and the posterior put k_j and
+        m_top 2.0-2.1 sd from the truth; with 3x and 4x it is 1.09-1.13 of it (the
+        refined frame 0.17-0.19 from the rig's)."""
+        return PortalFrame(3 * self.n_elements, 4 * self.substeps, self.table_points, self.element)
 
     def candidate_effects(self) -> dict:
         return {"k2": [Parameter("k2", -100.0, 100.0, unit="kN m/rad^2", null=0.0)],
