@@ -425,7 +425,7 @@ def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
     line runs it), on the notebook's QUICK rig (the sway mode, 2-40 Hz at 512 Hz; a
     finer frame, noise on every channel, offsets) without a hidden effect: every
     parameter's 90 % interval covers the rig's truth.  The runs are printed (the
-    issue's bar is 250; measured 301 at seed 11, see docs/models.md)."""
+    issue's bar is 250; measured 269 and 373, see docs/models.md)."""
     data_dir = tmp_path / "rig"
     pf.make_dataset(data_dir, seed=seed, truth=truth, fs=512.0, period=512, band_hz=(2.0, 40.0),
                     levels={"low": 0.25, "medium": 2.0, "high": 4.0}, rig=pf.PortalFrame(4, 12, 4001),
