@@ -128,6 +128,30 @@ def test_reparameterised_prior_matches_a_histogram_of_prior_draws():
     np.testing.assert_allclose(hist[full], dens[full], rtol=0.06)
 
 
+def test_the_beams_array_transform_gives_the_per_point_prior():
+    """The beam's optional ``from_internal_many`` / ``log_jacobian_many`` (one array
+    operation for an MCMC's points) against its per-point ``from_internal`` /
+    ``log_jacobian``: the same log prior to round-off at points inside, outside
+    (beyond every bound) and not finite."""
+    from bayes_update.models.beam.model import beam_model
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
+
+    model = beam_model(load_default_dataset(), "rom")
+    space = ParameterSet(model.parameters, model)
+
+    class PerPoint:                      # the same transform without its array methods
+        to_internal, from_internal, log_jacobian = model.to_internal, model.from_internal, model.log_jacobian
+
+    slow = ParameterSet(model.parameters, PerPoint())
+    box = space.box()
+    X = box[:, 0] + (box[:, 1] - box[:, 0]) * np.random.default_rng(8).uniform(-0.2, 1.2, (3000, 4))
+    X[7, 2], X[11, 3] = np.nan, np.inf
+    fast, ref = space.log_prior(X), slow.log_prior(X)
+    assert 0.2 < np.isfinite(ref).mean() < 0.8                    # both sides of the support
+    np.testing.assert_array_equal(np.isfinite(fast), np.isfinite(ref))
+    np.testing.assert_allclose(fast[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0, atol=1e-12)
+
+
 def test_load_model_from_a_file_and_a_module(tmp_path):
     src = tmp_path / "my_model.py"
     src.write_text(textwrap.dedent("""

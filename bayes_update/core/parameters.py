@@ -169,6 +169,17 @@ class ParameterSet:
             ok = finite & np.all((T >= self.low) & (T <= self.high), axis=1)
             out[ok] = np.sum(np.where(self.is_log, X - np.log(np.where(self.is_log, T, 1.0)), 0.0), axis=1)[ok]
             return out
+        many = getattr(self._transform, "from_internal_many", None)
+        if callable(many) and callable(getattr(self._transform, "log_jacobian_many", None)):
+            # a transform over arrays (optional): all points at once (the beam's: an MCMC on the
+            # surrogates spent 64 % of its time in the per-point loop below)
+            Xf = np.where(finite[:, None], X, 0.0)
+            thetas = many(Xf)
+            T = np.column_stack([np.asarray(thetas[n], float) for n in self.names])
+            ok = finite & np.all((T >= self.low) & (T <= self.high), axis=1)
+            logs = np.log(np.where(self.is_log[None, :] & ok[:, None], T, 1.0)).sum(axis=1)
+            out[ok] = (np.asarray(self._transform.log_jacobian_many(Xf), float) - logs)[ok]
+            return out
         # a model's transform takes one point at a time: plain floats, since an MCMC on the
         # surrogates asks for the prior of some 10^5 points (numpy's per-call cost on 4-vectors
         # took half of its time)

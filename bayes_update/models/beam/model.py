@@ -240,6 +240,17 @@ class Beam:
         kb = self.kb
         return math.log((kb + float(x[3])) / kb)
 
+    def from_internal_many(self, X) -> dict:
+        """:meth:`from_internal` of the rows of ``X`` (n, 4): {name: (n,) array}."""
+        X, kb = np.atleast_2d(np.asarray(X, float)), self.kb
+        return {"eta": X[:, 0], "c": X[:, 1], "F": X[:, 2] * (kb + X[:, 3]) / kb, "k_s": X[:, 3]}
+
+    def log_jacobian_many(self, X) -> np.ndarray:
+        """:meth:`log_jacobian` of the rows of ``X`` (n, 4)."""
+        X, kb = np.atleast_2d(np.asarray(X, float)), self.kb
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.log((kb + X[:, 3]) / kb)
+
     # -- optional members ---------------------------------------------------
     def refined(self) -> "Beam":
         """A finer model of the same physics for the model-error term: 3x the
