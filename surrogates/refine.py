@@ -192,9 +192,18 @@ class RefinementResult:
     rounds: list = field(default_factory=list)
 
 
-def _fit(surrogate_factory, X, y, previous=None):
+def _fit_one(job):
+    """Fit one unfitted surrogate: ``job`` = (surrogate, X, y) (a worker's task)."""
+    sur, X, y = job
+    return sur.fit(X, y)
+
+
+def _fit(surrogate_factory, X, y, previous=None, executor=None):
     """Fit one surrogate per output on the finite rows; with ``previous`` (the last
-    round's, same layout) each starts from it (``warm_from``) where it can."""
+    round's, same layout) each starts from it (``warm_from``) where it can; with
+    ``executor`` several outputs' fits run in its workers (the same seeded fits, so
+    the same surrogates: a GP fit is mostly Python-level work that one process does
+    one at a time)."""
     ok = np.all(np.isfinite(y.reshape(len(y), -1)), axis=1)
     if ok.sum() < 2:
         raise ValueError(f"only {ok.sum()} finite values to fit the surrogate on")
@@ -208,13 +217,17 @@ def _fit(surrogate_factory, X, y, previous=None):
     if y.ndim == 1:
         return one(previous).fit(X[ok], y[ok]), int(ok.sum())
     prev = previous if previous is not None else [None] * y.shape[1]
-    return [one(prev[k]).fit(X[ok], y[ok, k]) for k in range(y.shape[1])], int(ok.sum())
+    jobs = [(one(prev[k]), X[ok], y[ok, k]) for k in range(y.shape[1])]
+    if executor is not None and len(jobs) > 1:
+        return list(executor.map(_fit_one, jobs)), int(ok.sum())
+    return [_fit_one(job) for job in jobs], int(ok.sum())
 
 
 def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, batch: int,
            executor=None, seed=None, *, candidates=4096, target=None, min_distance: float = 0.01,
            log_weight: bool = False, power: float = 0.5, evaluate=evaluate_many,
-           progress: bool = True, until=None, warm_start: bool = False) -> RefinementResult:
+           progress: bool = True, until=None, warm_start: bool = False,
+           parallel_fits: bool = False) -> RefinementResult:
     """Refine a surrogate by at most ``n_rounds`` batches of ``batch`` new model runs.
 
     Each round: fit ``surrogate_factory()`` to the finite rows of (X, y); build
@@ -244,6 +257,8 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     target : callable ``result -> float or k floats`` applied to func's
         outputs (default: ``float``), e.g. ``lambda r: r["e_lin"]``.
     min_distance, log_weight, power : as in :func:`propose_points`.
+    parallel_fits : the outputs' surrogates fitted in ``executor``'s workers
+        (they must be picklable; the fits are the same).
     until : callable ``(surrogate) -> bool`` or None: asked before every round
         (after the initial fit and after each round's); True ends the
         refinement there (e.g. when what the surrogate is for no longer moves).
@@ -262,7 +277,8 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
                              f"integer, got {v!r}")
     target = target or float
     seeds = np.random.SeedSequence(seed).spawn(int(n_rounds))
-    sur, n_ok = _fit(surrogate_factory, X, y)
+    fit_pool = executor if parallel_fits else None
+    sur, n_ok = _fit(surrogate_factory, X, y, executor=fit_pool)
     rounds = [{"round": 0, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X.copy(), "y_new": y.copy(),
                "results": None, "surrogate": sur}]
     for r in range(1, int(n_rounds) + 1):
@@ -278,10 +294,10 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
         if y_new.shape[1:] != y.shape[1:]:
             raise ValueError(f"target gave values of shape {y_new.shape[1:]}, y has {y.shape[1:]}")
         X, y = np.vstack([X, X_new]), np.concatenate([y, y_new])
-        sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None)
+        sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None, executor=fit_pool)
         rounds.append({"round": r, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X_new,
                        "y_new": y_new, "results": results, "surrogate": sur})
     if warm_start and len(rounds) > 1:
-        sur, _ = _fit(surrogate_factory, X, y)
+        sur, _ = _fit(surrogate_factory, X, y, executor=fit_pool)
         rounds[-1]["surrogate"] = sur
     return RefinementResult(X=X, y=y, surrogate=sur, rounds=rounds)

@@ -475,3 +475,33 @@ def test_dask_executor_gives_the_process_pool_results():
             got = evaluate_many(func, list(X), client.get_executor(), batch_size=2, progress=False)
     assert got == expected
     np.testing.assert_array_equal(got, func.values(X))
+
+
+def _two_outputs(x):
+    return np.array([1 + x[0] ** 2 + x[1], np.exp(-x[0]) + 0.5 * x[1] ** 2])
+
+
+def test_parallel_fits_in_the_workers_give_the_same_surrogates():
+    """parallel_fits: the outputs' GPs fitted in the executor's worker processes are the
+    sequential fits (the same seeded optimisations): predictions equal to round-off."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    bounds = [[0.0, 1.0], [0.0, 1.0]]
+    X0 = design(bounds, 16, seed=3)
+    y0 = np.array([_two_outputs(x) for x in X0])
+
+    def factory():
+        return GPSurrogate(bounds, n_restarts_optimizer=2, seed=0)
+
+    def weight_from(surs):
+        return lambda P: -sum(s.predict(P, return_std=False) for s in surs)
+
+    kw = dict(n_rounds=2, batch=4, seed=2, log_weight=True, progress=False, target=lambda r: r, warm_start=True)
+    with ProcessPoolExecutor(2) as pool:
+        par = refine(_two_outputs, factory, X0, y0, weight_from, executor=pool, parallel_fits=True, **kw)
+    seq = refine(_two_outputs, factory, X0, y0, weight_from, executor=None, **kw)
+    P = design(bounds, 50, seed=9)
+    np.testing.assert_array_equal(par.X, seq.X)
+    for a, b in zip(par.surrogate, seq.surrogate):
+        np.testing.assert_allclose(a.predict(P, return_std=False), b.predict(P, return_std=False), rtol=1e-12,
+                                   atol=0)

@@ -72,7 +72,8 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
         ref = surrogates.refine(ev, factory, U0, Y0, weight, settings.n_rounds, n_batch(settings, len(box)), pool,
                                 seed=int(ss[1].generate_state(1)[0]), candidates=candidates, target=target,
                                 log_weight=True, evaluate=evaluate, progress=progress,
-                                until=stability if settings.stop_tolerance > 0 else None, warm_start=True)
+                                until=stability if settings.stop_tolerance > 0 else None, warm_start=True,
+                                parallel_fits=True)
         t_fit = time.perf_counter() - t
     gps = dict(zip(stages, ref.surrogate))
     for st, gp in gps.items():
