@@ -251,7 +251,7 @@ def add_commands(sub) -> None:
                                    "stiffness factor and with a locking-free beam, f1 against the "
                                    "preload, the posterior for both, and report.md with every table "
                                    "and figure, then the discrepancy workflow on a variant of the rig "
-                                   "with a hidden bow. About 6 minutes on 2 cores (--quick: about 2).")
+                                   "with a hidden bow. About 10 minutes on 2 cores (--quick: about 2).")
     p.add_argument("--out", type=Path, required=True, help="output folder")
     p.add_argument("--quick", action="store_true", help="the modal ROM, coarse grids and small posterior settings")
     p.add_argument("--no-discrepancy", action="store_true",
