@@ -50,7 +50,7 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
     box = space.box()
     lo, hi = box[:, 0], box[:, 1]
-    tol = getattr(settings, "cost_tolerance", None)
+    tol = settings.cost_tolerance
     mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations,
                      cost_tolerance=tol, central=tol is None)
     cov = mode.covariance(scale=hi - lo)
