@@ -59,3 +59,21 @@ def test_calibrate_logs_to_a_file_without_progress_bars(tmp_path):
                             "--workers", "1", "--quiet", "--out", str(tmp_path / "cal2")],
                            capture_output=True, text=True, timeout=600)
     assert quiet.returncode == 0 and "Kautz pole" not in quiet.stderr
+
+
+def test_reproduce_takes_the_config_files_tables(tmp_path, monkeypatch):
+    """reproduce used to accept --config and ignore it: its tables now change the study's
+    own settings (the rest kept: the report's opt-in diagnostics), and a wrong key is named."""
+    import bayes_update.reports.beam_study as study
+    from bayes_update.cli import main
+
+    seen = {}
+    monkeypatch.setattr(study, "reproduce", lambda out, **kw: seen.update(kw) or {})
+    cfg = tmp_path / "s.toml"
+    cfg.write_text("[sample]\nn_walkers = 48\nn_steps = 3000\n[discrepancy]\nmax_effects = 1\n")
+    assert main(["reproduce", "--out", str(tmp_path / "o"), "--config", str(cfg)]) == 0
+    post, disc = seen["settings"]["sample"], seen["settings"]["discrepancy"]
+    assert (post.n_walkers, post.n_steps, post.n_predictive, post.n_global) == (48, 3000, 32, 128)
+    assert disc.max_effects == 1 and "calibrate" not in seen["settings"]
+    cfg.write_text("[sample]\nn_walker = 48\n")
+    assert main(["reproduce", "--out", str(tmp_path / "o"), "--config", str(cfg)]) != 0

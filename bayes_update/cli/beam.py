@@ -155,10 +155,24 @@ def cmd_simulate(args) -> int:
 
 
 def cmd_reproduce(args) -> int:
-    from bayes_update.reports.beam_study import reproduce
+    from bayes_update.cli.options import read_config, settings_replaced
+    from bayes_update.core.discrepancy import DiscrepancySettings
+    from bayes_update.core.posterior import PosteriorSettings
+    from bayes_update.models.beam.calibrate import CalibrationSettings
+    from bayes_update.reports.beam_study import REPRODUCE_SAMPLE, reproduce
 
+    # --config's tables change the study's own settings (before this, reproduce ignored them)
+    quick = args.quick
+    study = {"calibrate": CalibrationSettings.quick() if quick else CalibrationSettings(),
+             "sample": PosteriorSettings.quick() if quick else PosteriorSettings(**REPRODUCE_SAMPLE),
+             "discrepancy": DiscrepancySettings.quick() if quick else DiscrepancySettings()}
+    settings = {}
+    for section, base in study.items():
+        table = read_config(args.config, section)
+        if table:
+            settings[section] = settings_replaced(base, table)
     reproduce(args.out, quick=args.quick, workers=args.workers, discrepancy=not args.no_discrepancy,
-              cache_dir=args.cache_dir)
+              cache_dir=args.cache_dir, settings=settings)
     print(f"wrote {args.final_out / 'report.md'}")
     return 0
 

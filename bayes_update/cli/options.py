@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 __all__ = ["add_common", "add_data_out", "add_metrics", "add_model", "add_posterior_options", "configure_logging",
-           "add_scheduler", "read_config", "settings_from"]
+           "add_scheduler", "read_config", "settings_from", "settings_replaced"]
 
 
 def add_data_out(p: argparse.ArgumentParser, out_required: bool = True) -> None:
@@ -103,6 +103,17 @@ def settings_from(cls, quick: bool, config: dict, **overrides):
         raise ValueError(f"--config: unknown {cls.__name__} setting(s) {unknown}; known: {sorted(known)}")
     kw = {**config, **{k: v for k, v in overrides.items() if v is not None}}
     return cls.quick(**kw) if quick else cls(**kw)
+
+
+def settings_replaced(base, config: dict):
+    """``base`` (a settings dataclass) with the config file's keys; unknown keys are named."""
+    import dataclasses
+
+    known = {f.name for f in dataclasses.fields(base)}
+    unknown = sorted(set(config) - known)
+    if unknown:
+        raise ValueError(f"--config: unknown {type(base).__name__} setting(s) {unknown}; known: {sorted(known)}")
+    return dataclasses.replace(base, **config)
 
 
 def configure_logging(args) -> None:
