@@ -186,10 +186,9 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, float), lower, upper)
         ftol, stop = 1e-6, None
-        if cost_tolerance is not None:
+        if cost_tolerance is not None:       # the callback stops it (scipy's ftol would stop no earlier)
             r0 = f(x0)
-            ftol = float(np.clip(cost_tolerance / max(0.5 * float(r0 @ r0), 1e-300), 1e-10, 1e-2))
-            stop = _AbsoluteTolerance(0.5 * float(r0 @ r0), cost_tolerance)
+            ftol, stop = 1e-10, _AbsoluteTolerance(0.5 * float(r0 @ r0), cost_tolerance)
         opt = least_squares(f, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale=scale,
                             max_nfev=max_iterations, xtol=1e-6, ftol=ftol, gtol=1e-8, callback=stop)
         runs.append((x0, opt.x.copy(), float(opt.cost)))
