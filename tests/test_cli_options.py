@@ -77,3 +77,41 @@ def test_reproduce_takes_the_config_files_tables(tmp_path, monkeypatch):
     assert disc.max_effects == 1 and "calibrate" not in seen["settings"]
     cfg.write_text("[sample]\nn_walker = 48\n")
     assert main(["reproduce", "--out", str(tmp_path / "o"), "--config", str(cfg)]) != 0
+
+
+def test_reproduce_hands_each_table_to_its_own_step(tmp_path, monkeypatch):
+    """The study's own wiring (the CLI test above stops at its arguments): a loop variable
+    once shadowed the settings dict and the discrepancy step failed after the posteriors.
+    The steps are stubbed; each must receive the settings object given for it."""
+    import types
+
+    import bayes_update.core.discrepancy as disc_module
+    import bayes_update.reports.beam_study as study
+    from bayes_update.core.discrepancy import DiscrepancySettings
+    from bayes_update.core.posterior import PosteriorSettings
+    from bayes_update.models.beam.calibrate import CalibrationSettings
+
+    given = {"calibrate": CalibrationSettings.quick(), "sample": PosteriorSettings.quick(n_linear=0),
+             "discrepancy": DiscrepancySettings.quick(max_effects=1)}
+    seen = {"calibrate": [], "sample": []}
+
+    class Reached(Exception):
+        pass
+
+    def fake_find(data, model, settings, workers, log):
+        seen["discrepancy"] = settings
+        raise Reached
+
+    monkeypatch.setattr(study, "calibrate", lambda d, m, s, **kw: seen["calibrate"].append(s) or
+                        types.SimpleNamespace(final_theta=None))
+    monkeypatch.setattr(study, "sample", lambda d, m, s, **kw: seen["sample"].append(s))
+    monkeypatch.setattr(study, "write_result", lambda *a, **kw: None)
+    monkeypatch.setattr(study, "write_posterior", lambda *a, **kw: None)
+    monkeypatch.setattr(study, "discrepancy_dataset", lambda: study.load_default_dataset())
+    monkeypatch.setattr(disc_module, "find_discrepancy", fake_find)
+    with pytest.raises(Reached):
+        study.reproduce(tmp_path, quick=True, settings=given, log=lambda *a: None)
+    # the stated factor takes the given table; the locking-free comparison keeps its coarse grids
+    assert seen["calibrate"][0] is given["calibrate"] and len(seen["calibrate"]) == 2
+    assert seen["sample"] == [given["sample"]] * 2
+    assert seen["discrepancy"] is given["discrepancy"]

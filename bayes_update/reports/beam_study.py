@@ -25,6 +25,7 @@ import numpy as np
 
 import fe
 
+from bayes_update.core.discrepancy import DiscrepancySettings
 from bayes_update.core.logs import info
 from bayes_update.core.posterior import PosteriorSettings, sample
 from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
@@ -128,6 +129,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
     cal_settings = settings.get("calibrate") or (CalibrationSettings.quick() if quick else CalibrationSettings())
     post_settings = settings.get("sample") or (PosteriorSettings.quick() if quick else
                                                PosteriorSettings(**REPRODUCE_SAMPLE))
+    disc_settings = settings.get("discrepancy") or (DiscrepancySettings.quick() if quick else DiscrepancySettings())
     truth = truth_paper_units(data)
     calibrations, posteriors = {}, {}
     for factor in (stated, 1.0):
@@ -139,8 +141,8 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
         log(f"[{tag}] deterministic updating ({'coarse' if quick or factor != stated else 'full'} grids)")
         t0 = time.perf_counter()
         # the locking-free comparison needs only the optimum: coarse grids
-        settings = cal_settings if factor == stated else CalibrationSettings.quick()
-        cal = calibrate(d, model, settings, workers=workers, log=log)
+        cal = calibrate(d, model, cal_settings if factor == stated else CalibrationSettings.quick(),
+                        workers=workers, log=log)
         write_result(cal, d, out / f"calibrate_{tag}")
         timing[f"calibrate_{tag}"] = time.perf_counter() - t0
         calibrations[factor] = cal
@@ -155,16 +157,14 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
         posteriors[factor] = post
     disc = None
     if discrepancy:
-        from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
+        from bayes_update.core.discrepancy import find_discrepancy
         from bayes_update.reports.discrepancy import write_discrepancy
 
         log("[discrepancy] the workflow on the hidden-effect variant of the rig")
         t0 = time.perf_counter()
         dd = discrepancy_dataset()
         disc = find_discrepancy(dd, Beam(fe.BeamModel(rig=rig_of(dd))),
-                                settings=settings.get("discrepancy") or (DiscrepancySettings.quick() if quick
-                                                                         else DiscrepancySettings()),
-                                workers=workers, log=log)
+                                settings=disc_settings, workers=workers, log=log)
         hidden = dd.extra["truth"]["effects"]
         write_discrepancy(disc, out / "discrepancy", truth={"effects": hidden})
         timing["discrepancy"] = time.perf_counter() - t0
