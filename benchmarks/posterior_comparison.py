@@ -92,7 +92,7 @@ def main(argv=None):
     settings = PosteriorSettings.quick(**kw) if args.quick else PosteriorSettings(**kw)
     if args.model == "fe" and not args.quick:
         # the direct FE chain costs 0.1 s per likelihood: 24 x 1000 steps is 40 CPU-minutes
-        settings = PosteriorSettings(**kw, n_walkers=24, direct_steps=1000, direct_burn=300)
+        settings = PosteriorSettings(**kw, direct_walkers=24, direct_steps=1000, direct_burn=300)
     t0 = time.perf_counter()
     sur = sample(data, model, settings, progress=False)
     t_sur = time.perf_counter() - t0

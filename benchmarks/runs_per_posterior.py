@@ -59,7 +59,7 @@ from surrogates.evaluation import default_executor  # noqa: E402
 from _machine import machine  # noqa: E402
 
 BEFORE = dict(n_predictive=32, n_global=128)
-REFERENCE = dict(n_walkers=48, direct_steps=8000, direct_burn=2000, n_global=0, n_predictive=0)
+REFERENCE = dict(direct_walkers=48, direct_steps=8000, direct_burn=2000, n_global=0, n_predictive=0)
 N_EVIDENCE = 4000
 
 

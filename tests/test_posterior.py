@@ -436,7 +436,7 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
     from scipy import stats
 
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
-    settings = PosteriorSettings.quick(n_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
+    settings = PosteriorSettings.quick(direct_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
                                        n_global=0, n_predictive=0)
     direct = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, direct=True,
                     likelihood=rom_posterior.likelihood, progress=False, log=lambda *a: None)

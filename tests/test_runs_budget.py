@@ -298,3 +298,48 @@ def test_first_inside_searches_from_the_next_start_only_after_a_bound():
                      cost_tolerance=1e-3, central=False, first_inside=True)
     assert len(both.starts) == 2 and on_bound(both.x, [-2.0, -1.0], [0.5, 3.0])
     assert on_bound([0.5, 1.0], [0.0, 0.0], [0.5, 2.0]) and not on_bound([0.25, 1.0], [0.0, 0.0], [0.5, 2.0])
+
+
+def test_the_map_search_takes_the_likelihoods_span_at_the_start_as_its_first_jacobian():
+    """The likelihood's sensitivity span at the start is the same forward difference the
+    mode search takes there first (steps 1e-4 of the prior box): the search reuses it.
+    Same mode (to the search's tolerance) and Laplace covariance, 1 + d evaluations fewer,
+    and the known Jacobian equals a fresh one of the residual function to rounding."""
+    import dataclasses
+
+    from test_user_model import TRUTH, Duffing, make_dataset
+
+    from bayes_update.core.calibrate import problem_for
+    from bayes_update.core.mode import ResidualFunction, SpacePoint, _jacobian, known_point
+    from bayes_update.core.posterior.laplace import find_map
+    from bayes_update.core.posterior.target import Evaluate
+
+    free = ("fn", "zeta", "k3")
+    data = make_dataset(seed=29)
+    model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
+    problem = problem_for(data, model, None, None)
+    space = problem.default_space()
+    start = {"fn": 1.03 * TRUTH["fn"], "zeta": 0.8 * TRUTH["zeta"], "k3": 0.6 * TRUTH["k3"]}
+    lik = estimate_likelihood(problem, start, n_replicates=16, model_replicates=4, space=space)
+    x0 = space.to_internal(start)
+    box = space.box()
+    steps = 1e-4 * (box[:, 1] - box[:, 0])
+    fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
+                           SpacePoint(space, problem.model))
+    x, r, J = known_point(fun, lik.sensitivities, x0, steps)
+    J_fresh, _ = _jacobian(fun, x0, fun(x0), steps, box[:, 0], box[:, 1], None, central=False)
+    np.testing.assert_allclose(r, fun(x0), rtol=0, atol=1e-12 * np.abs(r).max())
+    np.testing.assert_allclose(J, J_fresh, rtol=0, atol=1e-9 * np.abs(J_fresh).max())
+    # elsewhere, with other steps or another model: nothing known
+    assert known_point(fun, lik.sensitivities, x0 + steps, steps) is None
+    assert known_point(fun, lik.sensitivities, x0, 2 * steps) is None
+    assert known_point(dataclasses.replace(fun, point_map=SpacePoint(space, Duffing(free))), lik.sensitivities,
+                       x0, steps) is None
+
+    ev = Evaluate(problem, space, problem.stages)
+    with_known = find_map(ev, lik, x0, frugal=True)
+    without = find_map(ev, dataclasses.replace(lik, sensitivities=None), x0, frugal=True)
+    assert without.n_evaluations - with_known.n_evaluations == 1 + len(free)
+    sd = np.sqrt(np.diag(without.covariance))
+    np.testing.assert_allclose(with_known.x, without.x, rtol=0, atol=0.01 * sd.min())
+    np.testing.assert_allclose(np.sqrt(np.diag(with_known.covariance)), sd, rtol=1e-3)

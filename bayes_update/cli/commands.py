@@ -232,8 +232,9 @@ def cmd_sample(args) -> int:
         raise ValueError("--thorough and --quick: choose one")
     config = {**(THOROUGH if args.thorough else {}), **read_config(args.config, "sample")}
     settings = settings_from(PosteriorSettings, args.quick, config, seed=args.seed,
-                             n_walkers=args.walkers, n_predictive=args.predictive, n_global=args.sensitivity,
-                             **{("direct_steps" if args.direct else "n_steps"): args.steps})
+                             n_predictive=args.predictive, n_global=args.sensitivity,
+                             **{("direct_walkers" if args.direct else "n_walkers"): args.walkers,
+                                ("direct_steps" if args.direct else "n_steps"): args.steps})
     with _executor(args) as pool:
         res = sample(data, model, settings, workers=workers, direct=args.direct, space=space, executor=pool,
                      cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)

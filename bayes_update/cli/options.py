@@ -59,7 +59,7 @@ def add_metrics(p: argparse.ArgumentParser) -> None:
 
 
 def add_posterior_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--walkers", type=int, default=None, help="emcee walkers (PosteriorSettings.n_walkers)")
+    p.add_argument("--walkers", type=int, default=None, help="emcee walkers (PosteriorSettings.n_walkers; direct_walkers with --direct)")
     p.add_argument("--steps", type=int, default=None,
                    help="emcee steps per walker on the surrogate (PosteriorSettings.n_steps; "
                         "direct_steps with --direct)")

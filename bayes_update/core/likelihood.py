@@ -34,7 +34,7 @@ taken as truth, K replicates of the measurement (the recorded force plus
 force noise drives the model, projected on the recorded force's regressors; the model's response
 to the clean force plus velocity noise is the "measurement") give K residual
 vectors; their mean square per direction of the span of the parameter
-sensitivities (:func:`sensitivity_span`) is ``s_n^2``.  ``nu`` (from
+sensitivities (:func:`output_derivative`, :func:`span_of`) is ``s_n^2``.  ``nu`` (from
 ``mean(e^2) = nu s_n^2``, ``var(e^2) = 2 nu s_n^4``) is reported only: its
 estimate from K values wanders by 2x between seeds.
 
@@ -105,9 +105,12 @@ class Likelihood:
 
     scales: dict   # stage -> StageScale
     noise_residuals: dict | None = field(default=None, compare=False, repr=False)
+    #: stage -> :class:`Sensitivity` at the point the scales were measured (the sensitivity
+    #: span's runs), which a mode search from that point takes as its first Jacobian
+    sensitivities: dict | None = field(default=None, compare=False, repr=False)
 
     def __getstate__(self):
-        return {"scales": self.scales, "noise_residuals": None}
+        return {"scales": self.scales, "noise_residuals": None, "sensitivities": None}
 
     def __post_init__(self):
         for st, sc in self.scales.items():
@@ -206,7 +209,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         ref_model = refined if refined is not None else problem.refined_model()
         error_source = (f"{type(ref_model).__name__} (refined)" if ref_model is not None else
                         f"none: {type(problem.model).__name__} has no refined(), so the model error is taken as 0")
-    scales, residuals = {}, {}
+    scales, residuals, sensitivities = {}, {}, {}
     for i, stage in enumerate(stages):
         test = problem.tests[stage]
         # the measured noise of each channel (bayes_update.data.noise: declared, periods,
@@ -244,8 +247,10 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         n_reg = problem.n_regressors(stage)
         _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
         mean = float(w @ e2)
-        Q = sensitivity_span(problem, stage, params, space if space is not None else problem.default_space(),
-                             at=v0)
+        sens = output_derivative(problem, stage, params, space if space is not None else problem.default_space(),
+                                 at=v0)
+        sensitivities[stage] = sens
+        Q = span_of(sens.derivative, stage)
         span_var = float(w @ np.sum((D @ Q) ** 2, axis=1) / Q.shape[1])
         e_model = e_perp = 0.0
         if ref_model is not None:
@@ -261,7 +266,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,
                                    model_error_source=error_source)
-    return Likelihood(scales, residuals)
+    return Likelihood(scales, residuals, sensitivities)
 
 
 def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian) -> Likelihood:
@@ -362,13 +367,23 @@ def likelihood_runs(problem: Problem, n_replicates: int, space=None, model_error
     return total
 
 
-def sensitivity_span(problem: Problem, stage: str, params,
-                     space, rel_step: float = 1e-4, tol: float = 1e-6, at=None) -> np.ndarray:
-    """Orthonormal basis (n, r) of the span of d(stage output)/dx at ``params``
-    (forward differences in the internal coordinates, steps ``rel_step`` of the
-    prior box, backwards at the upper bound; ``at``: the model's response at
-    ``params`` when already run), r = its numerical rank.  A span needs no
-    second-order accuracy: d model runs."""
+@dataclass(frozen=True)
+class Sensitivity:
+    """A stage's output and its forward-difference derivative at one point."""
+
+    x: np.ndarray            # the point (internal coordinates)
+    output: np.ndarray       # the stage's compared output there, (n,)
+    derivative: np.ndarray   # d output / d x, (n, d)
+    steps: np.ndarray        # the finite-difference steps (internal coordinates): ``rel_step`` of the prior box
+
+
+def output_derivative(problem: Problem, stage: str, params, space, rel_step: float = 1e-4,
+                      at=None) -> Sensitivity:
+    """d(stage output)/dx at ``params`` by forward differences in the internal
+    coordinates, steps ``rel_step`` of the prior box, backwards at the upper bound
+    (the steps and rule of :func:`bayes_update.core.mode.find_mode` with
+    ``1e-4`` steps, so a mode search from here can take it as its first
+    Jacobian); ``at``: the model's response at ``params`` when already run.  d model runs."""
     x = space.to_internal(params)
     box = space.box()
     h = rel_step * (box[:, 1] - box[:, 0])
@@ -383,7 +398,12 @@ def sensitivity_span(problem: Problem, stage: str, params,
         p = x.copy()
         p[i] += step
         cols.append((out(p) - y0) / step)
-    U, S, _ = np.linalg.svd(np.array(cols).T, full_matrices=False)
+    return Sensitivity(x=np.asarray(x, float).copy(), output=y0, derivative=np.array(cols).T, steps=h)
+
+
+def span_of(derivative, stage: str = "", tol: float = 1e-6) -> np.ndarray:
+    """Orthonormal basis (n, r) of the span of a derivative's columns, r = its numerical rank."""
+    U, S, _ = np.linalg.svd(np.asarray(derivative, float), full_matrices=False)
     r = int(np.sum(S > tol * S[0])) if S[0] > 0 else 0
     if r == 0:
         raise RuntimeError(f"stage {stage}: the model output does not move with the parameters")

@@ -139,7 +139,7 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
 
 def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
               max_iterations: int = 40, cost_tolerance: float | None = None,
-              central: bool = True, first_inside: bool = False) -> ModeResult:
+              central: bool = True, first_inside: bool = False, known=None) -> ModeResult:
     """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
 
     Parameters
@@ -158,6 +158,10 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     first_inside : go on to the next start only while the searches end on a
         bound of the box (a search that ends inside has found a valley; one
         on a bound may be in the wrong one).
+    known : ``(x, r, J)``, the residual and its forward-difference Jacobian (these
+        ``steps``) at a point already run, e.g. the likelihood's sensitivity span
+        at the start (:func:`known_point`): a search through ``x`` takes them
+        instead of 1 + d runs.
 
     Returns the best end point with its Jacobian.
     """
@@ -166,9 +170,12 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         raise ValueError("finite-difference steps must be positive")
     count = [0]
     cache = {}
+    known_key = None if known is None else np.asarray(known[0], float).tobytes()
 
     def f(x):
-        key = x.tobytes()
+        key = np.asarray(x, float).tobytes()
+        if key == known_key:
+            return known[1]
         if key not in cache:
             count[0] += 1
             cache.clear()
@@ -176,6 +183,8 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         return cache[key]
 
     def jac(x):
+        if np.asarray(x, float).tobytes() == known_key:
+            return known[2].copy()
         J, n = _jacobian(fun, np.array(x), f(x), steps, lower, upper, executor, central=False)
         count[0] += n
         return J
@@ -208,6 +217,27 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         r, J = np.asarray(best.fun, float).copy(), np.asarray(best.jac, float).copy()
     return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
                       starts=runs)
+
+
+def known_point(fun: ResidualFunction, sensitivities: dict | None, x0, steps):
+    """``(x0, r, J)`` of ``fun`` from the stages' :class:`~bayes_update.core.likelihood.Sensitivity`
+    at ``x0`` (the output and its derivative the likelihood's span took there), or None
+    when they were taken elsewhere, with other steps, on other stages or on another model."""
+    pm = fun.point_map
+    if not sensitivities or type(pm) is not SpacePoint or (pm.model is not None and pm.model is not fun.problem.model):
+        return None
+    x0, steps = np.asarray(x0, float), np.asarray(steps, float)
+    r, J = [], []
+    for stage, s in zip(fun.stages, fun.scales):
+        sens = sensitivities.get(stage)
+        if sens is None or sens.x.shape != x0.shape or not np.array_equal(sens.x, x0) or \
+                not np.allclose(sens.steps, steps, rtol=1e-12, atol=0.0):
+            return None
+        ref = fun.problem.output(stage, fun.problem.reference_components(stage))
+        norm = np.linalg.norm(ref) * s
+        r.append((ref - sens.output) / norm)
+        J.append(-sens.derivative / norm)
+    return x0.copy(), np.concatenate(r), np.vstack(J)
 
 
 class _AbsoluteTolerance:

@@ -39,7 +39,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     the next best only where the first ends on a bound of the prior.  The prior's density in
     the internal coordinates is left out of the mode (the beam's
     (K_b + k_s) / K_b varies by < 1 % over its posterior) and kept in ``value``."""
-    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode, on_bound
+    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode, known_point, on_bound
 
     space = evaluate.space
     stages = tuple(evaluate.stages)
@@ -48,6 +48,9 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     box = space.box()
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])
+    # the likelihood's sensitivity span was taken at the start with these steps: the search
+    # from there takes its residual and Jacobian (1 + d evaluations fewer)
+    known = known_point(fun, lik.sensitivities, x0, steps)
     extra = getattr(evaluate.problem.model, "extra_starts", None)
     if not frugal:
         starts = [x0]
@@ -56,7 +59,8 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
             cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
             starts += [grid[i] for i in np.argsort(cost)[:2]]
         iterations = max(5, int(max_evaluations) // (len(starts) * (len(x0) + 1)))
-        mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations)
+        mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
+                         known=known)
         return _map_result(mode, space, box, mode.n_evaluations + len(grid))
     iterations = max(5, int(max_evaluations) // (3 * (len(x0) + 1)))
     grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) and len(stages) > 1 else []
@@ -66,12 +70,14 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         # coarse start (the beam: c and k_s at the prior's centre) the best of them is in the
         # right valley where x0 may not be (SBC truths near the k_s bound: 55-73 % misfit at x0)
         cands = [x0] + grid
-        cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, cands, executor, progress=False)]
-        n_evaluations += len(cands)
+        first = [known[1]] if known is not None else []
+        cost = [0.5 * float(np.sum(r ** 2))
+                for r in first + list(evaluate_many(fun, cands[len(first):], executor, progress=False))]
+        n_evaluations += len(cands) - len(first)
         order = np.argsort(cost)
         start = cands[order[0]]
     mode = find_mode(fun, [start], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                     cost_tolerance=FRUGAL_TOLERANCE, central=False)
+                     cost_tolerance=FRUGAL_TOLERANCE, central=False, known=known)
     n_evaluations += mode.n_evaluations
     if grid and on_bound(mode.x, box[:, 0], box[:, 1]):
         # a mode on the prior's bound may be the wrong valley of the band (an SBC truth at

@@ -300,12 +300,12 @@ def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
     s = run.settings
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
-        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, mp.covariance, s.n_walkers,
+        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, mp.covariance, s.direct_walkers,
                                  run.seeds[1])
-        sampler = run_emcee(logp, x_init, s.n_walkers, s.direct_steps, run.seeds[2], vectorize=False,
+        sampler = run_emcee(logp, x_init, s.direct_walkers, s.direct_steps, run.seeds[2], vectorize=False,
                             pool=_ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
                             desc="MCMC on the model")
-        run.steps.add_runs(len(run.problem.stages) * s.n_walkers * s.direct_steps)
+        run.steps.add_runs(len(run.problem.stages) * s.direct_walkers * s.direct_steps)
     blobs = sampler.get_blobs(discard=s.direct_burn)          # (steps, walkers, stages)
     return _Chain(sampler, s.direct_burn, 1,
                   log_likelihood={st: blobs[..., i] for i, st in enumerate(run.problem.stages)})
