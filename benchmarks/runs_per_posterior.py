@@ -138,41 +138,36 @@ def _report(res) -> dict:
     return {k: np.asarray(v, float) for k, v in res.space.report(res.draws).items()}
 
 
-def run_case(name: str, seed: int) -> dict:
+def run_case(name: str, seed: int, parts=("before", "vbmc", "scales")) -> dict:
     data, model, what = case(name)
     t = time.perf_counter()
     now = sample(data, model, PosteriorSettings(seed=seed), workers=2, progress=False, log=lambda *a: None)
     t_now = time.perf_counter() - t
     lik, start = now.likelihood, now.space.to_parameters(now.map.x)
     d = len(now.space.names)
-    t = time.perf_counter()
-    before = sample(data, model, PosteriorSettings.thorough(seed=seed, **BEFORE), likelihood=lik, workers=2, progress=False,
-                    log=lambda *a: None)
-    t_before = time.perf_counter() - t
-    before_scales = likelihood_runs(now.problem, 96, now.space, True)
-    t = time.perf_counter()
-    # the d = 6 chain's runs cost 5 ms: a shorter reference (its halves' distances say what that costs)
-    sizes = {**REFERENCE, **({"direct_steps": 4000, "direct_burn": 1000} if name == "chain6" else {})}
-    ref = sample(data, model, PosteriorSettings(seed=seed + 1, **sizes), direct=True, likelihood=lik, start=start,
-                 workers=2, progress=False, log=lambda *a: None)
-    t_ref = time.perf_counter() - t
-    # the scales' check: every replicate a model run, at the same point
-    full = estimate_likelihood(now.problem, start, n_replicates=96, seed=seed + 2, space=now.space)
-    cv = estimate_likelihood(now.problem, start, n_replicates=96, model_replicates=16, seed=seed + 2, space=now.space)
+    before, t_before, before_scales = None, 0.0, likelihood_runs(now.problem, 96, now.space, True)
+    if "before" in parts:
+        t = time.perf_counter()
+        before = sample(data, model, PosteriorSettings.thorough(seed=seed, **BEFORE), likelihood=lik, workers=2,
+                        progress=False, log=lambda *a: None)
+        t_before = time.perf_counter() - t
+    ref = _reference(name, data, model, now, lik, start, seed)
+    full = cv = None
+    if "scales" in parts:
+        # the scales' check: every replicate a model run, at the same point
+        full = estimate_likelihood(now.problem, start, n_replicates=96, seed=seed + 2, space=now.space)
+        cv = estimate_likelihood(now.problem, start, n_replicates=96, model_replicates=16, seed=seed + 2,
+                                 space=now.space)
     rng = np.random.default_rng(seed)
-    refd = _report(ref)
-    thin = max(1, int(np.ceil(max(ref.diagnostics.get("autocorr_time_steps", {}).values() or [1]))))
+    refd = ref["report"]
+    thin = max(1, int(np.ceil(max(ref["diagnostics"].get("autocorr_time_steps", {}).values() or [1]))))
     refd_thin = {k: v.reshape(-1, 48)[::thin].ravel() if v.size % 48 == 0 else v for k, v in refd.items()}
     half = {k: v.size // 2 for k, v in refd_thin.items()}
     floor = compare({k: v[:half[k]] for k, v in refd_thin.items()}, {k: v[half[k]:] for k, v in refd_thin.items()},
                     rng)
-    target = DirectLogPosterior(Evaluate(now.problem, now.space, now.problem.stages), lik, ref.adjustment)
-    t = time.perf_counter()
-    with default_executor(2) as pool:
-        ref_evidence = log_evidence(lambda X: np.array([v[0] for v in pool.map(target, list(X), chunksize=50)]),
-                                    ref.draws, n=N_EVIDENCE, seed=seed + 3)
-    t_evidence = time.perf_counter() - t
-    vb = _vbmc(target, now, refd_thin, rng, seed)
+    target = DirectLogPosterior(Evaluate(now.problem, now.space, now.problem.stages), lik, ref["adjustment"])
+    vb = _vbmc(target, now, refd_thin, rng, seed) if "vbmc" in parts else {"skipped": "not run (--parts)"}
+    ref_evidence, t_evidence, t_ref = ref["evidence"], ref["evidence_wall_s"], ref["wall_s"]
     return {"case": name, "what": what, "d": d,
             "reference_floor": {"ks": max(v["ks"] for v in floor.values()),
                                 "hdi_overlap": min(v["hdi_overlap"] for v in floor.values())},
@@ -182,14 +177,47 @@ def run_case(name: str, seed: int) -> dict:
             "vbmc": vb,
             "now": {"runs": now.n_model_runs, "wall_s": t_now, "compare": compare(_report(now), refd_thin, rng),
                     "max_r_hat": now.diagnostics["max_r_hat"]},
-            "before": {"runs": {**before.n_model_runs, "likelihood_scales": before_scales,
-                                "total": before.n_model_runs["total"] + before_scales},
-                       "wall_s": t_before, "compare": compare(_report(before), refd_thin, rng),
-                       "max_r_hat": before.diagnostics["max_r_hat"]},
-            "reference": {"runs": ref.n_model_runs["total"], "wall_s": t_ref, "max_r_hat": ref.diagnostics["max_r_hat"],
-                          "min_ess_bulk": ref.diagnostics["min_ess_bulk"]},
-            "scales": {st: {"all_model": full.scales[st].noise_sd, "control_variate": cv.scales[st].noise_sd}
-                       for st in full.scales}}
+            "before": None if before is None else {
+                "runs": {**before.n_model_runs, "likelihood_scales": before_scales,
+                         "total": before.n_model_runs["total"] + before_scales},
+                "wall_s": t_before, "compare": compare(_report(before), refd_thin, rng),
+                "max_r_hat": before.diagnostics["max_r_hat"]},
+            "reference": {"runs": ref["runs"], "wall_s": t_ref, "max_r_hat": ref["diagnostics"]["max_r_hat"],
+                          "min_ess_bulk": ref["diagnostics"]["min_ess_bulk"], "cached": ref["cached"]},
+            "scales": {} if full is None else {
+                st: {"all_model": full.scales[st].noise_sd, "control_variate": cv.scales[st].noise_sd}
+                for st in full.scales}}
+
+
+def _reference(name, data, model, now, lik, start, seed) -> dict:
+    """The direct chain and its evidence under ``lik``, from the cache when the same
+    case, seed and likelihood scales were run before (``benchmarks/results/cache``,
+    not in git): a rerun of the pipeline compares against it in minutes."""
+    import hashlib
+    import pickle
+
+    key = json.dumps({"case": name, "seed": seed, "reference": REFERENCE,
+                      "scales": {st: f"{sc.sd:.9e}" for st, sc in lik.scales.items()}}, sort_keys=True)
+    path = ROOT / "benchmarks" / "results" / "cache" / f"reference_{name}_{hashlib.sha1(key.encode()).hexdigest()[:12]}.pkl"
+    if path.exists():
+        return {**pickle.loads(path.read_bytes()), "cached": True}
+    t = time.perf_counter()
+    # the d = 6 chain's runs cost 5 ms: a shorter reference (its halves' distances say what that costs)
+    sizes = {**REFERENCE, **({"direct_steps": 4000, "direct_burn": 1000} if name == "chain6" else {})}
+    ref = sample(data, model, PosteriorSettings(seed=seed + 1, **sizes), direct=True, likelihood=lik, start=start,
+                 workers=2, progress=False, log=lambda *a: None)
+    t_ref = time.perf_counter() - t
+    target = DirectLogPosterior(Evaluate(now.problem, now.space, now.problem.stages), lik, ref.adjustment)
+    t = time.perf_counter()
+    with default_executor(2) as pool:
+        evidence = log_evidence(lambda X: np.array([v[0] for v in pool.map(target, list(X), chunksize=50)]),
+                                ref.draws, n=N_EVIDENCE, seed=seed + 3)
+    out = {"report": _report(ref), "adjustment": ref.adjustment, "diagnostics": ref.diagnostics,
+           "runs": ref.n_model_runs["total"], "wall_s": t_ref, "evidence": evidence,
+           "evidence_wall_s": time.perf_counter() - t}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(out))
+    return {**out, "cached": False}
 
 
 def _vbmc(target, now, refd, rng, seed) -> dict | None:
@@ -232,6 +260,8 @@ def table(rows) -> list:
     for r in rows:
         for key, label in (("before", "thorough (before)"), ("now", "default (now)")):
             p = r[key]
+            if p is None:
+                continue
             n = p["runs"]
             other = n["total"] - sum(n.get(k, 0) for k in ("start", "likelihood_scales", "map_laplace",
                                                             "design_and_gp"))
@@ -264,10 +294,13 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="+", default=["beam_rom", "duffing3", "chain6"])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tag", default="", help="suffix of the result files (a run of some cases)")
+    ap.add_argument("--parts", nargs="*", default=["before", "vbmc", "scales"], choices=["before", "vbmc", "scales"],
+                    help="what to run beside the default pipeline and the reference (a rerun against a cached "
+                         "reference: --parts with none of them)")
     args = ap.parse_args(argv)
     rows = []
     for name in args.cases:
-        rows.append(run_case(name, args.seed))
+        rows.append(run_case(name, args.seed, tuple(args.parts)))
         print("\n".join(table(rows[-1:])), flush=True)
     lines = ["# Model runs per posterior", "", f"`python benchmarks/runs_per_posterior.py --cases "
              f"{' '.join(args.cases)} --seed {args.seed}`; {machine()}", "",

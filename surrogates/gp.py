@@ -69,6 +69,11 @@ class GPSurrogate:
         one (``summary`` then prints it as it is).
     optimize : False keeps the kernel's hyperparameters as given (no fit of
         them), e.g. to reproduce a known posterior.
+    prior_mean : None (a constant mean), or a picklable ``m(X) -> (n,)`` in the
+        transformed units, X in input units: the GP models ``t(y) - m(X)`` and
+        predicts ``m(X)`` plus its mean (e.g. a Gauss-Newton model of a misfit,
+        :class:`bayes_update.core.posterior.design.GaussNewtonMean`: far from the
+        design points the prediction falls back on it, not on a constant).
 
     Attributes (after fit)
     ----------------------
@@ -84,7 +89,7 @@ class GPSurrogate:
     def __init__(self, bounds=None, *, transform: str = "log", names=None, nu: float = 2.5,
                  length_scale_bounds=(1e-2, 1e2), noise_level: float = 1e-6,
                  noise_level_bounds=(1e-10, 1e-1), n_restarts_optimizer: int = 4, seed=0,
-                 kernel=None, optimize: bool = True):
+                 kernel=None, optimize: bool = True, prior_mean=None):
         if transform not in TRANSFORMS:
             raise ValueError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
         if nu not in (0.5, 1.5, 2.5, np.inf):
@@ -104,6 +109,18 @@ class GPSurrogate:
         self.seed = seed
         self.kernel = kernel
         self.optimize = bool(optimize)
+        if prior_mean is not None and not callable(prior_mean):
+            raise TypeError(f"prior_mean must be None or a callable m(X), got {type(prior_mean).__name__}")
+        self.prior_mean = prior_mean
+
+    def _mean(self, X) -> np.ndarray | float:
+        """The prior mean m(X) (n,) in the transformed units, 0 without one."""
+        if self.prior_mean is None:
+            return 0.0
+        m = np.asarray(self.prior_mean(np.atleast_2d(X)), float).reshape(-1)
+        if m.shape != (len(np.atleast_2d(X)),) or not np.all(np.isfinite(m)):
+            raise ValueError("prior_mean must return one finite value per point")
+        return m
 
     # -- transforms ---------------------------------------------------------
     def _forward(self, y: np.ndarray) -> np.ndarray:
@@ -184,7 +201,7 @@ class GPSurrogate:
         d = X.shape[1]
         if self.names is not None and len(self.names) != d:
             raise ValueError(f"{len(self.names)} names for {d} inputs")
-        z = self._forward(y)
+        z = self._forward(y) - self._mean(X)
         kernel = self.kernel if self.kernel is not None else self._default_kernel(d)
         self.gp_ = GaussianProcessRegressor(
             kernel=kernel, normalize_y=True, optimizer="fmin_l_bfgs_b" if self.optimize else None,
@@ -224,7 +241,7 @@ class GPSurrogate:
         self._check_fitted()
         U = self.scale_inputs(X)
         mu, sd = self.gp_.predict(U, return_std=True)
-        return np.asarray(mu, float), np.asarray(sd, float)
+        return np.asarray(mu, float) + self._mean(X), np.asarray(sd, float)
 
     def mean_transformed(self, X) -> np.ndarray:
         """The predictive mean of ``t(y)`` at ``X`` (n, d) alone, as
@@ -233,10 +250,11 @@ class GPSurrogate:
         what an MCMC on the surrogate calls tens of thousands of times."""
         self._check_fitted()
         gp = self.gp_
-        mu = gp.kernel_(self.scale_inputs(np.atleast_2d(X)), gp.X_train_) @ gp.alpha_
+        X = np.atleast_2d(X)
+        mu = gp.kernel_(self.scale_inputs(X), gp.X_train_) @ gp.alpha_
         if gp.normalize_y:
             mu = gp._y_train_std * mu + gp._y_train_mean
-        return np.asarray(mu, float).reshape(-1)
+        return np.asarray(mu, float).reshape(-1) + self._mean(X)
 
     def predict(self, X, return_std: bool = True):
         """Prediction at ``X`` (n, d) in the original units of y.

@@ -208,8 +208,10 @@ def _fit(surrogate_factory, X, y, previous=None, executor=None):
     if ok.sum() < 2:
         raise ValueError(f"only {ok.sum()} finite values to fit the surrogate on")
 
-    def one(prev):
+    def one(prev, k=0):
         sur = surrogate_factory()
+        if isinstance(sur, (list, tuple)):        # one surrogate per output (e.g. each its own prior mean)
+            sur = sur[k]
         if prev is not None and hasattr(sur, "warm_from"):
             sur = sur.warm_from(prev)
         return sur
@@ -217,7 +219,7 @@ def _fit(surrogate_factory, X, y, previous=None, executor=None):
     if y.ndim == 1:
         return one(previous).fit(X[ok], y[ok]), int(ok.sum())
     prev = previous if previous is not None else [None] * y.shape[1]
-    jobs = [(one(prev[k]), X[ok], y[ok, k]) for k in range(y.shape[1])]
+    jobs = [(one(prev[k], k), X[ok], y[ok, k]) for k in range(y.shape[1])]
     if executor is not None and len(jobs) > 1:
         return list(executor.map(_fit_one, jobs)), int(ok.sum())
     return [_fit_one(job) for job in jobs], int(ok.sum())
@@ -242,7 +244,8 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     func : picklable callable of one point (d,) returning a float, or
         anything that ``target`` turns into a float (or k floats).
     surrogate_factory : callable with no argument returning an unfitted
-        surrogate (called once per output and round).
+        surrogate (called once per output and round), or a list of them, the
+        k-th for output k.
     X, y : the initial design (n0, d) and its values, (n0,) for one output
         or (n0, k) for k outputs (one surrogate each; weight_from_surrogate then
         receives the list).

@@ -343,3 +343,44 @@ def test_the_map_search_takes_the_likelihoods_span_at_the_start_as_its_first_jac
     sd = np.sqrt(np.diag(without.covariance))
     np.testing.assert_allclose(with_known.x, without.x, rtol=0, atol=0.01 * sd.min())
     np.testing.assert_allclose(np.sqrt(np.diag(with_known.covariance)), sd, rtol=1e-3)
+
+
+@pytest.mark.parametrize("model_replicates", [None, 4])
+def test_the_scales_runs_in_worker_processes_give_the_same_numbers(linear_problem, model_replicates):
+    """The replicates' and the span's runs go through the executor: every random draw is
+    made in the caller, in the same order, so the scales equal the serial ones."""
+    from surrogates.evaluation import default_executor
+
+    problem, _ = linear_problem
+    theta = {"fn": 41.1, "zeta": 0.019}
+    kw = dict(n_replicates=8, model_replicates=model_replicates, seed=3, space=problem.default_space())
+    serial = estimate_likelihood(problem, theta, **kw)
+    with default_executor(2) as pool:
+        parallel = estimate_likelihood(problem, theta, executor=pool, **kw)
+    for st in problem.stages:
+        a, b = serial.scales[st], parallel.scales[st]
+        assert a.noise_sd == pytest.approx(b.noise_sd, rel=1e-12) and a.sd == pytest.approx(b.sd, rel=1e-12)
+        # a forward difference over a step of 1e-4 of the box turns the runs' last-digit
+        # differences between processes (their BLAS threads) into ~1e-7 of the derivative,
+        # 1000 times below its truncation error
+        J = serial.sensitivities[st].derivative
+        np.testing.assert_allclose(parallel.sensitivities[st].derivative, J, rtol=0, atol=1e-6 * np.abs(J).max())
+        np.testing.assert_allclose(parallel.noise_residuals[st][0], serial.noise_residuals[st][0], rtol=1e-12,
+                                   atol=1e-15)
+
+
+def test_the_gauss_newton_mean_is_exact_for_a_linear_residual():
+    """For r(x) = r0 + J (x - x0), z = log(1 + |r|^2) everywhere: the Gauss-Newton mean,
+    a quadratic written in the whitened coordinates, must give it at any u (closed form)."""
+    from bayes_update.core.posterior.design import GaussNewtonMean
+    from bayes_update.core.posterior.target import Whitening
+
+    rng = np.random.default_rng(8)
+    d, n = 4, 30
+    J, r0, x0 = rng.standard_normal((n, d)), 0.3 * rng.standard_normal(n), rng.standard_normal(d)
+    A = rng.standard_normal((d, d))
+    whitening = Whitening.from_covariance(x0 + 0.2 * rng.standard_normal(d), A @ A.T + 0.1 * np.eye(d))
+    mean = GaussNewtonMean.at_mode(r0, J, x0, whitening)
+    U = 3.0 * rng.standard_normal((50, d))
+    r = r0 + (whitening.to_x(U) - x0) @ J.T
+    np.testing.assert_allclose(mean(U), np.log1p(np.sum(r ** 2, axis=1)), rtol=1e-10)

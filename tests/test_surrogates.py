@@ -505,3 +505,42 @@ def test_parallel_fits_in_the_workers_give_the_same_surrogates():
     for a, b in zip(par.surrogate, seq.surrogate):
         np.testing.assert_allclose(a.predict(P, return_std=False), b.predict(P, return_std=False), rtol=1e-12,
                                    atol=0)
+
+
+class _Quadratic:
+    """A picklable prior mean m(x) = a (x0 - 0.3)^2 (the GP's fits run in worker processes)."""
+
+    def __init__(self, a):
+        self.a = a
+
+    def __call__(self, X):
+        return self.a * (np.atleast_2d(X)[:, 0] - 0.3) ** 2
+
+
+def test_a_prior_mean_is_what_the_gp_falls_back_on_away_from_its_points():
+    """y = 40 (x - 0.3)^2 + 0.05 sin(6 x) on 7 points of [0, 0.6]: with the quadratic as its
+    prior mean the GP models the small sine and predicts y on [0, 1] to about its amplitude;
+    with a constant mean it misses the extrapolated part by far more.  The prior mean
+    survives warm_from and the worker processes' pickling."""
+    import pickle
+
+    from surrogates import GPSurrogate
+
+    def f(x):
+        return 40.0 * (x[:, 0] - 0.3) ** 2 + 0.05 * np.sin(6.0 * x[:, 0])
+
+    X = np.linspace(0.0, 0.6, 7)[:, None]
+    Xt = np.linspace(0.0, 1.0, 101)[:, None]
+    box = [[0.0, 1.0]]
+    with_mean = GPSurrogate(box, transform="none", prior_mean=_Quadratic(40.0), seed=0).fit(X, f(X))
+    constant = GPSurrogate(box, transform="none", seed=0).fit(X, f(X))
+    err_mean = np.max(np.abs(with_mean.mean_transformed(Xt) - f(Xt)))
+    err_const = np.max(np.abs(constant.mean_transformed(Xt) - f(Xt)))
+    assert err_mean < 0.15 and err_const > 10 * err_mean, (err_mean, err_const)
+    mu, _ = with_mean.predict_transformed(Xt)
+    np.testing.assert_allclose(mu, with_mean.mean_transformed(Xt), rtol=0, atol=1e-9)
+    warm = GPSurrogate(box, transform="none", prior_mean=_Quadratic(40.0), seed=0).warm_from(with_mean)
+    again = pickle.loads(pickle.dumps(warm)).fit(X, f(X))
+    np.testing.assert_allclose(again.mean_transformed(Xt), with_mean.mean_transformed(Xt), rtol=0, atol=1e-6)
+    with pytest.raises(TypeError):
+        GPSurrogate(box, prior_mean=3.0)

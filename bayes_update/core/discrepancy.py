@@ -138,7 +138,7 @@ class _Workflow:
 
     def likelihood(self, space, theta, seed, unabsorbed=True):
         lik = estimate_likelihood(self.problem, theta, n_replicates=self.settings.n_replicates, seed=seed,
-                                  space=space)
+                                  space=space, executor=self.pool)
         self.steps.add_runs(likelihood_runs(self.problem, self.settings.n_replicates, space))
         return lik.unabsorbed() if unabsorbed else lik
 

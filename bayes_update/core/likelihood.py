@@ -56,7 +56,8 @@ import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
 from bayes_update.core.problem import Problem
-from bayes_update.core.replicates import control_variate_rows
+from bayes_update.core.replicates import RunAt, control_variate_rows
+from surrogates.evaluation import evaluate_many
 
 
 @dataclass(frozen=True)
@@ -184,7 +185,8 @@ def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
 
 def estimate_likelihood(problem: Problem, params, *, refined=None,
                         model_error: bool = True, n_replicates: int = 32, seed=0,
-                        stages=None, space=None, model_replicates: int | None = None) -> Likelihood:
+                        stages=None, space=None, model_replicates: int | None = None,
+                        executor=None) -> Likelihood:
     """Measure the likelihood scales at the estimate ``params`` (module docstring).
 
     n_replicates : noise replicates per stage (K model runs each, unless
@@ -198,6 +200,8 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     refined : the model the model error is measured against (default
         :meth:`Problem.refined_model`); ignored with ``model_error=False`` (e.g. when
         the data come from the updating model itself).
+    executor : runs the replicates and the span's runs in parallel (the same numbers
+        as without: every random draw is made here, in the same order).
     """
     if int(n_replicates) != n_replicates or n_replicates < 4:
         raise ValueError(f"n_replicates must be an integer >= 4, got {n_replicates!r}")
@@ -235,20 +239,21 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
             return sig_f * rng.standard_normal(test.force.size), sig_y * rng.standard_normal(v0.shape)
 
         if model_replicates is None or sig_f == 0.0:
-            D = []                      # every replicate a model run (none needed without force noise)
-            for _ in range(int(n_replicates)):
-                du, noise = draw()
-                D.append(row(noise, problem.run(params, test.force + du) - v0 if sig_f else 0.0))
-            D, w = np.array(D), np.full(int(n_replicates), 1.0 / n_replicates)
+            # every replicate a model run (none needed without force noise)
+            drawn = [draw() for _ in range(int(n_replicates))]
+            runs = (evaluate_many(RunAt(problem, params), [test.force + du for du, _ in drawn], executor,
+                                  progress=False) if sig_f else [v0] * len(drawn))
+            D = np.array([row(noise, v - v0) for (_, noise), v in zip(drawn, runs)])
+            w = np.full(int(n_replicates), 1.0 / n_replicates)
         else:
             D, w = control_variate_rows(problem, params, stage, v0, row, draw, int(n_replicates),
-                                        int(model_replicates), sig_f, rng)
+                                        int(model_replicates), sig_f, rng, executor)
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
         _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
         mean = float(w @ e2)
         sens = output_derivative(problem, stage, params, space if space is not None else problem.default_space(),
-                                 at=v0)
+                                 at=v0, executor=executor)
         sensitivities[stage] = sens
         Q = span_of(sens.derivative, stage)
         span_var = float(w @ np.sum((D @ Q) ** 2, axis=1) / Q.shape[1])
@@ -377,8 +382,21 @@ class Sensitivity:
     steps: np.ndarray        # the finite-difference steps (internal coordinates): ``rel_step`` of the prior box
 
 
+@dataclass
+class _StageOutput:
+    """Picklable ``x (internal coordinates) -> the stage's compared output``."""
+
+    problem: Problem
+    stage: str
+    space: object
+
+    def __call__(self, x) -> np.ndarray:
+        p = self.problem
+        return p.output(self.stage, p.components(self.stage, p.simulate(self.space.to_parameters(x), self.stage)))
+
+
 def output_derivative(problem: Problem, stage: str, params, space, rel_step: float = 1e-4,
-                      at=None) -> Sensitivity:
+                      at=None, executor=None) -> Sensitivity:
     """d(stage output)/dx at ``params`` by forward differences in the internal
     coordinates, steps ``rel_step`` of the prior box, backwards at the upper bound
     (the steps and rule of :func:`bayes_update.core.mode.find_mode` with
@@ -387,17 +405,11 @@ def output_derivative(problem: Problem, stage: str, params, space, rel_step: flo
     x = space.to_internal(params)
     box = space.box()
     h = rel_step * (box[:, 1] - box[:, 0])
-
-    def out(p):
-        return problem.output(stage, problem.components(stage, problem.simulate(space.to_parameters(p), stage)))
-
     y0 = problem.output(stage, problem.components(stage, problem.simulate(params, stage) if at is None else at))
-    cols = []
-    for i in range(len(x)):
-        step = h[i] if x[i] + h[i] <= box[i, 1] else -h[i]
-        p = x.copy()
-        p[i] += step
-        cols.append((out(p) - y0) / step)
+    steps = np.where(x + h <= box[:, 1], h, -h)
+    points = [x + step * e for step, e in zip(steps, np.eye(len(x)))]
+    outs = evaluate_many(_StageOutput(problem, stage, space), points, executor, progress=False)
+    cols = [(out - y0) / step for out, step in zip(outs, steps)]
     return Sensitivity(x=np.asarray(x, float).copy(), output=y0, derivative=np.array(cols).T, steps=h)
 
 

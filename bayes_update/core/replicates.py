@@ -5,9 +5,26 @@ run, and the control variate that corrects it with a few replicates run on the
 model (docs/likelihood.md)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-__all__ = ["control_variate_rows", "lti_response"]
+from surrogates.evaluation import evaluate_many
+
+__all__ = ["RunAt", "control_variate_rows", "lti_response"]
+
+
+@dataclass
+class RunAt:
+    """Picklable ``force -> the model's response at params``: the replicates' runs,
+    sent to an executor's workers."""
+
+    problem: object
+    params: dict
+    model: object = None
+
+    def __call__(self, force) -> np.ndarray:
+        return self.problem.run(self.params, force, model=self.model)
 
 
 def lti_response(problem, params, stage: str, v0, amplitude: float, rng):
@@ -41,7 +58,7 @@ def lti_response(problem, params, stage: str, v0, amplitude: float, rng):
 
 
 def control_variate_rows(problem, params, stage: str, v0, row, draw, n_replicates: int, k: int,
-                          sig_f: float, rng) -> tuple[np.ndarray, np.ndarray]:
+                          sig_f: float, rng, executor=None) -> tuple[np.ndarray, np.ndarray]:
     """The replicates' residual rows and their weights with the force noise's
     response taken from :func:`lti_response` (one model run) and corrected by a
     control variate: ``k`` replicates run on the model and, with the same noise,
@@ -56,11 +73,11 @@ def control_variate_rows(problem, params, stage: str, v0, row, draw, n_replicate
     0.179-0.195 % from 96 replicates all run on the model (36 runs against 192)."""
     lti = lti_response(problem, params, stage, v0, sig_f, rng)
     rows = [row(noise, lti(du)) for du, noise in (draw() for _ in range(n_replicates))]
-    pairs_model, pairs_lti = [], []
-    for _ in range(k):
-        du, noise = draw()
-        pairs_model.append(row(noise, problem.run(params, problem.tests[stage].force + du) - v0))
-        pairs_lti.append(row(noise, lti(du)))
+    pairs = [draw() for _ in range(k)]        # drawn here, in order: the same numbers with or without executor
+    runs = evaluate_many(RunAt(problem, params), [problem.tests[stage].force + du for du, _ in pairs], executor,
+                         progress=False)
+    pairs_model = [row(noise, v - v0) for (_, noise), v in zip(pairs, runs)]
+    pairs_lti = [row(noise, lti(du)) for du, noise in pairs]
     D = np.array(rows + pairs_model + pairs_lti)
     w = np.concatenate([np.full(n_replicates, 1.0 / n_replicates), np.full(k, 1.0 / k), np.full(k, -1.0 / k)])
     return D, w

@@ -25,7 +25,8 @@ the former 1200-1400.
    Laplace covariance from the residuals' Jacobian there;
 4. surrogate path: coordinates whitened by the Laplace covariance, a Sobol'
    design in the box of +-``box_sd`` in them (points inside the prior),
-   Gaussian processes of z = log(1 + e^2 / s^2) per stage, refined in rounds
+   Gaussian processes of z = log(1 + e^2 / s^2) per stage (their prior mean
+   the Gauss-Newton z at the MAP, ``gp_mean``), refined in rounds
    where the surrogate posterior has mass (:func:`surrogates.refine`), all
    ``n_rounds`` or, with ``stop_tolerance``, until that posterior stops moving;
    direct path: no surrogate;

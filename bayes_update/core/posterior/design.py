@@ -4,7 +4,9 @@ the surrogate posterior stops moving; the evaluation cache an interrupted run re
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from functools import partial
+
 import numpy as np
 import surrogates
 from surrogates.evaluation import evaluate_many
@@ -13,14 +15,55 @@ from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, WhitenedEvaluate, Whitening, WhitenedLogPosterior
 
 
-def _gp_factory(box, seed, names):
-    return surrogates.GPSurrogate(box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed)
+def _gp_factory(box, seed, names, prior_mean=None):
+    return surrogates.GPSurrogate(box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed,
+                                  prior_mean=prior_mean)
+
+
+@dataclass
+class GaussNewtonMean:
+    """A stage's z = log(1 + e^2 / s^2) as the Gauss-Newton model at the MAP predicts it, in u:
+    e^2 / s^2 = |r + J dx|^2 with the MAP's scaled residual r and Jacobian J of the stage
+    and dx = x(u) - x_MAP, an exact quadratic in u, ``c + 2 g.u + u.H.u`` (clipped at 0).
+
+    The GP of z models what the model does beyond its linearisation at the MAP: zero
+    where the posterior is Gaussian, and far from the design points the prediction
+    falls back on the Laplace picture, not on a constant."""
+
+    c: float
+    g: np.ndarray
+    H: np.ndarray
+
+    @classmethod
+    def at_mode(cls, residual, jacobian, x_map, whitening: Whitening) -> "GaussNewtonMean":
+        r, J = np.asarray(residual, float), np.asarray(jacobian, float)
+        b = whitening.center - np.asarray(x_map, float)       # dx = L u + b
+        rb = r + J @ b
+        JL = J @ whitening.L
+        return cls(c=float(rb @ rb), g=JL.T @ rb, H=JL.T @ JL)
+
+    def __call__(self, U) -> np.ndarray:
+        U = np.atleast_2d(U)
+        q = self.c + 2.0 * U @ self.g + np.einsum("ij,jk,ik->i", U, self.H, U)
+        return np.log1p(np.maximum(q, 0.0))
+
+
+def gauss_newton_means(mode, problem, stages, whitening: Whitening) -> list:
+    """One :class:`GaussNewtonMean` per stage from a mode search's residual and Jacobian
+    (the stages' rows in ``problem.stages`` order, scaled by the likelihood's s)."""
+    means, row = {}, 0
+    for st in problem.stages:
+        n = problem.output(st, problem.reference_components(st)).size
+        means[st] = GaussNewtonMean.at_mode(mode.residual[row:row + n], mode.jacobian[row:row + n], mode.x, whitening)
+        row += n
+    return [means[st] for st in stages]
 
 
 def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings, pool, cache_dir, stages, seed,
-                      progress, log, reused=None):
+                      progress, log, reused=None, means=None):
     """Design in the whitened box (inside the prior), GPs of z per stage,
-    refinement rounds; all in u coordinates."""
+    refinement rounds; all in u coordinates.  ``means``: a prior mean per stage
+    (:func:`gauss_newton_means`), else constant means."""
     from threadpoolctl import threadpool_limits
 
     ss = np.random.SeedSequence(seed).spawn(3)
@@ -65,7 +108,9 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
         return np.vstack([draws, sob])
 
     def factory():
-        return _gp_factory(box, seed=0, names=space.coordinate_names)
+        if means is None:
+            return _gp_factory(box, seed=0, names=space.coordinate_names)
+        return [_gp_factory(box, seed=0, names=space.coordinate_names, prior_mean=m) for m in means]
 
     with threadpool_limits(2):
         t = time.perf_counter()

@@ -15,7 +15,7 @@ from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.posterior.design import _build_surrogates
+from bayes_update.core.posterior.design import _build_surrogates, gauss_newton_means
 from bayes_update.core.posterior.laplace import MapResult, _map_result, capped_covariance, find_map, local_box
 from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
                                               add_posterior_predictive, initial_walkers, run_emcee, summarize,
@@ -234,7 +234,8 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
     with run.steps("likelihood_scales"):
         if likelihood is None:
             lik = estimate_likelihood(run.problem, start, model_error=s.model_error, n_replicates=s.n_replicates,
-                                      seed=run.seeds[0], space=run.space, model_replicates=s.model_replicates)
+                                      seed=run.seeds[0], space=run.space, model_replicates=s.model_replicates,
+                                      executor=run.pool)
             run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error,
                                                model_replicates=s.model_replicates))
         else:
@@ -322,9 +323,11 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
     run.steps.timing["gp_fit"] = 0.0
     for attempt in range(s.box_attempts):
         with run.steps("design_and_gp"):
+            means = (gauss_newton_means(mp.mode, run.problem, stages, whitening)
+                     if s.gp_mean == "gauss_newton" and mp.mode is not None else None)
             gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
                                                     s, run.pool, run.cache_dir, stages, run.seeds[3] + attempt,
-                                                    run.progress, run.log, run.reused)
+                                                    run.progress, run.log, run.reused, means)
             run.steps.add_runs(len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1))))
         run.steps.timing["gp_fit"] += fit_time
         design = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}

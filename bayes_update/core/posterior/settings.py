@@ -27,6 +27,9 @@ class PosteriorSettings:
     stop_tolerance: float = 0.1  # > 0: the design stops when the surrogate posterior's means move less than
     #                             this many sd and its sds less than this share, twice in a row (0: all rounds)
     box_sd: float = 4.0         # half-width of the local box [Laplace marginal sd]
+    # the GPs' prior mean: "gauss_newton", each stage's z as the MAP's residual and Jacobian
+    # predict it (design.GaussNewtonMean; the GP models the rest), or "constant"
+    gp_mean: str = "gauss_newton"
     # the chain on the surrogates: its cost is per step (the walkers of a step are one vectorised
     # call), so more walkers and fewer steps.  On the ROM's surrogate posterior, against a 256 x 20000
     # chain (benchmarks/chain_geometry.py): 64 x 6000 and 128 x 3000 and 256 x 1500 sample it alike
@@ -58,6 +61,8 @@ class PosteriorSettings:
                                                   int(self.model_replicates) != self.model_replicates or
                                                   self.model_replicates < 4):
             raise ValueError(f"model_replicates must be None or an integer >= 4, got {self.model_replicates!r}")
+        if self.gp_mean not in ("gauss_newton", "constant"):
+            raise ValueError(f"gp_mean must be 'gauss_newton' or 'constant', got {self.gp_mean!r}")
         if not self.stop_tolerance >= 0:
             raise ValueError(f"stop_tolerance must be >= 0, got {self.stop_tolerance!r}")
         for name in ("n_replicates", "n_initial", "n_rounds", "batch", "n_walkers", "direct_walkers", "n_steps", "burn",
@@ -105,4 +110,4 @@ class PosteriorSettings:
 #: the sizes of :meth:`PosteriorSettings.thorough` (``bayes-update sample --thorough``)
 THOROUGH = dict(model_replicates=None, n_initial=96, n_rounds=5, batch=32, stop_tolerance=0.0, n_walkers=32,
                 direct_walkers=32, n_steps=12000, burn=2000, thin=10, n_start=64, coarse_start=False,
-                frugal_map=False)
+                frugal_map=False, gp_mean="constant")
