@@ -189,15 +189,18 @@ def _noise_rows(problem: Problem, fun: ResidualFunction) -> np.ndarray:
     return np.concatenate(rows)
 
 
-def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc):
-    """The ``n_best`` best points of a scrambled Sobol' design over the prior (free coordinates)."""
+def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, costs: bool = False):
+    """The ``n_best`` best points of a scrambled Sobol' design over the prior (free
+    coordinates) and the design's size; ``costs``: their costs as well."""
     U = qmc.Sobol(len(space), scramble=True, seed=seed).random(n_start)
     X = np.array([space.to_internal(space.theta(space.from_unit(u))) for u in U])[:, list(free)]
     cost = np.array(evaluate_many(_Cost(fun), list(X), executor, progress=progress, desc=desc), float)
     if not np.any(np.isfinite(cost)):
         raise RuntimeError(f"the model failed at all {n_start} points of the {desc}")
-    order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))
-    return [X[i] for i in order[:n_best]], len(X)
+    order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
+    if costs:
+        return [X[i] for i in order], len(X), [float(cost[i]) for i in order]
+    return [X[i] for i in order], len(X)
 
 
 def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Problem:
@@ -299,13 +302,14 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     rest = tuple(i for i in free2 if i not in free1) or free2
     map_rest = _PointMap(space, x1, rest)
     # without polish half the design (over the parameters the linear test leaves free)
-    starts, n = _starts(_residual(problem, ("linear", "nonlinear"), map_rest, weighted), space, rest,
-                        n_start if polish else max(4, n_start // 2), n_best - 1, seed + 1, executor, progress,
-                        "stage 2 design")
+    starts, n, start_costs = _starts(_residual(problem, ("linear", "nonlinear"), map_rest, weighted), space, rest,
+                                     n_start if polish else max(4, n_start // 2), n_best - 1, seed + 1, executor,
+                                     progress, "stage 2 design", costs=True)
     starts = [map_rest.full(x) for x in starts]
     if not polish:
-        cost = [0.5 * float(r @ r) for r in evaluate_many(fun2, [x1] + starts, executor, progress=False)]
-        runs += n + 2 * (1 + len(starts))
+        # the design's points are fun2's own (the same residual at the same full point): only x1 is run
+        cost = [_Cost(fun2)(x1)] + start_costs
+        runs += n + 2
         return TwoStage(x1=x1, x=([x1] + starts)[int(np.argmin(cost))], unidentified=unident, n_model_runs=runs)
     mode2 = find_mode(fun2, [x1] + starts, lower, upper, steps, executor, max_iterations)
     runs += n + mode2.n_evaluations
