@@ -22,9 +22,9 @@ def _gp_factory(box, seed, names, prior_mean=None):
 
 @dataclass
 class GaussNewtonMean:
-    """A stage's z = log(1 + e^2 / s^2) as the Gauss-Newton model at the MAP predicts it, in u:
-    e^2 / s^2 = |r + J dx|^2 with the MAP's scaled residual r and Jacobian J of the stage
-    and dx = x(u) - x_MAP, an exact quadratic in u, ``c + 2 g.u + u.H.u`` (clipped at 0).
+    """A stage's ``z = log(1 + e^2 / s^2)`` as the Gauss-Newton model at the MAP predicts it, in u:
+    ``e^2 / s^2 = ||r + J dx||^2`` with the MAP's scaled residual r and Jacobian J of the stage
+    and ``dx = x(u) - x_MAP``, an exact quadratic in u, ``c + 2 g.u + u.H.u`` (clipped at 0).
 
     The GP of z models what the model does beyond its linearisation at the MAP: zero
     where the posterior is Gaussian, and far from the design points the prediction
