@@ -220,7 +220,7 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
 
 
 def known_point(fun: ResidualFunction, sensitivities: dict | None, x0, steps):
-    """``(x0, r, J)`` of ``fun`` from the stages' :class:`~bayes_update.core.likelihood.Sensitivity`
+    """``(x0, r, J)`` of ``fun`` from the stages' :class:`~bayes_update.core.span.Sensitivity`
     at ``x0`` (the output and its derivative the likelihood's span took there), or None
     when they were taken elsewhere, with other steps, on other stages or on another model."""
     pm = fun.point_map
