@@ -72,9 +72,15 @@ class ResidualFunction:
             except self.problem.failures:
                 out.append(np.full(n, FAILED_RESIDUAL))
                 continue
-            mod = self.problem.output(stage, self.problem.components(stage, v))
-            out.append((ref - mod) / (np.linalg.norm(ref) * s))
+            out.append(self.scaled(stage, s, self.problem.output(stage, self.problem.components(stage, v)))[0])
         return np.concatenate(out)
+
+    def scaled(self, stage: str, s: float, output) -> tuple[np.ndarray, float]:
+        """``(r, ||ref|| s)``: the stage's residual ``(ref - output) / (||ref|| s)`` for a compared
+        ``output`` and its divisor (a derivative of the output maps to one of r by ``-1 / divisor``)."""
+        ref = self.problem.output(stage, self.problem.reference_components(stage))
+        divisor = float(np.linalg.norm(ref)) * s
+        return (ref - output) / divisor, divisor
 
 
 @dataclass
@@ -233,10 +239,9 @@ def known_point(fun: ResidualFunction, sensitivities: dict | None, x0, steps):
         if sens is None or sens.x.shape != x0.shape or not np.array_equal(sens.x, x0) or \
                 not np.allclose(sens.steps, steps, rtol=1e-12, atol=0.0):
             return None
-        ref = fun.problem.output(stage, fun.problem.reference_components(stage))
-        norm = np.linalg.norm(ref) * s
-        r.append((ref - sens.output) / norm)
-        J.append(-sens.derivative / norm)
+        r0, divisor = fun.scaled(stage, s, sens.output)
+        r.append(r0)
+        J.append(-sens.derivative / divisor)
     return x0.copy(), np.concatenate(r), np.vstack(J)
 
 
