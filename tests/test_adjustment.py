@@ -83,3 +83,21 @@ def test_no_replicates_no_adjustment_and_not_pickled():
         assert "rows" in str(exc)
     else:
         raise AssertionError("a Jacobian of the wrong size was accepted")
+
+
+def test_the_surrogate_posterior_reads_its_gps_at_the_adjusted_points():
+    """WhitenedLogPosterior.gp_points folds x(u), the adjustment and u(x) into one
+    affine map: the same points as the three maps one after the other."""
+    from bayes_update.core.adjustment import CurvatureAdjustment
+    from bayes_update.core.posterior.target import Whitening, WhitenedLogPosterior
+
+    rng = np.random.default_rng(41)
+    cov = np.cov(rng.normal(size=(3, 20)))
+    whitening = Whitening.from_covariance(rng.normal(size=3), cov)
+    adj = CurvatureAdjustment(center=rng.normal(size=3), A=np.eye(3) + 0.3 * rng.normal(size=(3, 3)),
+                              variance_ratios=np.ones(3), sd_ratios=np.ones(3))
+    target = WhitenedLogPosterior({}, None, np.array([[-4.0, 4.0]] * 3), whitening, adj)
+    U = rng.normal(size=(50, 3))
+    expected = whitening.to_u(adj(whitening.to_x(U)))
+    np.testing.assert_allclose(target.gp_points(U), expected, rtol=0, atol=1e-11)
+    np.testing.assert_allclose(target.gp_points(U[:1]), expected[:1], rtol=0, atol=1e-11)

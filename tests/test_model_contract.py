@@ -150,6 +150,26 @@ def test_the_beams_array_transform_gives_the_per_point_prior():
     assert 0.2 < np.isfinite(ref).mean() < 0.8                    # both sides of the support
     np.testing.assert_array_equal(np.isfinite(fast), np.isfinite(ref))
     np.testing.assert_allclose(fast[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0, atol=1e-12)
+    # the reported draws (ParameterSet.report) alike, in the array and the per-point forms
+    inside = X[np.isfinite(ref)]
+    fast_report, slow_report = space.report(inside), slow.report(inside)
+    for name in ("eta", "c", "F", "k_s"):
+        np.testing.assert_allclose(fast_report[name], slow_report[name], rtol=1e-14, atol=0)
+        np.testing.assert_allclose(fast_report[name][:50], [model.from_internal(x)[name] for x in inside[:50]],
+                                   rtol=1e-14, atol=0)
+
+
+def test_a_plain_space_reports_its_draws_in_their_units():
+    """ParameterSet.report without a transform: log-scale coordinates back through exp,
+    the others as they are, each equal to to_parameters of the same point."""
+    space = ParameterSet(Oscillator.parameters)
+    X = space.sample_prior(200, seed=5)
+    rep = space.report(X)
+    for i in (0, 57, 199):
+        theta = space.to_parameters(X[i])
+        assert set(rep) == set(theta)
+        for name, value in theta.items():
+            assert rep[name][i] == pytest.approx(value, rel=1e-14)
 
 
 def test_load_model_from_a_file_and_a_module(tmp_path):

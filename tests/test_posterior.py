@@ -344,6 +344,38 @@ def test_emcee_is_reproducible_with_a_seed():
     assert np.array_equal(a, b) and not np.array_equal(a, c)
 
 
+def test_the_vectorised_stretch_move_is_emcees():
+    """stretch_sample against emcee's EnsembleSampler (default StretchMove) from the
+    same RandomState: the same chain and log probabilities to the last bit, on a
+    correlated, bounded target (walkers that propose outside are rejected), with
+    an odd number of walkers; the same acceptance fractions and autocorrelation times."""
+    import emcee
+
+    from bayes_update.core.posterior.stretch import stretch_sample
+
+    cov = np.array([[1.0, 0.9, 0.1], [0.9, 1.0, 0.0], [0.1, 0.0, 2.0]])
+    P = np.linalg.inv(cov)
+
+    def log_prob(X):
+        X = np.atleast_2d(X)
+        lp = -0.5 * np.einsum("ij,jk,ik->i", X, P, X)
+        return np.where(X[:, 2] < 1.5, lp, -np.inf)
+
+    x0 = 0.3 * np.random.default_rng(2).standard_normal((11, 3))
+    ref = emcee.EnsembleSampler(11, 3, log_prob, vectorize=True)
+    ref.random_state = np.random.RandomState(77).get_state()
+    ref.run_mcmc(x0, 400, progress=False)
+    ours = stretch_sample(log_prob, x0, 400, np.random.RandomState(77))
+    assert np.array_equal(ours.get_chain(), ref.get_chain())
+    assert np.array_equal(ours.get_log_prob(discard=50, thin=7, flat=True), ref.get_log_prob(discard=50, thin=7, flat=True))
+    assert np.array_equal(ours.get_chain(discard=13, thin=3, flat=True), ref.get_chain(discard=13, thin=3, flat=True))
+    np.testing.assert_array_equal(ours.acceptance_fraction, ref.acceptance_fraction)
+    np.testing.assert_array_equal(ours.get_autocorr_time(discard=100, tol=0),
+                                  ref.get_autocorr_time(discard=100, tol=0))
+    assert np.array_equal(ours.get_last_sample().coords, ref.get_last_sample().coords)
+    assert 0.1 < ours.acceptance_fraction.mean() < 0.9         # it moved, and not every time
+
+
 # ------------------------------------------------------------- the pipeline
 @pytest.fixture(scope="module")
 def rom_posterior(data):

@@ -109,6 +109,36 @@ def test_gp_reproduces_the_closed_form_posterior():
     np.testing.assert_allclose(sur.predict(X, return_std=False), y, rtol=1e-3)
 
 
+@pytest.mark.parametrize("nu", [0.5, 1.5, 2.5, np.inf])
+def test_plain_numpy_mean_equals_scikit_learns_prediction(nu):
+    """mean_transformed's numpy path (surrogates.gp_mean) against scikit-learn's own
+    predict, fitted hyperparameters, every smoothness, with and without a prior
+    mean; a kernel of another form keeps scikit-learn's path."""
+    from sklearn.gaussian_process.kernels import RBF
+    from surrogates.gp_mean import kernel_mean
+
+    bounds = np.array([[-1.0, 3.0], [100.0, 400.0], [0.0, 1.0]])
+    X = design(bounds, 30, seed=11)
+    y = np.cos(X[:, 0]) + 0.004 * X[:, 1] + X[:, 2] ** 2
+    Xs = design(bounds, 9, seed=12) * 1.1          # some points outside the box
+    for prior_mean in (None, _QuadraticMean()):
+        sur = GPSurrogate(bounds, transform="none", nu=nu, n_restarts_optimizer=0, prior_mean=prior_mean).fit(X, y)
+        assert kernel_mean(sur) is not None
+        gp = sur.gp_
+        mu_sklearn = gp.predict(sur.scale_inputs(Xs)) + sur._mean(Xs)
+        # both sum k_i alpha_i in floating point: they may differ by rounding of the largest terms
+        terms = np.abs(gp.kernel_(sur.scale_inputs(Xs), gp.X_train_)) @ np.abs(gp.alpha_) * gp._y_train_std
+        np.testing.assert_array_less(np.abs(sur.mean_transformed(Xs) - mu_sklearn), 1e-14 + 64 * 2.2e-16 * terms)
+    other = GPSurrogate(bounds, transform="none", kernel=ConstantKernel() * RBF([0.3] * 3)).fit(X, y)
+    assert kernel_mean(other) is None
+    np.testing.assert_allclose(other.mean_transformed(Xs), other.predict_transformed(Xs)[0], rtol=0, atol=1e-10)
+
+
+class _QuadraticMean:
+    def __call__(self, X):
+        return 0.1 * X[:, 0] ** 2
+
+
 def test_sqrt_transform_moments_against_monte_carlo():
     bounds = [[0.0, 1.0]]
     X = np.linspace(0, 1, 6)[:, None]

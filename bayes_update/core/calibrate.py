@@ -383,7 +383,7 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
                           max_iterations=max_iterations, seed=seed, executor=pool, progress=progress)
         theta = space.to_parameters(found.x)
         metrics_at = problem.evaluate(theta)
-        errors = output_errors(problem, theta)
+        errors = output_errors(problem, theta, executor=pool)
         pred = {name: errors[name][0] for name in problem.validation}
         runs += found.n_model_runs + len(problem.stages) + len(errors)
     finally:

@@ -19,6 +19,8 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import math
 
 import numpy as np
@@ -47,27 +49,44 @@ class ModelFitError(ValueError):
     more than the noise); the message says what was found and what to try."""
 
 
-def output_errors(problem, theta) -> dict:
+@dataclass
+class _RunOrNone:
+    """Picklable ``force -> the model's response at theta``, None where it cannot run."""
+
+    problem: object
+    theta: dict
+
+    def __call__(self, force):
+        try:
+            return self.problem.run(self.theta, force)
+        except self.problem.failures:
+            return None
+
+
+def output_errors(problem, theta, executor=None) -> dict:
     """{test name: (output error, noise floor)} at ``theta`` for the estimation
     and validation tests: ||y - y_model|| / ||y|| (rms over sensors) and what the
-    measurement noise alone gives [-]; NaN where the model cannot run."""
+    measurement noise alone gives [-]; NaN where the model cannot run.
+    ``executor``: the tests' runs in parallel."""
     from bayes_update.core.metrics import relative_error
+    from surrogates.evaluation import evaluate_many
 
     out = {}
     tests = list(problem.tests.values()) + list(problem.validation.values())
-    for t in tests:
+    runs = evaluate_many(_RunOrNone(problem, theta), [t.force for t in tests], executor, batch_size=1,
+                         progress=False)
+    for t, run in zip(tests, runs):
         y = t.response if t.response.ndim == 2 else t.response[:, None]
         floor = float(np.sqrt(np.mean(np.square(problem.test_noise(t.name) / np.sqrt(np.mean(y ** 2, axis=0))))))
-        try:
-            # compared as the record is: without the model output's mean where the record's is removed
-            # as a sensor offset (Problem.compared_response).  Without it calibrate's prediction error
-            # differed from Problem.prediction_errors at the same theta wherever the model's output has
-            # a mean (an acceleration whose record does not end at rest: 1.05185 % against 1.05125 % on
-            # tests/test_several_modes.py; a quadratic spring's displacement far more)
-            m = problem.compared_response(problem.run(theta, t.force))
-        except problem.failures:
+        if run is None:
             out[t.name] = (math.nan, floor)
             continue
+        # compared as the record is: without the model output's mean where the record's is removed
+        # as a sensor offset (Problem.compared_response).  Without it calibrate's prediction error
+        # differed from Problem.prediction_errors at the same theta wherever the model's output has
+        # a mean (an acceleration whose record does not end at rest: 1.05185 % against 1.05125 % on
+        # tests/test_several_modes.py; a quadratic spring's displacement far more)
+        m = problem.compared_response(run)
         m = m if m.ndim == 2 else m[:, None]
         err = float(np.sqrt(np.mean([relative_error(y[:, j], m[:, j]) ** 2 for j in range(y.shape[1])])))
         out[t.name] = (err, floor)

@@ -56,8 +56,8 @@ import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
 from bayes_update.core.problem import Problem
-from bayes_update.core.replicates import RunAt, control_variate_rows
-from bayes_update.core.span import output_derivative, span_of
+from bayes_update.core.replicates import ScalesRun, control_variate_rows, lti_fit
+from bayes_update.core.span import derivative_from, derivative_points, span_of
 from surrogates.evaluation import evaluate_many
 
 
@@ -201,8 +201,8 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     refined : the model the model error is measured against (default
         :meth:`Problem.refined_model`); ignored with ``model_error=False`` (e.g. when
         the data come from the updating model itself).
-    executor : runs the replicates and the span's runs in parallel (the same numbers
-        as without: every random draw is made here, in the same order).
+    executor : runs every model run of every stage in parallel, all at once (the same
+        numbers as without: every random draw is made here, in the same order).
     """
     if int(n_replicates) != n_replicates or n_replicates < 4:
         raise ValueError(f"n_replicates must be an integer >= 4, got {n_replicates!r}")
@@ -214,18 +214,32 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         ref_model = refined if refined is not None else problem.refined_model()
         error_source = (f"{type(ref_model).__name__} (refined)" if ref_model is not None else
                         f"none: {type(problem.model).__name__} has no refined(), so the model error is taken as 0")
-    scales, residuals, sensitivities = {}, {}, {}
+    space = space if space is not None else problem.default_space()
+    # every random draw first, stage by stage in a fixed order, then every model run of every
+    # stage in one call to the executor (the workers never wait for a stage), then the sums
+    plans, tasks = [], []
     for i, stage in enumerate(stages):
-        test = problem.tests[stage]
-        # the measured noise of each channel (bayes_update.data.noise: declared, periods,
-        # zero-input sections, quiet band, or the linear test's fit residual carried over)
-        est = problem.noise[test.name]
-        sig_f = est["force"].sd if est["force"].sd is not None else 0.0
-        sig_y = np.array([est[name].sd for name, _ in problem.sensors])
-        sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
-        v0 = problem.simulate(params, stage)
+        plan = _draw_replicates(problem, stage, int(n_replicates), model_replicates,
+                                np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,))))
+        plan["x"], plan["h"], plan["steps"], points = derivative_points(space, params)
+        kinds = ([("force", plan["force"])] + [("force", f) for f in plan["forces"]]
+                 + [("output", x) for x in points] + ([("refined", plan["force"])] if ref_model is not None else []))
+        plan["slice"] = slice(len(tasks), len(tasks) + len(kinds))
+        tasks += [(kind, stage, arg) for kind, arg in kinds]
+        plans.append(plan)
+    # the refined model's runs (the longest) first, so that none is left alone at the end
+    order = sorted(range(len(tasks)), key=lambda j: tasks[j][0] != "refined")
+    done = evaluate_many(ScalesRun(problem, params, space, ref_model), [tasks[j] for j in order], executor,
+                         batch_size=1, progress=False)
+    results = [None] * len(tasks)
+    for j, value in zip(order, done):
+        results[j] = value
+    scales, residuals, sensitivities = {}, {}, {}
+    for stage, plan in zip(stages, plans):
+        res = results[plan["slice"]]
+        v0, runs = res[0], res[1:1 + len(plan["forces"])]
+        outs = res[1 + len(plan["forces"]):1 + len(plan["forces"]) + len(plan["x"])]
         ref_norm = np.linalg.norm(problem.output(stage, problem.reference_components(stage)))
-        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,)))
         # the replicate's difference is projected on the recorded force's regressors, not on
         # its noisy force's: y_meas and v share v0, so the regressors' own change with the
         # force noise acts on their difference only, a second-order term (on the default data
@@ -236,53 +250,78 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         def row(noise, dv):
             return problem.output(stage, problem.components(stage, noise - dv, proj)) / ref_norm
 
-        def draw():
-            return sig_f * rng.standard_normal(test.force.size), sig_y * rng.standard_normal(v0.shape)
-
-        if model_replicates is None or sig_f == 0.0:
-            # every replicate a model run (none needed without force noise)
-            drawn = [draw() for _ in range(int(n_replicates))]
-            runs = (evaluate_many(RunAt(problem, params), [test.force + du for du, _ in drawn], executor,
-                                  progress=False) if sig_f else [v0] * len(drawn))
-            D = np.array([row(noise, v - v0) for (_, noise), v in zip(drawn, runs)])
-            w = np.full(int(n_replicates), 1.0 / n_replicates)
-        else:
-            D, w = control_variate_rows(problem, params, stage, v0, row, draw, int(n_replicates),
-                                        int(model_replicates), sig_f, rng, executor)
+        if plan["probe"] is not None:
+            lti = lti_fit(plan["probe"], runs[0] - v0)
+            D, w = control_variate_rows(row, lti, plan["cheap"], plan["pairs"], runs[1:], v0)
+        else:              # every replicate a model run (none needed without force noise)
+            runs = runs if plan["forces"] else [v0] * len(plan["cheap"])
+            D = np.array([row(noise, v - v0) for (_, noise), v in zip(plan["cheap"], runs)])
+            w = np.full(len(D), 1.0 / len(D))
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
         _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
         mean = float(w @ e2)
-        sens = output_derivative(problem, stage, params, space if space is not None else problem.default_space(),
-                                 at=v0, executor=executor)
+        y0 = problem.output(stage, problem.components(stage, v0))
+        sens = derivative_from(plan["x"], plan["h"], plan["steps"], y0, outs)
         sensitivities[stage] = sens
         Q = span_of(sens.derivative, stage)
         span_var = float(w @ np.sum((D @ Q) ** 2, axis=1) / Q.shape[1])
         e_model = e_perp = 0.0
         if ref_model is not None:
-            v_ref = problem.run(params, test.force, model=ref_model)
-            d = problem.output(stage, problem.components(stage, v0)) - \
-                problem.output(stage, problem.components(stage, v_ref))
+            d = y0 - problem.output(stage, problem.components(stage, res[-1]))
             e_model = float(np.linalg.norm(d) / ref_norm)
             e_perp = float(np.linalg.norm(d - Q @ (Q.T @ d)) / ref_norm)
         residuals[stage] = (D, w)
         scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
                                    n_regressors=n_reg, n_replicates=int(n_replicates),
-                                   noise_levels=_noise_levels(est, problem.sensors),
+                                   noise_levels=_noise_levels(plan["estimates"], problem.sensors),
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,
                                    model_error_source=error_source)
     return Likelihood(scales, residuals, sensitivities)
 
 
-def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian) -> Likelihood:
+def _draw_replicates(problem: Problem, stage: str, n_replicates: int, model_replicates, rng) -> dict:
+    """A stage's noise replicates, drawn (no model run): ``cheap``, the (force noise,
+    response noise) pairs of the replicates; with ``model_replicates`` k and a noisy
+    force, the LTI estimate's white ``probe`` and the k ``pairs`` run on the model as
+    well, drawn in that order (:func:`bayes_update.core.replicates.control_variate_rows`);
+    ``forces``: the forces the model runs (the probe's first)."""
+    test = problem.tests[stage]
+    # the measured noise of each channel (bayes_update.data.noise: declared, periods,
+    # zero-input sections, quiet band, or the linear test's fit residual carried over)
+    est = problem.noise[test.name]
+    sig_f = est["force"].sd if est["force"].sd is not None else 0.0
+    sig_y = np.array([est[name].sd for name, _ in problem.sensors])
+    sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
+    n, k = test.force.size, len(problem.sensors)
+    shape = (n,) if k == 1 else (n, k)                    # the shape of Problem.run's response
+
+    def draw():
+        return sig_f * rng.standard_normal(n), sig_y * rng.standard_normal(shape)
+
+    plan = {"force": test.force, "estimates": est, "probe": None, "pairs": []}
+    if model_replicates is None or sig_f == 0.0:
+        plan["cheap"] = [draw() for _ in range(n_replicates)]
+        plan["forces"] = [test.force + du for du, _ in plan["cheap"]] if sig_f else []
+    else:
+        plan["probe"] = sig_f * rng.standard_normal(n)
+        plan["cheap"] = [draw() for _ in range(n_replicates)]
+        plan["pairs"] = [draw() for _ in range(int(model_replicates))]
+        plan["forces"] = [test.force + plan["probe"]] + [test.force + du for du, _ in plan["pairs"]]
+    return plan
+
+
+def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian,
+                   executor=None) -> Likelihood:
     """``likelihood`` with its model-error terms measured again at ``params`` (the
     mode): the model error depends on where it is measured, and a start for the
     mode's search may lie far from it.  The model's output there comes from the
     mode's scaled residual (no run), the refined model's from one run per stage,
     the span of the parameters' sensitivities from the mode's Jacobian; the
     noise terms stay.  With the term switched off the likelihood is returned as it
-    is; without a refined model, see :func:`misfit_beyond_noise`."""
+    is; without a refined model, see :func:`misfit_beyond_noise`.  ``executor``: the
+    stages' refined runs in parallel."""
     ref_model = problem.refined_model()
     if all((sc.model_error_source or "").startswith("off") for sc in likelihood.scales.values()):
         return likelihood
@@ -290,16 +329,18 @@ def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, j
         return misfit_beyond_noise(problem, likelihood, residual)
     if all(sc.model_error == 0.0 for sc in likelihood.scales.values()):
         return likelihood
+    refined = evaluate_many(ScalesRun(problem, params, refined=ref_model),
+                            [("refined", st, problem.tests[st].force) for st in problem.stages], executor,
+                            batch_size=1, progress=False)
     scales, row = {}, 0
-    for stage in problem.stages:
+    for stage, v_ref in zip(problem.stages, refined):
         sc = likelihood.scales[stage]
         ref = problem.output(stage, problem.reference_components(stage))
         norm, n = np.linalg.norm(ref), ref.size
         r, J = np.asarray(residual[row:row + n]), np.asarray(jacobian[row:row + n])
         row += n
         at_mode = ref - r * norm * sc.sd
-        d = at_mode - problem.output(stage, problem.components(
-            stage, problem.run(params, problem.tests[stage].force, model=ref_model)))
+        d = at_mode - problem.output(stage, problem.components(stage, v_ref))
         U, S, _ = np.linalg.svd(J, full_matrices=False)
         Q = U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
         scales[stage] = dataclasses.replace(sc, model_error=float(np.linalg.norm(d) / norm),

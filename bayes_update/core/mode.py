@@ -143,6 +143,28 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
     return J, len(pts)
 
 
+@dataclass
+class _OneStage:
+    """Picklable ``(i, x) -> fun``'s residual of its i-th stage alone."""
+
+    fun: ResidualFunction
+
+    def __call__(self, task) -> np.ndarray:
+        i, x = task
+        f = self.fun
+        return ResidualFunction(f.problem, (f.stages[i],), (f.scales[i],), f.point_map)(x)
+
+
+def _residual(fun: ResidualFunction, x, executor) -> np.ndarray:
+    """``fun(x)``, its stages' runs in parallel through ``executor`` (a search's steps
+    are serial: one point at a time, its stages side by side)."""
+    if executor is None or len(fun.stages) < 2:
+        return fun(x)
+    parts = evaluate_many(_OneStage(fun), [(i, x) for i in range(len(fun.stages))], executor, batch_size=1,
+                          progress=False)
+    return np.concatenate(parts)
+
+
 def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
               max_iterations: int = 40, cost_tolerance: float | None = None,
               central: bool = True, first_inside: bool = False, known=None) -> ModeResult:
@@ -185,7 +207,7 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         if key not in cache:
             count[0] += 1
             cache.clear()
-            cache[key] = fun(np.array(x))
+            cache[key] = _residual(fun, np.array(x), executor)
         return cache[key]
 
     def jac(x):
@@ -213,7 +235,7 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
             break
     x = best.x.copy()
     if central:
-        r = fun(x)
+        r = _residual(fun, x, executor)
         count[0] += 1
         J, n = _jacobian(fun, x, r, steps, lower, upper, executor, central=True)
         count[0] += n

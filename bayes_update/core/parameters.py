@@ -281,7 +281,14 @@ class ParameterSet:
         """{name: values} at internal points X (n, d): every parameter in its unit,
         then the :attr:`derived_names` coordinates."""
         X = np.atleast_2d(np.asarray(X, float))
-        T = np.array([self.theta_array(self.from_internal(x)) for x in X])
+        many = getattr(self._transform, "from_internal_many", None)
+        if self._transform is None:            # element-wise: exp of the log-scale coordinates
+            T = np.where(self.is_log, np.exp(np.where(self.is_log, X, 0.0)), X)
+        elif callable(many):                   # a transform over arrays: all draws at once
+            thetas = many(X)
+            T = np.column_stack([np.asarray(thetas[n], float) for n in self.names])
+        else:
+            T = np.array([self.theta_array(self.from_internal(x)) for x in X])
         out = {n: T[:, i] for i, n in enumerate(self.names)}
         for c in self.derived_names:
             out[c] = X[:, self.coordinate_names.index(c)]

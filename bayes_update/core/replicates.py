@@ -9,41 +9,58 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from surrogates.evaluation import evaluate_many
 
-__all__ = ["RunAt", "control_variate_rows", "lti_response"]
+__all__ = ["ScalesRun", "control_variate_rows", "lti_fit", "lti_response"]
 
 
 @dataclass
-class RunAt:
-    """Picklable ``force -> the model's response at params``: the replicates' runs,
-    sent to an executor's workers."""
+class ScalesRun:
+    """Picklable runner of the likelihood scales' model runs at ``params``, each a
+    task ``(kind, stage, argument)``: ``("force", stage, f)`` the response to force
+    f, ``("refined", stage, f)`` the refined model's, ``("output", stage, x)`` the
+    stage's compared output at internal point x (the span's differences).  One
+    list of tasks for every stage goes to the executor at once, so the workers
+    never wait for one stage to finish before the next starts."""
 
     problem: object
     params: dict
-    model: object = None
+    space: object = None
+    refined: object = None
 
-    def __call__(self, force) -> np.ndarray:
-        return self.problem.run(self.params, force, model=self.model)
+    def __call__(self, task):
+        kind, stage, arg = task
+        if kind == "force":
+            return self.problem.run(self.params, arg)
+        if kind == "refined":
+            return self.problem.run(self.params, arg, model=self.refined)
+        if kind == "output":
+            from bayes_update.core.span import StageOutput
+
+            return StageOutput(self.problem, stage, self.space)(arg)
+        raise ValueError(f"unknown task {kind!r}")
 
 
 def lti_response(problem, params, stage: str, v0, amplitude: float, rng):
     """``du -> the model's response change to a small force change du`` as a linear
     time-invariant system: one model run with a white probe of sd ``amplitude``
-    added to the recorded force; the impulse response g (half the record long)
-    that fits the run's response change by least squares, ``dv = g * probe``
-    causal and from rest as the model ran it (LSQR on the convolution,
-    FFT products); then ``g * du``.  Exact for a linear model whose impulse
-    response has decayed within half the record; for a nonlinear one it is the
+    added to the recorded force, then :func:`lti_fit`."""
+    force = problem.tests[stage].force
+    probe = amplitude * rng.standard_normal(force.size)
+    return lti_fit(probe, problem.run(params, force + probe) - v0)
+
+
+def lti_fit(probe, dv):
+    """The impulse response g (half the record long) that fits a run's response
+    change ``dv`` to a force ``probe`` by least squares, ``dv = g * probe`` causal
+    and from rest as the model ran it (LSQR on the convolution, FFT products);
+    returns ``du -> g * du``.  Exact for a linear model whose impulse response
+    has decayed within half the record; for a nonlinear one it is the
     linearisation about the record, averaged over time."""
     from scipy import signal
     from scipy.sparse.linalg import LinearOperator, lsqr
 
-    force = problem.tests[stage].force
-    n = force.size
+    n = probe.size
     length = n // 2
-    probe = amplitude * rng.standard_normal(n)
-    dv = problem.run(params, force + probe) - v0
     cols = dv[:, None] if dv.ndim == 1 else dv
     reverse = probe[::-1]
     op = LinearOperator((n, length), dtype=float,
@@ -57,13 +74,14 @@ def lti_response(problem, params, stage: str, v0, amplitude: float, rng):
     return response
 
 
-def control_variate_rows(problem, params, stage: str, v0, row, draw, n_replicates: int, k: int,
-                          sig_f: float, rng, executor=None) -> tuple[np.ndarray, np.ndarray]:
+def control_variate_rows(row, lti, cheap: list, pairs: list, pair_runs: list, v0) -> tuple[np.ndarray, np.ndarray]:
     """The replicates' residual rows and their weights with the force noise's
-    response taken from :func:`lti_response` (one model run) and corrected by a
-    control variate: ``k`` replicates run on the model and, with the same noise,
-    on the LTI estimate.  The second moment ``sum_i w_i d_i d_i^T`` is then
-    ``E_LTI[dd^T]`` from the ``n_replicates`` cheap rows (weight 1/K) plus
+    response taken from an LTI estimate (:func:`lti_fit`, one model run) and
+    corrected by a control variate: the ``k`` ``pairs`` of draws run on the model
+    (``pair_runs``) and, with the same noise, on the LTI estimate.  ``cheap``: the
+    K draws (force noise, response noise) on the LTI estimate alone; ``row(noise,
+    dv)``: a replicate's residual row.  The second moment ``sum_i w_i d_i d_i^T``
+    is then ``E_LTI[dd^T]`` from the K cheap rows (weight 1/K) plus
     ``E_model[dd^T] - E_LTI[dd^T]`` from the k pairs (weights +1/k, -1/k):
     unbiased for the model, and precise where the LTI estimate follows the
     model replicate by replicate.  On the beam's default data set (ROM) the
@@ -71,13 +89,10 @@ def control_variate_rows(problem, params, stage: str, v0, row, draw, n_replicate
     the high one (the linearisation varies along the record there); s_n over
     three seeds: 0.0493-0.0516 % and 0.182-0.205 % against 0.0503-0.0540 % and
     0.179-0.195 % from 96 replicates all run on the model (36 runs against 192)."""
-    lti = lti_response(problem, params, stage, v0, sig_f, rng)
-    rows = [row(noise, lti(du)) for du, noise in (draw() for _ in range(n_replicates))]
-    pairs = [draw() for _ in range(k)]        # drawn here, in order: the same numbers with or without executor
-    runs = evaluate_many(RunAt(problem, params), [problem.tests[stage].force + du for du, _ in pairs], executor,
-                         progress=False)
-    pairs_model = [row(noise, v - v0) for (_, noise), v in zip(pairs, runs)]
+    rows = [row(noise, lti(du)) for du, noise in cheap]
+    pairs_model = [row(noise, v - v0) for (_, noise), v in zip(pairs, pair_runs)]
     pairs_lti = [row(noise, lti(du)) for du, noise in pairs]
     D = np.array(rows + pairs_model + pairs_lti)
-    w = np.concatenate([np.full(n_replicates, 1.0 / n_replicates), np.full(k, 1.0 / k), np.full(k, -1.0 / k)])
+    k, n = len(pairs), len(cheap)
+    w = np.concatenate([np.full(n, 1.0 / n), np.full(k, 1.0 / k), np.full(k, -1.0 / k)])
     return D, w

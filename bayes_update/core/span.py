@@ -15,7 +15,7 @@ import numpy as np
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
-__all__ = ["Sensitivity", "output_derivative", "span_of"]
+__all__ = ["Sensitivity", "StageOutput", "derivative_from", "derivative_points", "output_derivative", "span_of"]
 
 
 @dataclass(frozen=True)
@@ -29,7 +29,7 @@ class Sensitivity:
 
 
 @dataclass
-class _StageOutput:
+class StageOutput:
     """Picklable ``x (internal coordinates) -> the stage's compared output``."""
 
     problem: Problem
@@ -48,14 +48,26 @@ def output_derivative(problem: Problem, stage: str, params, space, rel_step: flo
     (the steps and rule of :func:`bayes_update.core.mode.find_mode` with
     ``1e-4`` steps, so a mode search from here can take it as its first
     Jacobian); ``at``: the model's response at ``params`` when already run.  d model runs."""
-    x = space.to_internal(params)
+    x, h, steps, points = derivative_points(space, params, rel_step)
+    y0 = problem.output(stage, problem.components(stage, problem.simulate(params, stage) if at is None else at))
+    outs = evaluate_many(StageOutput(problem, stage, space), points, executor, progress=False)
+    return derivative_from(x, h, steps, y0, outs)
+
+
+def derivative_points(space, params, rel_step: float = 1e-4):
+    """``(x, h, steps, points)`` of :func:`output_derivative`: the internal point, the
+    steps' sizes, their signs applied (backwards at the upper bound) and the d points
+    to run, for a caller that runs them with other work."""
+    x = np.asarray(space.to_internal(params), float)
     box = space.box()
     h = rel_step * (box[:, 1] - box[:, 0])
-    y0 = problem.output(stage, problem.components(stage, problem.simulate(params, stage) if at is None else at))
     steps = np.where(x + h <= box[:, 1], h, -h)
-    points = [x + step * e for step, e in zip(steps, np.eye(len(x)))]
-    outs = evaluate_many(_StageOutput(problem, stage, space), points, executor, progress=False)
-    cols = [(out - y0) / step for out, step in zip(outs, steps)]
+    return x, h, steps, [x + step * e for step, e in zip(steps, np.eye(len(x)))]
+
+
+def derivative_from(x, h, steps, y0, outputs) -> Sensitivity:
+    """The :class:`Sensitivity` from the output at x and at :func:`derivative_points`' points."""
+    cols = [(out - y0) / step for out, step in zip(outputs, steps)]
     return Sensitivity(x=np.asarray(x, float).copy(), output=y0, derivative=np.array(cols).T, steps=h)
 
 

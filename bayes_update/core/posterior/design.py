@@ -44,7 +44,7 @@ class GaussNewtonMean:
 
     def __call__(self, U) -> np.ndarray:
         U = np.atleast_2d(U)
-        q = self.c + 2.0 * U @ self.g + np.einsum("ij,jk,ik->i", U, self.H, U)
+        q = self.c + U @ (2.0 * self.g) + np.sum((U @ self.H) * U, axis=1)
         return np.log1p(np.maximum(q, 0.0))
 
 

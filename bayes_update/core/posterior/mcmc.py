@@ -11,15 +11,27 @@ def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize
               pool=None, progress: bool = True, desc: str = "MCMC (emcee)"):
     """emcee's stretch move from ``x_init`` (n_walkers, d), seeded.
 
-    A vectorised log probability (the GP surrogates) runs with one BLAS thread:
-    its matrices are a few hundred wide at most, where threads cost more than
-    they bring (on a loaded 2-core machine a 72-point GP's triangular solve for
-    16 walkers took 5 ms with the default threads)."""
+    A vectorised log probability (the GP surrogates) runs in
+    :func:`~bayes_update.core.posterior.stretch.stretch_sample`, emcee's own
+    sampler and move over arrays (the same chain for a seed, twice as fast), with
+    one BLAS thread: its matrices are a few hundred wide at most, where threads
+    cost more than they bring (on a loaded 2-core machine a 72-point GP's
+    triangular solve for 16 walkers took 5 ms with the default threads).  A
+    log probability of one point (a model run each) runs in emcee, through
+    ``pool``."""
     import emcee
     from threadpoolctl import threadpool_limits
 
+    from bayes_update.core.posterior.stretch import stretch_sample
+
+    random = np.random.RandomState(np.random.SeedSequence(seed).generate_state(1)[0])
+    if len(x_init) != n_walkers:
+        raise ValueError(f"{len(x_init)} initial points for {n_walkers} walkers")
+    if vectorize and pool is None:
+        with threadpool_limits(1):
+            return stretch_sample(log_prob, x_init, n_steps, random, progress=progress, desc=desc)
     sampler = emcee.EnsembleSampler(n_walkers, x_init.shape[1], log_prob, vectorize=vectorize, pool=pool)
-    sampler.random_state = np.random.RandomState(np.random.SeedSequence(seed).generate_state(1)[0]).get_state()
+    sampler.random_state = random.get_state()
     with threadpool_limits(1 if vectorize else None):
         # a labelled bar on a terminal only (tqdm's disable=None): a log file gets no carriage returns
         sampler.run_mcmc(x_init, n_steps, progress=progress, progress_kwargs={"desc": desc, "disable": None})
@@ -104,7 +116,7 @@ def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
 
 
 class _XSampler:
-    """An emcee sampler run in u, read in x (chains, log probabilities, tau)."""
+    """A sampler run in u (emcee or its vectorised move), read in x (chains, log probabilities, tau)."""
 
     def __init__(self, sampler, whitening: Whitening):
         self.sampler, self.whitening = sampler, whitening

@@ -214,7 +214,7 @@ def _fit_check(run: _Run, theta, where: str) -> None:
     """Does the model fit at all?  A model of the wrong form is told here (after the
     start, or after the MAP when the start is coarse: it fits only part of the
     parameters), not after the design."""
-    errors = output_errors(run.problem, theta)
+    errors = output_errors(run.problem, theta, executor=run.pool)
     run.steps.add_runs(len(errors))
     run.warnings = fit_warnings(run.problem, theta, errors)
     for w in run.warnings:
@@ -282,7 +282,8 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     its residual and Jacobian rescaled to it): the mode stays (the scales move
     little), its Laplace covariance follows the new scales."""
     stages = run.problem.stages
-    new = model_error_at(run.problem, lik, run.space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian)
+    new = model_error_at(run.problem, lik, run.space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian,
+                         executor=run.pool)
     if new is lik:
         return lik, mp
     if run.problem.refined_model() is not None:      # one refined run per stage (else from the misfit)

@@ -139,11 +139,18 @@ class WhitenedLogPosterior:
 
     def gp_points(self, U) -> np.ndarray:
         """Where the GPs are read for the parameters U: U itself, or the
-        adjusted likelihood's argument."""
+        adjusted likelihood's argument (an affine map of U: x(u), the adjustment
+        and u(x) are each affine, so it is folded into one matrix and offset)."""
         U = np.atleast_2d(U)
         if self.adjustment is None:
             return U
-        return self.whitening.to_u(self.adjustment(self.whitening.to_x(U)))
+        if getattr(self, "_affine", None) is None:
+            def composed(V):
+                return self.whitening.to_u(self.adjustment(self.whitening.to_x(V)))
+            offset = composed(np.zeros((1, U.shape[1])))[0]
+            self._affine = (composed(np.eye(U.shape[1])) - offset, offset)    # rows: images of the unit vectors
+        M, offset = self._affine
+        return U @ M + offset
 
     def __call__(self, U):
         U = np.atleast_2d(U)
