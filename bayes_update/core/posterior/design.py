@@ -128,8 +128,8 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
 
 
 def n_initial(settings, d: int) -> int:
-    """Points of the initial design: ``settings.n_initial``, else 6 per dimension."""
-    return settings.n_initial if settings.n_initial else max(8, 6 * d)
+    """Points of the initial design: ``settings.n_initial``, else 4 per dimension (at least 8)."""
+    return settings.n_initial if settings.n_initial else max(8, 4 * d)
 
 
 def n_batch(settings, d: int) -> int:
