@@ -56,7 +56,7 @@ import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
 from bayes_update.core.problem import Problem
-from bayes_update.core.replicates import ScalesRun, control_variate_rows, lti_fit
+from bayes_update.core.replicates import ScalesRun, control_variate_rows, draw_replicates, lti_fit
 from bayes_update.core.span import derivative_from, derivative_points, span_of
 from surrogates.evaluation import evaluate_many
 
@@ -219,7 +219,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     # stage in one call to the executor (the workers never wait for a stage), then the sums
     plans, tasks = [], []
     for i, stage in enumerate(stages):
-        plan = _draw_replicates(problem, stage, int(n_replicates), model_replicates,
+        plan = draw_replicates(problem, stage, int(n_replicates), model_replicates,
                                 np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,))))
         plan["x"], plan["h"], plan["steps"], points = derivative_points(space, params)
         kinds = ([("force", plan["force"])] + [("force", f) for f in plan["forces"]]
@@ -279,37 +279,6 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
                                    model_error_unabsorbed=e_perp,
                                    model_error_source=error_source)
     return Likelihood(scales, residuals, sensitivities)
-
-
-def _draw_replicates(problem: Problem, stage: str, n_replicates: int, model_replicates, rng) -> dict:
-    """A stage's noise replicates, drawn (no model run): ``cheap``, the (force noise,
-    response noise) pairs of the replicates; with ``model_replicates`` k and a noisy
-    force, the LTI estimate's white ``probe`` and the k ``pairs`` run on the model as
-    well, drawn in that order (:func:`bayes_update.core.replicates.control_variate_rows`);
-    ``forces``: the forces the model runs (the probe's first)."""
-    test = problem.tests[stage]
-    # the measured noise of each channel (bayes_update.data.noise: declared, periods,
-    # zero-input sections, quiet band, or the linear test's fit residual carried over)
-    est = problem.noise[test.name]
-    sig_f = est["force"].sd if est["force"].sd is not None else 0.0
-    sig_y = np.array([est[name].sd for name, _ in problem.sensors])
-    sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
-    n, k = test.force.size, len(problem.sensors)
-    shape = (n,) if k == 1 else (n, k)                    # the shape of Problem.run's response
-
-    def draw():
-        return sig_f * rng.standard_normal(n), sig_y * rng.standard_normal(shape)
-
-    plan = {"force": test.force, "estimates": est, "probe": None, "pairs": []}
-    if model_replicates is None or sig_f == 0.0:
-        plan["cheap"] = [draw() for _ in range(n_replicates)]
-        plan["forces"] = [test.force + du for du, _ in plan["cheap"]] if sig_f else []
-    else:
-        plan["probe"] = sig_f * rng.standard_normal(n)
-        plan["cheap"] = [draw() for _ in range(n_replicates)]
-        plan["pairs"] = [draw() for _ in range(int(model_replicates))]
-        plan["forces"] = [test.force + plan["probe"]] + [test.force + du for du, _ in plan["pairs"]]
-    return plan
 
 
 def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian,

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 
-__all__ = ["ScalesRun", "control_variate_rows", "lti_fit", "lti_response"]
+__all__ = ["ScalesRun", "control_variate_rows", "draw_replicates", "lti_fit", "lti_response"]
 
 
 @dataclass
@@ -96,3 +96,34 @@ def control_variate_rows(row, lti, cheap: list, pairs: list, pair_runs: list, v0
     k, n = len(pairs), len(cheap)
     w = np.concatenate([np.full(n, 1.0 / n), np.full(k, 1.0 / k), np.full(k, -1.0 / k)])
     return D, w
+
+
+def draw_replicates(problem, stage: str, n_replicates: int, model_replicates, rng) -> dict:
+    """A stage's noise replicates, drawn (no model run): ``cheap``, the (force noise,
+    response noise) pairs of the replicates; with ``model_replicates`` k and a noisy
+    force, the LTI estimate's white ``probe`` and the k ``pairs`` run on the model as
+    well, drawn in that order (:func:`bayes_update.core.replicates.control_variate_rows`);
+    ``forces``: the forces the model runs (the probe's first)."""
+    test = problem.tests[stage]
+    # the measured noise of each channel (bayes_update.data.noise: declared, periods,
+    # zero-input sections, quiet band, or the linear test's fit residual carried over)
+    est = problem.noise[test.name]
+    sig_f = est["force"].sd if est["force"].sd is not None else 0.0
+    sig_y = np.array([est[name].sd for name, _ in problem.sensors])
+    sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
+    n, k = test.force.size, len(problem.sensors)
+    shape = (n,) if k == 1 else (n, k)                    # the shape of Problem.run's response
+
+    def draw():
+        return sig_f * rng.standard_normal(n), sig_y * rng.standard_normal(shape)
+
+    plan = {"force": test.force, "estimates": est, "probe": None, "pairs": []}
+    if model_replicates is None or sig_f == 0.0:
+        plan["cheap"] = [draw() for _ in range(n_replicates)]
+        plan["forces"] = [test.force + du for du, _ in plan["cheap"]] if sig_f else []
+    else:
+        plan["probe"] = sig_f * rng.standard_normal(n)
+        plan["cheap"] = [draw() for _ in range(n_replicates)]
+        plan["pairs"] = [draw() for _ in range(int(model_replicates))]
+        plan["forces"] = [test.force + plan["probe"]] + [test.force + du for du, _ in plan["pairs"]]
+    return plan
