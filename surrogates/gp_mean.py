@@ -5,7 +5,9 @@ check their arguments and rescale the training points at every call: for the
 64 walkers of an emcee step on a 50-point GP that is three quarters of the
 call.  :class:`KernelMean` folds the input scaling, the length scales, the
 constant and the output normalisation into arrays once, after the fit, and
-evaluates ``m(X) + k(X, X_train) @ alpha`` with one ``cdist``.  It reads the
+evaluates ``m(X) + k(X, X_train) @ alpha`` in one compiled loop (numba: the
+distances, the Matern correlation and the weighted sum without the n x m
+temporaries numpy makes, 3-4 times faster on a step's 64 x 50).  It reads the
 default kernel of :class:`~surrogates.gp.GPSurrogate` only; any other kernel
 keeps scikit-learn's path (:func:`kernel_mean` returns None).
 """
@@ -14,23 +16,48 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.spatial.distance import cdist
+from numba import njit
 from sklearn.gaussian_process.kernels import ConstantKernel, Matern, Product, Sum, WhiteKernel
 
 __all__ = ["KernelMean", "kernel_mean"]
 
 
-def _matern(dists: np.ndarray, nu: float) -> np.ndarray:
-    """Matern correlation of scaled distances, as scikit-learn's ``Matern`` writes it."""
-    if nu == 0.5:
-        return np.exp(-dists)
-    if nu == 1.5:
-        k = dists * math.sqrt(3.0)
-        return (1.0 + k) * np.exp(-k)
-    if nu == 2.5:
-        k = dists * math.sqrt(5.0)
-        return (1.0 + k + k * k / 3.0) * np.exp(-k)
-    return np.exp(-0.5 * dists * dists)       # nu = inf (the squared exponential)
+#: the Matern smoothness as the compiled loop's switch
+_NU_CODES = {0.5: 0, 1.5: 1, 2.5: 2, math.inf: 3}
+
+
+@njit(cache=True)
+def _matern_sum(X, lower, width, ls, X_train, weights, nu_code):
+    """``sum_j w_j k(x_i, t_j)`` per row of X (input units), k the Matern correlation
+    of the scaled distance as scikit-learn's ``Matern`` writes it (unit box, then
+    the length scales; the distance's squares summed in input order)."""
+    n, d = X.shape
+    out = np.empty(n)
+    xs = np.empty(d)
+    sqrt3, sqrt5 = math.sqrt(3.0), math.sqrt(5.0)
+    for i in range(n):
+        for k in range(d):
+            xs[k] = (X[i, k] - lower[k]) / width[k] / ls[k]
+        total = 0.0
+        for j in range(X_train.shape[0]):
+            r2 = 0.0
+            for k in range(d):
+                t = xs[k] - X_train[j, k]
+                r2 += t * t
+            r = math.sqrt(r2)
+            if nu_code == 0:
+                c = math.exp(-r)
+            elif nu_code == 1:
+                q = r * sqrt3
+                c = (1.0 + q) * math.exp(-q)
+            elif nu_code == 2:
+                q = r * sqrt5
+                c = (1.0 + q + q * q / 3.0) * math.exp(-q)
+            else:
+                c = math.exp(-0.5 * r2)
+            total += c * weights[j]
+        out[i] = total
+    return out
 
 
 class KernelMean:
@@ -41,19 +68,19 @@ class KernelMean:
 
     def __init__(self, lower, width, length_scale, constant, nu, X_train, alpha, y_mean, y_std, prior_mean=None):
         d = len(lower)
-        ls = np.broadcast_to(np.asarray(length_scale, float), (d,))
+        ls = np.ascontiguousarray(np.broadcast_to(np.asarray(length_scale, float), (d,)))
         # the same operations as scikit-learn's, in its order (a GP's alpha can reach 1e5 and
         # amplify a reordered rounding): unit box, then the length scales
         self.lower, self.width, self.ls = np.asarray(lower, float), np.asarray(width, float), ls
         self.X_train = np.asarray(X_train, float) / ls        # unit-box points / length scales
         self.weights = float(constant) * float(y_std) * np.asarray(alpha, float).reshape(-1)
         self.offset = float(y_mean)
-        self.nu = float(nu)
+        self.nu_code = _NU_CODES[float(nu)]
         self.prior_mean = prior_mean
 
     def __call__(self, X) -> np.ndarray:
         X = np.atleast_2d(np.asarray(X, float))
-        mu = _matern(cdist((X - self.lower) / self.width / self.ls, self.X_train), self.nu) @ self.weights + self.offset
+        mu = _matern_sum(X, self.lower, self.width, self.ls, self.X_train, self.weights, self.nu_code) + self.offset
         if self.prior_mean is not None:
             mu = mu + np.asarray(self.prior_mean(X), float).reshape(-1)
         return mu

@@ -150,6 +150,8 @@ def test_the_beams_array_transform_gives_the_per_point_prior():
     assert 0.2 < np.isfinite(ref).mean() < 0.8                    # both sides of the support
     np.testing.assert_array_equal(np.isfinite(fast), np.isfinite(ref))
     np.testing.assert_allclose(fast[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0, atol=1e-12)
+    rows = np.all(np.isfinite(X), axis=1)                         # an MCMC step's points: all finite
+    np.testing.assert_array_equal(space.log_prior(X[rows]), fast[rows])
     # the reported draws (ParameterSet.report) alike, in the array and the per-point forms
     inside = X[np.isfinite(ref)]
     fast_report, slow_report = space.report(inside), slow.report(inside)

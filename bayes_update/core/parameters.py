@@ -173,12 +173,16 @@ class ParameterSet:
         if callable(many) and callable(getattr(self._transform, "log_jacobian_many", None)):
             # a transform over arrays (optional): all points at once (the beam's: an MCMC on the
             # surrogates spent 64 % of its time in the per-point loop below)
-            Xf = np.where(finite[:, None], X, 0.0)
+            all_finite = bool(finite.all())
+            Xf = X if all_finite else np.where(finite[:, None], X, 0.0)
             thetas = many(Xf)
             T = np.column_stack([np.asarray(thetas[n], float) for n in self.names])
-            ok = finite & np.all((T >= self.low) & (T <= self.high), axis=1)
-            logs = np.log(np.where(self.is_log[None, :] & ok[:, None], T, 1.0)).sum(axis=1)
-            out[ok] = (np.asarray(self._transform.log_jacobian_many(Xf), float) - logs)[ok]
+            ok = np.all((T >= self.low) & (T <= self.high), axis=1)
+            ok = ok if all_finite else ok & finite
+            lp = np.asarray(self._transform.log_jacobian_many(Xf), float)
+            if self.is_log.any():
+                lp = lp - np.log(np.where(self.is_log[None, :] & ok[:, None], T, 1.0)).sum(axis=1)
+            out[ok] = lp[ok]
             return out
         # a model's transform takes one point at a time: plain floats, since an MCMC on the
         # surrogates asks for the prior of some 10^5 points (numpy's per-call cost on 4-vectors

@@ -80,7 +80,7 @@ class PosteriorSettings:
         if self.thin < 1 or self.box_attempts < 1:
             raise ValueError("thin and box_attempts must be >= 1")
         if 0 < self.n_initial < 8:
-            raise ValueError("n_initial must be 0 (8 per parameter) or at least 8")
+            raise ValueError("n_initial must be 0 (4 per parameter, at least 8) or at least 8")
         if not self.box_sd > 1:
             raise ValueError("box_sd must be > 1")
 

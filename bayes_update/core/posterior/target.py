@@ -159,6 +159,8 @@ class WhitenedLogPosterior:
         # the GPs are read where they were trained (the u box); the adjusted argument G
         # may lie a little outside the prior near a bound, where the GP is still smooth
         inside = np.all((G >= self.box[:, 0]) & (G <= self.box[:, 1]), axis=1) & np.isfinite(lp)
+        if inside.all():                    # the usual step: no copies of the walkers inside
+            return lp + Likelihood.log_likelihood_from_z({st: gp.mean_transformed(G) for st, gp in self.gps.items()})
         out = np.full(len(U), -np.inf)
         if inside.any():
             z = {st: gp.mean_transformed(G[inside]) for st, gp in self.gps.items()}
