@@ -284,7 +284,7 @@ def test_top_weights_exact_for_quadratic_drive(damping):
     the algebraic limit D = 0 to a nearly frozen top."""
     from scipy.integrate import quad
 
-    from fe.rom import _top_weights
+    from fe._rom_kernels import _top_weights
 
     stiffness, h, u0 = KB + 180e3, 1 / 1024, -1.6e-5
     r = np.polynomial.Polynomial([-74.0, 3e3, -4e6])  # N, N/s, N/s^2
