@@ -39,7 +39,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
     (eta, P_eff): the low level pins eta and P_eff, and along the band the
     nonlinear misfit can have more than one valley).  ``frugal``: one search,
     from the best of ``x0`` and those starts (stopping when an iteration gains
-    less than 0.01 in log L, forward differences at the mode), and a second from
+    less than FRUGAL_TOLERANCE in log L, forward differences at the mode), and a second from
     the next best only where the first ends on a bound of the prior.  The prior's density in
     the internal coordinates is left out of the mode (the beam's
     (K_b + k_s) / K_b varies by < 1 % over its posterior) and kept in ``value``."""
