@@ -46,11 +46,12 @@ wider, up to ``box_attempts`` times.
 
 Modules: :mod:`.settings` (sizes), :mod:`.target` (log posteriors), :mod:`.laplace`
 (MAP, box), :mod:`.design` (surrogates), :mod:`.mcmc` (emcee, ArviZ),
-:mod:`.predictive`, :mod:`.sampler` (the pipeline).  Writing the results:
+:mod:`.predictive`, :mod:`.sampler` (the pipeline), :mod:`.result` (what it returns).  Writing the results:
 :mod:`bayes_update.reports.posterior`.
 """
 
-from bayes_update.core.posterior.sampler import PosteriorResult, sample
+from bayes_update.core.posterior.result import PosteriorResult
+from bayes_update.core.posterior.sampler import sample
 from bayes_update.core.posterior.settings import PosteriorSettings
 
 __all__ = ["PosteriorResult", "PosteriorSettings", "sample"]

@@ -62,7 +62,7 @@ def log_evidence(log_density, draws, n: int = 4000, seed=0, df: float = 5.0, wid
 
 
 def surrogate_log_evidence(result, n: int = 4000, seed: int = 0) -> Evidence:
-    """log p(data) of a :class:`~bayes_update.core.posterior.sampler.PosteriorResult`
+    """log p(data) of a :class:`~bayes_update.core.posterior.result.PosteriorResult`
     from its surrogate (no model run), in the internal coordinates, up to the
     prior's constant (the log priors drop it): for comparing models under one
     prior.  A direct result has no surrogate: evaluate

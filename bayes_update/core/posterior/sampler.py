@@ -1,10 +1,10 @@
-"""The pipeline of :func:`sample` (the package docstring) and its result."""
+"""The pipeline of :func:`sample` (the package docstring)."""
 from __future__ import annotations
 
 import dataclasses
 import warnings
 from concurrent.futures import Executor
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -16,11 +16,12 @@ from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors,
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates, gauss_newton_means
-from bayes_update.core.posterior.laplace import MapResult, _map_result, capped_covariance, find_map, local_box
+from bayes_update.core.posterior.laplace import _map_result, capped_covariance, find_map, local_box
 from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
                                               add_posterior_predictive, initial_walkers, run_emcee, summarize,
                                               to_inference_data)
 from bayes_update.core.posterior.predictive import posterior_predictive
+from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
                                                 WhitenedLogPosterior, _ExecutorPool)
@@ -29,79 +30,6 @@ from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
 from surrogates.evaluation import default_executor
-
-# ------------------------------------------------------------------ results
-@dataclass
-class PosteriorResult:
-    idata: object
-    summary: dict
-    likelihood: Likelihood
-    space: ParameterSet
-    map: MapResult
-    box: np.ndarray
-    start: dict
-    diagnostics: dict
-    timing: dict
-    n_model_runs: dict
-    settings: PosteriorSettings
-    direct: bool
-    problem: Problem = field(repr=False, default=None)
-    surrogates: dict = field(repr=False, default_factory=dict)
-    design: dict = field(repr=False, default_factory=dict)
-    draws: np.ndarray = field(repr=False, default=None)     # flat internal-coordinate draws
-    extras: dict = field(repr=False, default_factory=dict)     # what a study adds (the beam: linear_only)
-    seeds: list = field(repr=False, default_factory=list)     # the pipeline's spawned seeds
-    predictive: dict = field(repr=False, default_factory=dict)
-    sensitivity: dict = field(repr=False, default_factory=dict)
-    n_model_runs_reused: dict = field(default_factory=dict)  # found in the cache instead of run
-    target: object = field(repr=False, default=None)   # the surrogate log posterior the chain sampled (in u)
-    adjustment: object = field(repr=False, default=None)   # the likelihood's curvature adjustment, if any
-
-    def log_evidence(self, n: int = 4000, seed: int = 0):
-        """log p(data) of the surrogate posterior, no model run
-        (:func:`~bayes_update.core.posterior.evidence.surrogate_log_evidence`)."""
-        from bayes_update.core.posterior.evidence import surrogate_log_evidence
-
-        return surrogate_log_evidence(self, n, seed)
-
-    def summary_json(self) -> dict:
-        return {"parameters": self.summary, "map": dict(zip(self.space.coordinate_names, map(float, self.map.x))),
-                "map_units": dict(self.space.units), "likelihood": self.likelihood.to_dict(),
-                "prior": self.space.to_dict(),
-                "laplace_box": dict(zip(self.space.coordinate_names, self.box.tolist())),
-                "start": self.start, "diagnostics": self.diagnostics, "direct": self.direct,
-                "settings": asdict(self.settings),
-                **{name: {k: v for k, v in extra.items() if not k.startswith("_")}
-                   for name, extra in self.extras.items()},
-                "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
-                "sensitivity": self.sensitivity,
-                "fit_warnings": self.diagnostics.get("fit_warnings", []),
-                "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
-                "representation_floor": {self.problem.tests[st].name: self.problem.representation_floor(st)
-                                         for st in self.problem.stages}}
-
-    def summary_table(self) -> str:
-        """Markdown table of the posterior: mean, sd, 94 % HDI, R-hat and bulk ESS of
-        every reported variable, in its unit; the mean and the HDI with the digits
-        the sd resolves (:mod:`bayes_update.core.numbers`)."""
-        from bayes_update.core.numbers import format_sd, format_value
-
-        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
-        for var, v in self.summary.items():
-            unit = f" [{v['units']}]" if v["units"] else ""
-            sd = v["sd"]          # the mean and the HDI to the decimal place of sd's second digit
-            lines.append(f"| {var}{unit} | {format_value(v['mean'], sd)} | {format_sd(sd)} | "
-                         f"{format_value(v['hdi_3%'], sd)} - {format_value(v['hdi_97%'], sd)} | "
-                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
-        return "\n".join(lines)
-
-    def run_json(self) -> dict:
-        """How the run went (not what it found): wall time per step [s] and model
-        runs per step, which a resumed run or another machine changes while the
-        posterior stays the same."""
-        return {"timing_s": self.timing, "n_model_runs": self.n_model_runs,
-                "n_model_runs_reused": self.n_model_runs_reused}
-
 
 def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
