@@ -36,8 +36,6 @@ Every model run goes through the executor; the least-squares engine is
 from __future__ import annotations
 
 import inspect
-
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -48,20 +46,18 @@ from bayes_update.core.logs import info
 import volterra
 
 from bayes_update.core.checks import disagreement_sentence, fit_warnings, output_errors, test_disagreement
+from bayes_update.core.identifiability import gauss_newton_covariance, parameter_sd, unidentified_directions
 from bayes_update.core.mode import ResidualFunction, find_mode
 from bayes_update.core.model import check_model_on
 from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
 from bayes_update.core.problem import Problem
 
-__all__ = ["Calibration", "TwoStage", "calibrate_model", "find_start", "problem_for", "screen_linear", "two_stage",
-           "unidentified_directions"]
+__all__ = ["Calibration", "TwoStage", "calibrate_model", "find_start", "problem_for", "screen_linear", "two_stage"]
 
 #: a step of this fraction of a prior range probes the linear test's sensitivity
 SCREEN_STEP = 0.05
 #: a parameter is "linear" when its step moves y1 by at least this fraction of the largest move
 SCREEN_THRESHOLD = 0.05
-#: a direction is unidentified when one prior range along it changes chi^2 by less than this^2
-IDENTIFIED_SINGULAR_VALUE = 2.0
 
 
 @dataclass(frozen=True)
@@ -161,23 +157,6 @@ def screen_linear(problem: Problem, space, executor=None) -> tuple[list, dict, i
         raise RuntimeError("the linear test's output does not move with any parameter at the prior centre")
     names = [n for n, m in zip(space.names, move) if m >= SCREEN_THRESHOLD * move.max()]
     return names, dict(zip(space.names, move.tolist())), len(points)
-
-
-def unidentified_directions(jacobian, widths, names, rows_to_noise=None) -> list:
-    """Directions (unit vectors in prior-range units) along which ``jacobian``
-    (residual per internal coordinate; rows in noise units after multiplying
-    by ``rows_to_noise``) changes chi^2 by less than 4 over one prior range."""
-    J = np.asarray(jacobian, float) * np.asarray(widths, float)
-    if rows_to_noise is not None:
-        J = J * np.asarray(rows_to_noise, float)[:, None]
-    _, S, Vt = np.linalg.svd(J, full_matrices=False)
-    out = []
-    for s, v in zip(S, Vt):
-        if s < IDENTIFIED_SINGULAR_VALUE:
-            v = v * np.sign(v[np.argmax(np.abs(v))])
-            out.append({"direction": {n: round(float(c), 4) for n, c in zip(names, v)},
-                        "sd_over_range": float(1.0 / s) if s > 0 else math.inf})
-    return out
 
 
 def _noise_rows(problem: Problem, fun: ResidualFunction) -> np.ndarray:
@@ -330,32 +309,7 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     disagree = test_disagreement(mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names,
                                  upper - lower, dof)
     return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree,
-                    covariance=_gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
-
-
-def _gauss_newton_covariance(J, widths) -> np.ndarray:
-    """(J^T J)^-1 of a Jacobian in noise units, inverted in prior-range units (a
-    direction the data do not constrain comes out wide, not infinite)."""
-    Js = np.asarray(J, float) * widths
-    cov = np.linalg.pinv(Js.T @ Js, rcond=1e-12, hermitian=True)
-    return cov * np.outer(widths, widths)
-
-
-def parameter_sd(space, x, covariance) -> dict:
-    """{name: sd in the parameter's unit} of internal point ``x`` with covariance
-    ``covariance`` (the delta method through ``space.to_parameters``)."""
-    x = np.asarray(x, float)
-    names = list(space.names)
-    h = 1e-6 * np.maximum(np.abs(np.diff(space.box(), axis=1)[:, 0]), 1e-12)
-    G = np.empty((len(names), len(x)))
-    for j in range(len(x)):
-        up, down = x.copy(), x.copy()
-        up[j] += h[j]
-        down[j] -= h[j]
-        t_up, t_down = space.to_parameters(up), space.to_parameters(down)
-        G[:, j] = [(t_up[n] - t_down[n]) / (2 * h[j]) for n in names]
-    var = np.einsum("ij,jk,ik->i", G, covariance, G)
-    return {n: float(np.sqrt(max(v, 0.0))) for n, v in zip(names, var)}
+                    covariance=gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
 
 
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,

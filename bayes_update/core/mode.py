@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from bayes_update.core.identifiability import gauss_newton_covariance
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
@@ -107,11 +108,7 @@ class ModeResult:
         if scale is None:
             scale = np.linalg.norm(J, axis=0)
             scale = np.where(scale > 0, 1.0 / np.maximum(scale, 1e-300), 1.0)
-        scale = np.asarray(scale, float)
-        Js = J * scale
-        w, V = np.linalg.eigh(Js.T @ Js)
-        w = np.maximum(w, floor * max(w.max(), 1e-300))
-        return ((V / w) @ V.T) * np.outer(scale, scale)
+        return gauss_newton_covariance(J, scale, floor)
 
 
 def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.ndarray, int]:
