@@ -28,7 +28,11 @@ __all__ = ["KernelMean", "kernel_mean"]
 _NU_CODES = {0.5: 0, 1.5: 1, 2.5: 2, math.inf: 3}
 
 
-@njit(cache=True)
+# not cache=True: numba would write its cache beside this file, which in an installed package is
+# site-packages/surrogates/__pycache__, files pip never removes, so that an uninstall or an editable
+# reinstall leaves an empty namespace package shadowing the real one (fe/_numba_cache.py sends fe's
+# to the user's cache; this package knows nothing of fe).  Compiling costs some 0.3 s per process.
+@njit
 def _matern_sum(X, lower, width, ls, X_train, weights, nu_code):
     """``sum_j w_j k(x_i, t_j)`` per row of X (input units), k the Matern correlation
     of the scaled distance as scikit-learn's ``Matern`` writes it (unit box, then

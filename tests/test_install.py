@@ -66,6 +66,10 @@ def test_install_run_uninstall_leaves_nothing(tmp_path, wheel):
     script = python.parent / ("bayes-update.exe" if os.name == "nt" else "bayes-update")
     _run([str(script), "simulate", "--model", "rom", "--out", str(tmp_path / "out")], env=env, cwd=tmp_path)
     assert (tmp_path / "out" / "simulate.json").is_file()
+    # the GP mean's compiled loop (surrogates.gp_mean) as a sampler calls it
+    _run([str(python), "-c", "import numpy as np; from surrogates.gp_mean import _matern_sum; "
+          "print(_matern_sum(np.ones((3, 2)), np.zeros(2), np.ones(2), np.ones(2), np.ones((4, 2)), np.ones(4), 2))"],
+         env=env, cwd=tmp_path)
     # numba compiled the ROM's kernels into the user's cache, not into site-packages
     assert list((tmp_path / "user-cache" / "bayes-update" / "numba").rglob("*.nbi"))
     assert not [p for pkg in PACKAGES for p in (purelib / pkg).rglob("*.nb[ic]")]
