@@ -37,7 +37,8 @@ def gauss_newton_covariance(J, widths, floor: float = 1e-10) -> np.ndarray:
     data do not constrain) is raised to it: that direction comes out very wide, not
     infinite or negative (nor of zero width, as a pseudo-inverse would make it)."""
     widths = np.asarray(widths, float)
-    w, V = np.linalg.eigh((np.asarray(J, float) * widths).T @ (np.asarray(J, float) * widths))
+    Js = np.asarray(J, float) * widths
+    w, V = np.linalg.eigh(Js.T @ Js)
     w = np.maximum(w, floor * max(w.max(), 1e-300))
     return ((V / w) @ V.T) * np.outer(widths, widths)
 
