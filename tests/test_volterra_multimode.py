@@ -277,10 +277,13 @@ def test_chain_modes_sorted_by_energy_and_n_modes_override(chain):
     from volterra import plot_stabilisation
     assert isinstance(plot_stabilisation(est), Figure)
     basis = KautzBasis.from_data(u, acc, CH_FS, period_samples=CH_PERIOD)
-    assert basis.pole(1) == est.poles[0]                       # the dominant mode
-    assert basis.poles[2] == basis.poles[3] == (est.poles[0],)  # orders 2-3: nonlinear_modes=1
+    # the same modes, polished in the basis's form (volterra.polish: within zeta0 or 0.5 % in frequency,
+    # a factor 2 in damping, of the modal poles), the dominant first; orders 2-3: nonlinear_modes=1
+    for mine, modal in zip(basis.poles[1], est.poles):
+        assert mine.freq_hz == pytest.approx(modal.freq_hz, rel=max(modal.damping_ratio, 0.005))
+        assert 0.5 < mine.damping_ratio / modal.damping_ratio < 2.0
+    assert basis.poles[2] == basis.poles[3] == (basis.pole(1),)
     assert basis.dim(1) == 7 and basis.dim(2) == 3 and basis.dim(3) == 7
-    assert basis.subset((1,)).poles[1] == est.poles
 
 
 def test_periodic_h1_is_leakage_free():

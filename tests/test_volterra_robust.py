@@ -306,15 +306,18 @@ def test_pure_noise_output_raises(wiener):
         KautzBasis.from_data(wiener["u_low"], y, W_FS)
 
 
-def test_pole_drifting_to_dc_raises(wiener):
+def test_a_slow_drift_does_not_move_the_pole(wiener):
     """An output dominated by a slow drift (a random walk of 10 x the response's
-    rms): the H1 peak moves to 0.35 Hz (measured), where its half-power points
-    are not in the band; refined from the true pole, the linear fit leaves
-    99 % of the record unexplained.  Both errors say to check for a drift."""
+    rms).  The previous estimator's Welch H1 peak moved to 0.35 Hz and it raised;
+    the local polynomial method takes the drift in its transient term, and
+    from_data finds the pole (measured 46.9993 Hz, zeta 0.03518; the targets of
+    the clean record's test, 0.05 zeta fn, and 10 %).  refine_pole (the one-pole
+    tool, a time-domain fit) refined from the true pole still leaves 99 % of the
+    record unexplained and says to check for a drift."""
     rw = np.cumsum(np.random.default_rng(5).standard_normal(W_N))
     y = wiener["y_low"] + 10 * np.std(wiener["y_low"]) * rw / np.std(rw)
-    with pytest.raises(PoleEstimationError, match="drift"):
-        KautzBasis.from_data(wiener["u_low"], y, W_FS)
+    p = KautzBasis.from_data(wiener["u_low"], y, W_FS).pole(1)
+    assert abs(p.freq_hz - W_FN) < 0.05 * D and p.damping_ratio == pytest.approx(W_ZETA, rel=0.1)
     with pytest.raises(PoleEstimationError, match="unexplained.*drift"):
         refine_pole(wiener["u_low"], y, KautzPole.from_modal(W_FN, W_ZETA, W_FS))
 
@@ -339,8 +342,10 @@ def test_refine_pole_stays_in_its_neighbourhood(wiener):
 def test_record_that_a_linear_fit_cannot_explain_raises():
     """0 dB output noise on the band-limited noise record: refined from the true
     pole, the linear fit leaves 71 % of ||y|| unexplained (measured), more than
-    the default 50 %; from_data raises too (here its H1 peak is a noise line
-    at 163 Hz, whose refinement runs to an edge)."""
+    the default 50 %, and refine_pole raises.  from_data raised too before (its
+    Welch H1 peak was a noise line at 163 Hz); it now reads the mode through the
+    noise, its peak clear of it on the local polynomial method's FRF (measured
+    73.41 Hz, zeta 0.0282: within the 1 % and 10 % of the noise records above)."""
     osc = Oscillator(fn=BN_FN, zeta=BN_ZETA, m=0.01)
     rng = np.random.default_rng(7399)
     u = sosfilt(butter(4, (40.0, 130.0), "bandpass", fs=BN_FS, output="sos"), rng.standard_normal(8192))
@@ -348,5 +353,5 @@ def test_record_that_a_linear_fit_cannot_explain_raises():
     y = add_noise(osc.simulate(u, BN_FS)["x"], rng, snr_db=0.0)
     with pytest.raises(PoleEstimationError, match="unexplained"):
         refine_pole(u, y, KautzPole.from_modal(BN_FN, BN_ZETA, BN_FS))
-    with pytest.raises(PoleEstimationError):
-        KautzBasis.from_data(u, y, BN_FS)
+    p = KautzBasis.from_data(u, y, BN_FS).pole(1)
+    assert abs(p.freq_hz / BN_FN - 1) < 0.01 and abs(p.damping_ratio / BN_ZETA - 1) < 0.10

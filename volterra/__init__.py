@@ -32,6 +32,7 @@ from .model import VolterraModel
 from .fit import FitInfo, fit_volterra
 from .frf import estimate_h1, excited_band, periodic_h1
 from .modes import ModalEstimate, PoleEstimationError, estimate_modes
+from .periods import PeriodLayout, find_periods
 from .projector import VolterraProjector
 from .poles import pole_from_frf, pole_from_modal, refine_bounds, refine_pole
 from .regressors import index_tuples, multiplicity, n_terms
@@ -53,6 +54,8 @@ __all__ = [
     "PoleEstimationError",
     "estimate_modes",
     "ModalEstimate",
+    "find_periods",
+    "PeriodLayout",
     "estimate_h1",
     "periodic_h1",
     "excited_band",

@@ -62,6 +62,7 @@ from ._validation import MAX_ORDER, _modes_of, _normalise_n_functions, _per_orde
 from .gobf import gobf_filter_rows, gobf_frequency_response, n_sequence_functions, pole_sequence
 from .kautz import KautzPole, RealPole
 from .modes import estimate_modes
+from .polish import polish
 from .regressors import index_tuples, n_terms, regressor_matrix, regressor_rows
 
 __all__ = ["KautzBasis", "DEFAULT_N_FUNCTIONS", "ROBUST_LINEAR_N_FUNCTIONS", "MAX_ORDER"]
@@ -178,22 +179,28 @@ class KautzBasis:
         """Basis of every mode :func:`volterra.estimate_modes` resolves in a
         low-level (essentially linear) record's excited, coherent band.
 
-        LSCF fit of H1 read on a stabilisation diagram, then (``refine``) the
-        poles minimising the residual of the record's linear fit in the basis.
-        ``y``: (n,) or (n, n_sensors), the sensors share the poles; ``f_range``
-        [Hz] narrows the band; ``n_modes`` [-] overrides the count;
-        ``period_samples`` [samples]: period of a periodic excitation.  Modes
+        LSCF fits of the FRF lines read on stabilisation diagrams, the modes
+        that stand out of the noise kept, then (``refine``) the poles that
+        minimise the residual of the modal fit (modes plus residual terms for
+        those outside the band), then polished on the record's linear fit in
+        the basis's own order-1 form (:mod:`volterra.polish`).  ``y``: (n,) or (n, n_sensors), the sensors
+        share the poles; ``f_range`` [Hz] narrows the band; ``n_modes`` [-]
+        overrides the count; ``period_samples`` [samples]: period of a periodic
+        excitation (default: found in ``u`` when it repeats).  Modes
         come sorted by response energy, so :meth:`pole` is the dominant one;
         orders 2 and 3 get the first ``nonlinear_modes`` (default 1; None:
         all).  ``options`` go to :func:`volterra.estimate_modes`.  Raises
         :class:`volterra.PoleEstimationError` when no mode can be found.
         """
-        # the poles are refined on the linear fit in the order-1 form they will serve in
-        ft1 = bool(feedthrough) if isinstance(feedthrough, (bool, np.bool_)) else 1 in tuple(feedthrough)
         est = estimate_modes(u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine,
-                             period_samples=period_samples, feedthrough=ft1, **options)
-        return cls.from_modes(est.poles, n_functions, feedthrough,
-                              None if nonlinear_modes is None else min(nonlinear_modes, len(est.poles)))
+                             period_samples=period_samples, **options)
+        poles = est.poles
+        if refine:
+            # the basis's own order-1 form: the poles it serves best, near the modal ones (volterra.polish)
+            ft1 = bool(feedthrough) if isinstance(feedthrough, (bool, np.bool_)) else 1 in tuple(feedthrough)
+            poles, _ = polish(est.lines, poles, ft1)
+        return cls.from_modes(poles, n_functions, feedthrough,
+                              None if nonlinear_modes is None else min(nonlinear_modes, len(poles)))
 
     # ------------------------------------------------------------- properties
     @property

@@ -103,9 +103,10 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
 
     The PSD is a Welch average (Hann, half-overlapping segments of
     ``nperseg`` samples, default :func:`default_nperseg`) of the input with
-    every segment's mean removed, and the two lowest resolved lines (below
-    ``2 fs / nperseg``, inside the window's main lobe around DC) are left
-    out: an input offset, however large, does not move the band.  For a
+    every segment's linear trend removed, and the two lowest resolved lines
+    (below ``2 fs / nperseg``, inside the window's main lobe around DC) are
+    left out: an input offset, however large, does not move the band, nor
+    does a slow drift of the input sensor.  For a
     chirp this is the sweep band as the windowed spectra of
     :func:`estimate_h1` see it (the window tapers the record's first and last
     half segment: a chirp 20 -> 60 Hz that starts at full amplitude at t = 0
@@ -128,7 +129,9 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
     n = max(seg)
     total = 0.0
     for r, m in zip(records, seg):
-        f, p = welch(r, **_welch_kw(fs, "hann", m, n))
+        # a slow drift of the input sensor puts its power into the lowest lines, at any level
+        # against the excitation's: each segment's linear trend removed, not only its mean
+        f, p = welch(r, **{**_welch_kw(fs, "hann", m, n), "detrend": "linear"})
         total = total + p
     resolved = f >= 2.0 * fs / n
     if not np.any(total[resolved] > 0):

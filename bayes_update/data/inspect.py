@@ -56,17 +56,16 @@ def _detrended(x) -> np.ndarray:
 
 
 def find_modes(force, response, fs: float, period_samples=None) -> list:
-    """``[(freq_hz, damping_ratio), ...]`` of every mode a record shows in its
-    excited, coherent band, sorted by frequency: :func:`volterra.estimate_modes`
-    (an LSCF fit of H1 on a stabilisation diagram, the sensors sharing the poles,
-    refined on the record's linear fit; period-synchronous H1 with
-    ``period_samples``).  Offsets and linear drifts are removed first.  Raises
+    """``[(freq_hz, damping_ratio), ...]`` of every mode a record shows in the band
+    it excites, sorted by frequency: :func:`volterra.estimate_modes` with its
+    defaults (the same modes ``calibrate``'s basis takes; period-synchronous
+    spectra when the force repeats, with ``period_samples`` or without).
+    Offsets and linear drifts are removed first.  Raises
     :class:`volterra.PoleEstimationError` (a ValueError) when no mode is found.
     """
     u, y = _detrended(force), np.asarray(response, float)
     y = _detrended(y) if y.ndim == 1 else np.column_stack([_detrended(c) for c in y.T])
-    band = excited_band(u, fs)
-    est = volterra.estimate_modes(u, y, fs, f_range=band, period_samples=period_samples)
+    est = volterra.estimate_modes(u, y, fs, period_samples=period_samples)
     return sorted((float(p.freq_hz), float(p.damping_ratio)) for p in est.poles)
 
 

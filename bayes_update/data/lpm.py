@@ -2,7 +2,8 @@
 
 Pintelon, Schoukens, Vandersteen and Barbé, "Estimation of nonparametric
 noise and FRF models for multivariable systems", MSSP 24 (2010); Pintelon &
-Schoukens, System Identification (2012), sec. 7.2.  On any excitation
+Schoukens, System Identification (2012), sec. 7.2 (the fit itself is
+:func:`volterra.lpm.local_polynomial`).  On any excitation
 (random included, no periods needed) the DFT of the output around each
 frequency line k is fitted by
 
@@ -46,9 +47,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage, stats
 
-#: half-width R of the local window [lines] and degree of the local polynomials
-DEFAULT_HALF_WIDTH = 6
-DEFAULT_DEGREE = 4
+from volterra.lpm import DEFAULT_DEGREE, DEFAULT_HALF_WIDTH, local_polynomial
+
+#: half-width R of the local window [lines] and degree of the local polynomials: those of
+#: volterra.lpm (the one local polynomial fit, which volterra.estimate_modes reads FRFs with)
 #: a line's residual variance is unresolved (model error) beyond the running median of
 #: MEDIAN_WINDOWS local windows' worth of lines times the chi-square quantile of 1 -
 #: UNRESOLVED_P over its median (per line, the noise alone crosses it once in 1e4) ...
@@ -87,30 +89,11 @@ def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
     y = _detrend(np.asarray(response, float))
     if u.ndim != 1 or y.shape != u.shape:
         raise ValueError(f"force and response must be 1-D records of equal length, got {u.shape}, {y.shape}")
-    R, d = int(half_width), int(degree)
-    n_par = 2 * (d + 1)
-    if 2 * R + 1 <= n_par + 1:
-        raise ValueError(f"half_width {R} leaves no degrees of freedom for degree {d}")
-    N = u.size
-    U = np.fft.rfft(u) / np.sqrt(N)
-    Y = np.fft.rfft(y) / np.sqrt(N)
-    K = U.size                                               # lines 0 .. N//2
-    if K < 4 * (2 * R + 1):
-        raise ValueError(f"a record of {N} samples is too short for the LPM's {2 * R + 1}-line windows")
-    centres = np.arange(R, K - R)
-    r = np.arange(-R, R + 1)
-    idx = centres[:, None] + r[None, :]                       # (m, 2R+1)
-    P = np.vander(r / R, d + 1, increasing=True)               # (2R+1, d+1)
-    Ul = U[idx]
-    A = np.concatenate([Ul[:, :, None] * P[None], np.broadcast_to(P, (centres.size,) + P.shape)], axis=2)
-    # the residual's projection: the left singular vectors beyond the local model's rank
-    Uc, s, _ = np.linalg.svd(A, full_matrices=True)
-    tol = s[:, :1] * 1e-10 * (2 * R + 1)
-    rank = np.sum(s > tol, axis=1)
-    coef = np.einsum("mji,mj->mi", Uc.conj(), Y[idx])        # (m, 2R+1): Y in the left singular basis
-    keep = np.arange(2 * R + 1)[None, :] >= rank[:, None]
-    q = (2 * R + 1) - rank
-    v = np.sum(np.abs(coef) ** 2 * keep, axis=1) / q          # noise variance per line (DFT / sqrt(N))
+    lp = local_polynomial(u, y, half_width, degree, frf=False)
+    R, d, N = int(half_width), int(degree), u.size
+    K = N // 2 + 1
+    centres = lp.k
+    v, q = lp.noise[:, 0], lp.dof
     f = np.fft.rfftfreq(N, 1.0 / fs)
     v, unresolved = _unresolved_lines(v, int(q.min()), MEDIAN_WINDOWS * (2 * R + 1))
     if unresolved.mean() > MAX_UNRESOLVED_SHARE:

@@ -1,0 +1,191 @@
+"""The FRF lines a record supports, each with the variance of its estimate.
+
+:func:`record_lines` reads every sensor's FRF from the input to it on the
+excited lines of one or several records, with no window and no leakage:
+
+* a periodic excitation (the period declared, or found in the input by
+  :func:`volterra.find_periods`): period-synchronous spectra over the periods
+  every sensor has settled in (:func:`volterra.periods.steady_periods`: the
+  transient first period and any period that still differs dropped),
+  ``H = mean Y / mean U`` on the excited lines, its variance from the
+  scatter between periods (Pintelon & Schoukens 2012, sec. 2.4:
+  ``(s_Y^2 + |H|^2 s_U^2 - 2 Re(conj(H) s_YU)) / (P |U|^2)``);
+* a record whose input is rough (random excitation): the local polynomial
+  method's FRF and its variance (:mod:`volterra.lpm`: its local polynomials
+  take the record's transient and any other leakage);
+* any other record (a sweep, bursts, an impact, whether or not it ends at
+  rest): the whole record's ``H = Y / U``, its variance ``v / |U|^2`` with v
+  the LPM's noise of Y on that line; a record that does not start or end at
+  rest leaks, and the modal fit takes the transient as a term of its own
+  (:mod:`volterra.lsfd`).  (The LPM cannot tell ``G U`` from the transient
+  where U is smooth over its window, as a sweep's is.)
+
+Lines with no input (a periodic record's unexcited lines), outside the band
+(``f_range``, default the excited band) or incoherent on every sensor are
+left out.  Frequencies Hz; H in output unit per input unit.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frf import excited_band
+from .lpm import DEFAULT_HALF_WIDTH as LPM_HALF_WIDTH, local_polynomial
+from .periods import PeriodLayout, find_periods, steady_periods
+
+__all__ = ["Lines", "record_lines"]
+
+#: input lines of a periodic record count as excited above this fraction of the strongest, and
+#: this power ratio above their own scatter between periods (noise on an unexcited line: about 1)
+PERIODIC_LINE_LEVEL = 1e-3
+PERIODIC_LINE_SNR = 100.0
+#: the LPM's FRF detects the modes where the 90th percentile over the band of its variance
+#: times |U|^2 over its noise is below this (a rough, random input: about 1; a sweep: 1e3-1e5)
+LPM_CONDITION = 10.0
+
+
+@dataclass(frozen=True)
+class Lines:
+    """Estimated FRF lines: ``f`` (L,) [Hz], ``H`` (L, S), ``var`` (L, S) the variance of
+    each H, ``coherence`` (L, S) [-], ``u_power`` (L,) the input's power per line
+    (DFT / sqrt(N)), ``inv_u`` (L,) 1 / U where the record's transient is to be
+    fitted (0 on periodic lines), ``record`` (L,) the record of each line;
+    ``detect`` and ``detect_var``: the FRF to read the stabilisation diagram on
+    (the LPM's, free of the transient, for a rough input; else ``H``); ``band``
+    (lo, hi) [Hz], ``spacing`` [Hz] the records' line spacing (the coarsest),
+    ``method`` in words, ``layouts`` the period layout of each record (None
+    where not periodic); ``n_band`` the lines in the band before the coherence
+    test and ``band_coherence`` the largest coherence among them; ``correlated``
+    the lines over which neighbouring estimates share their data (the LPM's
+    window; 1 for period-synchronous and whole-record lines)."""
+
+    f: np.ndarray
+    H: np.ndarray
+    var: np.ndarray
+    coherence: np.ndarray
+    u_power: np.ndarray
+    inv_u: np.ndarray
+    record: np.ndarray
+    detect: np.ndarray
+    detect_var: np.ndarray
+    band: tuple
+    spacing: float
+    method: str
+    layouts: tuple
+    n_band: int = 0
+    band_coherence: float = float("nan")
+    correlated: int = 1
+
+
+def _periodic(r_u, r_y, layout: PeriodLayout, fs):
+    """Lines of the periods every sensor has settled in; an excited line has an input
+    at least 1e-3 of the strongest and 20 dB above its own scatter between periods."""
+    first, last = steady_periods(r_y, layout)
+    N, P = layout.period, last - first
+    a = layout.start + first * N
+    U = np.fft.rfft(r_u[a:a + P * N].reshape(P, N), axis=1) / np.sqrt(N)         # (P, K)
+    Y = np.fft.rfft(r_y[a:a + P * N].T.reshape(r_y.shape[1], P, N), axis=2) / np.sqrt(N)
+    Um, Ym = U.mean(axis=0), Y.mean(axis=1)
+    upow = np.abs(Um) ** 2
+    dU, dY = U - Um, Y - Ym[:, None, :]
+    s_u = np.sum(np.abs(dU) ** 2, axis=0) / (P - 1)
+    excited = (upow >= PERIODIC_LINE_LEVEL * upow[1:].max()) & (upow >= PERIODIC_LINE_SNR * s_u / P)
+    excited[0] = False
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = (Ym / Um).T                                                           # (K, S)
+        s_y = np.sum(np.abs(dY) ** 2, axis=1).T / (P - 1)
+        s_yu = np.sum(dY * np.conj(dU)[None], axis=1).T / (P - 1)
+        var = (s_y + np.abs(H) ** 2 * s_u[:, None] - 2 * np.real(np.conj(H) * s_yu)) / (P * upow[:, None])
+        suy = np.sum(Y * np.conj(U)[None], axis=1).T
+        coh = np.abs(suy) ** 2 / (np.sum(np.abs(U) ** 2, axis=0)[:, None] * np.sum(np.abs(Y) ** 2, axis=1).T)
+    f = np.arange(N // 2 + 1) * fs / N
+    e = excited
+    return dict(f=f[e], H=H[e], var=np.maximum(var[e], 0.0), coh=coh[e], upow=upow[e],
+                inv_u=np.zeros(e.sum(), complex), detect=H[e], detect_var=np.maximum(var[e], 0.0),
+                spacing=fs / N, periods=P)
+
+
+def _whole(r_u, r_y, fs, lo, hi):
+    """The whole record's Y / U (its transient fitted later), its variance from the LPM's
+    noise of Y, and the FRF to detect modes on: the LPM's where it separates G U from
+    the transient (a rough input), else the whole record's."""
+    n = r_u.size
+    f_all = np.fft.rfftfreq(n, 1.0 / fs)
+    R = LPM_HALF_WIDTH
+    k = np.flatnonzero((f_all >= lo) & (f_all <= hi))
+    k = k[(k >= R) & (k <= f_all.size - R - 1)]
+    lp = local_polynomial(r_u, r_y, R, lines=k)
+    U = np.fft.rfft(r_u)[k] / np.sqrt(n)
+    Y = np.fft.rfft(r_y, axis=0)[k] / np.sqrt(n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        H = Y / U[:, None]
+        var = lp.noise / np.abs(U[:, None]) ** 2
+        sig = np.abs(Y) ** 2
+        coh = np.clip(1.0 - lp.noise / sig, 0.0, 1.0)
+        # the LPM's G is free of the transient where its local fit is well conditioned: its
+        # variance then is ~ its noise / |U|^2; a smooth input (a sweep) makes G U and the
+        # transient indistinguishable over the window and the ratio huge on most lines
+        cond = lp.var_g * lp.u_power[:, None] / lp.noise
+    rough = k.size > 0 and float(np.nanpercentile(cond, 90)) < LPM_CONDITION
+    if rough:
+        # the LPM's FRF, its transient (and any other leakage) taken by its local polynomials
+        coh_g = np.abs(lp.G) ** 2 * lp.u_power[:, None]
+        coh_g = coh_g / (coh_g + lp.noise)
+        return dict(f=f_all[k], H=lp.G, var=lp.var_g, coh=coh_g, upow=lp.u_power, inv_u=np.zeros(k.size, complex),
+                    detect=lp.G, detect_var=lp.var_g, spacing=fs / n, rough=True)
+    return dict(f=f_all[k], H=H, var=var, coh=coh, upow=lp.u_power, inv_u=1.0 / U, detect=H, detect_var=var,
+                spacing=fs / n, rough=False)
+
+
+def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coherence: float = 0.5) -> Lines:
+    """The FRF lines of centred records ``us`` (1-D) and ``ys`` ((n, S)); see the module docstring.
+
+    ``period_samples``: the period [samples] when known; None looks for one in each
+    record's input.  A declared period the input does not confirm is not used
+    (the record is read as not periodic, and ``method`` says so)."""
+    layouts, notes = [], []
+    for r_u in us:
+        lay = find_periods(r_u, period_samples)
+        if isinstance(lay, str) and period_samples is not None:
+            notes.append(f"the declared period was not used: {lay}")
+        layouts.append(lay if isinstance(lay, PeriodLayout) else None)
+    periodic = all(lay is not None for lay in layouts)
+    if periodic and len({lay.period for lay in layouts}) > 1:
+        periodic = False
+        notes.append("the records repeat with different periods: read as not periodic")
+    if periodic:
+        parts = [_periodic(r_u, r_y, lay, fs) for r_u, r_y, lay in zip(us, ys, layouts)]
+        method = (f"periodic: {min(p['periods'] for p in parts)}+ steady periods of {layouts[0].period} samples"
+                  f"{' (declared)' if layouts[0].declared else ' (found in the input)'}")
+        f_all = np.concatenate([p["f"] for p in parts])
+        if f_all.size == 0:
+            raise ValueError("the periodic input excites no line 20 dB above its own noise")
+        lo, hi = (f_all.min(), f_all.max()) if f_range is None else map(float, f_range)
+        correlated = 1
+    else:
+        lo, hi = excited_band(us, fs) if f_range is None else map(float, f_range)
+        parts = [_whole(r_u, r_y, fs, lo, hi) for r_u, r_y in zip(us, ys)]
+        rough = [p["rough"] for p in parts]
+        method = ("local polynomial method" if all(rough) else "whole record, transient fitted" if not any(rough)
+                  else "local polynomial method / whole record, transient fitted")
+        correlated = 2 * LPM_HALF_WIDTH + 1 if any(rough) else 1
+    if not lo < hi:
+        raise ValueError(f"f_range must be (f_min, f_max) with f_min < f_max, got {f_range!r}")
+    cat = {key: np.concatenate([p[key] for p in parts]) for key in
+           ("f", "H", "var", "coh", "upow", "inv_u", "detect", "detect_var")}
+    cat["record"] = np.concatenate([np.full(p["f"].size, j) for j, p in enumerate(parts)])
+    spacing = max(p["spacing"] for p in parts)
+    order = np.argsort(cat["f"], kind="stable")
+    cat = {key: v[order] for key, v in cat.items()}
+    f, H, coh = cat["f"], cat["H"], cat["coh"]
+    keep = (f >= lo) & (f <= hi) & (f > 0) & np.all(np.isfinite(H), axis=1)
+    if keep.sum() < 4:
+        raise ValueError(f"the band ({lo:.4g}, {hi:.4g}) Hz holds fewer than 4 frequency lines "
+                         f"(spacing {spacing:.3g} Hz); widen it or give a longer record")
+    good = keep & (np.nan_to_num(coh).max(axis=1) >= min_coherence)
+    note = f"; {'; '.join(notes)}" if notes else ""
+    g = {key: v[good] for key, v in cat.items()}
+    return Lines(g["f"], g["H"], g["var"], g["coh"], g["upow"], g["inv_u"], g["record"], g["detect"],
+                 g["detect_var"], (float(lo), float(hi)), spacing, method + note, tuple(layouts),
+                 int(keep.sum()), float(np.nan_to_num(coh[keep]).max()), correlated)
