@@ -21,14 +21,19 @@ excited lines of one or several records, with no window and no leakage:
   where U is smooth over its window, as a sweep's is.)
 
 Lines with no input (a periodic record's unexcited lines), outside the band
-(``f_range``, default the excited band) or incoherent on every sensor are
-left out.  Frequencies Hz; H in output unit per input unit.
+(``f_range``, default the excited band) or incoherent on every sensor (the
+running median of the best sensor's coherence over 15 lines below
+``min_coherence``) are left out; without ``f_range`` the band is then that of
+the coherent lines (a force sensor's coloured noise lifts the input's
+spectrum below or above the excitation, not the output's coherence).  Frequencies Hz; H in output unit per input unit.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from scipy.ndimage import median_filter, uniform_filter1d
 
 from .frf import excited_band
 from .lpm import DEFAULT_HALF_WIDTH as LPM_HALF_WIDTH, local_polynomial
@@ -43,6 +48,8 @@ PERIODIC_LINE_SNR = 100.0
 #: the LPM's FRF detects the modes where the 90th percentile over the band of its variance
 #: times |U|^2 over its noise is below this (a rough, random input: about 1; a sweep: 1e3-1e5)
 LPM_CONDITION = 10.0
+#: lines of the running median of the coherence that decides which lines the output follows
+COHERENCE_LINES = 15
 
 
 @dataclass(frozen=True)
@@ -121,8 +128,11 @@ def _whole(r_u, r_y, fs, lo, hi):
     with np.errstate(divide="ignore", invalid="ignore"):
         H = Y / U[:, None]
         var = lp.noise / np.abs(U[:, None]) ** 2
-        sig = np.abs(Y) ** 2
-        coh = np.clip(1.0 - lp.noise / sig, 0.0, 1.0)
+        # the share of the output's power on the LPM's window that is not its noise (its local fit
+        # explains some of any output by chance: 1 - its residual's variance per degree of
+        # freedom over the output's mean power, not the share its fit explains)
+        power = uniform_filter1d(np.abs(Y) ** 2, 2 * R + 1, axis=0, mode="nearest")
+        coh = np.clip(1.0 - lp.noise / power, 0.0, 1.0)
         # the LPM's G is free of the transient where its local fit is well conditioned: its
         # variance then is ~ its noise / |U|^2; a smooth input (a sweep) makes G U and the
         # transient indistinguishable over the window and the ratio huge on most lines
@@ -130,9 +140,7 @@ def _whole(r_u, r_y, fs, lo, hi):
     rough = k.size > 0 and float(np.nanpercentile(cond, 90)) < LPM_CONDITION
     if rough:
         # the LPM's FRF, its transient (and any other leakage) taken by its local polynomials
-        coh_g = np.abs(lp.G) ** 2 * lp.u_power[:, None]
-        coh_g = coh_g / (coh_g + lp.noise)
-        return dict(f=f_all[k], H=lp.G, var=lp.var_g, coh=coh_g, upow=lp.u_power, inv_u=np.zeros(k.size, complex),
+        return dict(f=f_all[k], H=lp.G, var=lp.var_g, coh=coh, upow=lp.u_power, inv_u=np.zeros(k.size, complex),
                     detect=lp.G, detect_var=lp.var_g, spacing=fs / n, rough=True)
     return dict(f=f_all[k], H=H, var=var, coh=coh, upow=lp.u_power, inv_u=1.0 / U, detect=H, detect_var=var,
                 spacing=fs / n, rough=False)
@@ -183,7 +191,16 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
     if keep.sum() < 4:
         raise ValueError(f"the band ({lo:.4g}, {hi:.4g}) Hz holds fewer than 4 frequency lines "
                          f"(spacing {spacing:.3g} Hz); widen it or give a longer record")
-    good = keep & (np.nan_to_num(coh).max(axis=1) >= min_coherence)
+    # a line counts when the output follows the input around it, not by one line's chance
+    # coherence: the running median of the sensors' best over COHERENCE_LINES lines
+    best = np.nan_to_num(coh).max(axis=1)
+    smooth = np.zeros_like(best)
+    smooth[keep] = median_filter(best[keep], size=min(COHERENCE_LINES, int(keep.sum())) | 1, mode="nearest")
+    good = keep & (smooth >= min_coherence)
+    if f_range is None and good.sum() >= 4:
+        # the band the data excite: no wider than the coherent lines (an input sensor's coloured
+        # noise lifts its spectrum beside the excitation, not the output's coherence with it)
+        lo, hi = max(lo, float(f[good].min())), min(hi, float(f[good].max()))
     note = f"; {'; '.join(notes)}" if notes else ""
     g = {key: v[good] for key, v in cat.items()}
     return Lines(g["f"], g["H"], g["var"], g["coh"], g["upow"], g["inv_u"], g["record"], g["detect"],

@@ -54,7 +54,7 @@ __all__ = ["PoleEstimationError", "ModalEstimate", "estimate_modes"]
 MIN_COHERENCE = 0.5
 #: Default highest LSCF model order (number of poles, conjugates included).
 MAX_LSCF_ORDER = 40
-#: Default largest relative residual of the refined fit (input-power weighted, per sensor).
+#: Default largest relative residual of the refined fit (certainty weighted, per sensor).
 MAX_RESIDUAL = 0.5
 #: starts tried from peaks of the residual, at most, and in a row without a mode
 MAX_TRIED, MAX_FAILED = 8, 2
@@ -75,8 +75,8 @@ class ModalEstimate:
     significance : (M,) [-] the chi-square rise when each mode is left out
     pseudo : ((f Hz, zeta), ...) poles fitted for modes outside the band, not modes
     band : (f_min, f_max) [Hz] of the lines the poles were fitted on
-    relative_residual : the refined fit's input-power weighted relative residual
-        over the sensors (NaN without refinement)
+    relative_residual : the refined fit's relative residual over the sensors, each
+        line weighted by its certainty (NaN without refinement)
     method : how the lines were read (periodic, whole record, LPM)
     lines : the lines as a :class:`volterra.lsfd.FitLines`, each weighted by the square
         root of the input's power on it (what :func:`volterra.polish.polish` fits)
@@ -126,13 +126,29 @@ def _records(u, y):
     return [r - r.mean() for r in us], out
 
 
-def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr):
-    """(modes, significance, pseudo) after refinement and selection again: a mode whose
-    refined half-power band leaves the band becomes a pseudo pole."""
+def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping):
+    """(modes, significance, pseudo) after refinement and selection again.  A mode whose
+    refined half-power band leaves the band, or whose damping reaches ``max_damping``
+    (a smooth trend, the tail of modes outside the band, not a resonance), becomes a
+    pseudo pole; a mode that does not settle in its box (two starts for one mode, a
+    pole the data do not hold) is dropped and the others refined again.  Raises
+    PoleEstimationError when no mode settles."""
     dk = d.take(fit_lines(d.f, modes, spacing))
-    modes, pseudo = refine_modes(dk, modes, pseudo, band, spacing)
-    demoted = [m for m in modes if not inside(*m, band, spacing)]
-    modes = [m for m in modes if inside(*m, band, spacing)]
+    for _ in range(len(modes)):
+        refined, pseudo_r, stuck = refine_modes(dk, modes, pseudo, band, spacing)
+        if not stuck:
+            break
+        modes = [m for i, m in enumerate(modes) if i not in stuck]
+        if not modes:
+            raise PoleEstimationError(
+                f"refining the poles: no mode settles (the one near {refined[stuck[0]][0]:.4g} Hz ran to the "
+                "edge of its search range, re-centred three times): the record is not essentially linear, "
+                "or its modes are not in it. Check f_range, offsets and slow drifts in u and y, that the "
+                "record is low-level, and n_modes.")
+    modes, pseudo = refined, pseudo_r
+    good = [inside(*m, band, spacing) and m[1] < max_damping for m in modes]
+    demoted = [m for m, g in zip(modes, good) if not g]
+    modes = [m for m, g in zip(modes, good) if g]
     modes, sig = select(dk, modes, pseudo + demoted, fixed, min_significance, spacing, corr)
     return modes, sig, pseudo + demoted
 
@@ -203,7 +219,7 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     lscf = list(modes)
     resid = float("nan")
     if refine and modes:
-        modes, sig, pseudo = _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr)
+        modes, sig, pseudo = _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping)
         tried, failed = [], 0
         while not fixed and len(tried) < MAX_TRIED and failed < MAX_FAILED:
             # a mode the LSCF did not stabilise (weak beside strong ones) leaves a peak in the fit's
@@ -213,7 +229,8 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
                 break
             tried.append(start)
             try:
-                trial = _refined(d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr)
+                trial = _refined(d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr,
+                                 max_damping)
             except PoleEstimationError:
                 trial = ([],)
             if len(trial[0]) > len(modes):
@@ -224,7 +241,7 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     if not modes:
         raise PoleEstimationError(no_mode)
     if refine:
-        resid = relative_residual(d, lines.u_power, modes, pseudo)
+        resid = relative_residual(d, modes, pseudo)
         if not resid <= max_residual:
             raise PoleEstimationError(
                 f"the refined modal fit leaves {100 * resid:.3g} % of the response unexplained (more than "

@@ -141,13 +141,13 @@ def bounds(modes):
 
 
 def refine_modes(d, modes, pseudo, band, spacing, tries: int = 3):
-    """Refined ``(modes, pseudo)``, each a list of (f, zeta): the pseudo poles are
-    refined with the modes (a mode just outside the band is fitted as well as the
-    band's edge lets it, so that it does not pull the modes inside).  A pole that
-    ends on its box is searched again in a box centred where it ended (``tries``
-    boxes in all); a mode still on its box then is returned if it has left the
-    band (the caller makes it a pseudo pole: the tail of a mode outside), else
-    PoleEstimationError (a pseudo pole is kept where it ended)."""
+    """``(modes, pseudo, stuck)``: refined modes and pseudo poles, each a list of (f, zeta),
+    and the indices of the modes that did not settle.  The pseudo poles are refined
+    with the modes (a mode just outside the band is fitted as well as the band's edge
+    lets it, so that it does not pull the modes inside).  A pole that ends on its box
+    is searched again in a box centred where it ended (``tries`` boxes in all); a
+    mode still on its box then is ``stuck`` unless it has left the band (the caller
+    makes such a one a pseudo pole: the tail of a mode outside)."""
     allp = list(modes) + list(pseudo)
     fr, ze = np.array([m[0] for m in allp]), np.array([m[1] for m in allp])
     M = len(modes)
@@ -155,15 +155,9 @@ def refine_modes(d, modes, pseudo, band, spacing, tries: int = 3):
         fr, ze, edge = lsfd.refine(d, fr, ze, bounds(list(zip(fr, ze))))
         if not edge[:M].any():
             break
-    stuck = [m for m in np.flatnonzero(edge[:M]) if inside(fr[m], ze[m], band, spacing)]
-    if stuck:
-        m = int(stuck[0])
-        raise PoleEstimationError(
-            f"refining the poles: the mode near {fr[m]:.4g} Hz (damping ratio {ze[m]:.3g}) ran to the edge of "
-            f"its search range {tries} times: the record is not essentially linear there, or that mode is not in "
-            "it. Check f_range, offsets and slow drifts in u and y, that the record is low-level, and n_modes.")
+    stuck = [int(m) for m in np.flatnonzero(edge[:M]) if inside(fr[m], ze[m], band, spacing)]
     out = list(zip(fr.tolist(), ze.tolist()))
-    return out[:M], out[M:]
+    return out[:M], out[M:], stuck
 
 
 def residual_peak(d, modes, pseudo, band, spacing, min_significance, exclude=(), correlated=1):
@@ -203,13 +197,12 @@ def residual_peak(d, modes, pseudo, band, spacing, min_significance, exclude=(),
     return float(f[k]), float(min(zeta, 0.3))
 
 
-def relative_residual(d, u_power, modes, pseudo):
-    """sqrt(mean over sensors of ||U (H - fit)||^2 / ||U H||^2): the modal fit with each
-    line weighted by its input (the part of the response it leaves unexplained)."""
-    Wu = np.sqrt(u_power)[:, None] * np.ones(d.H.shape[1])[None, :]
-    dd = lsfd.FitLines(d.f, d.H, Wu, d.fs, d.inv_u, d.record)
-    _, r, _ = lsfd.fit(dd, modes, pseudo)
-    per = np.sum(np.abs(r) ** 2, axis=0) / np.sum(np.abs(Wu * d.H) ** 2, axis=0)
+def relative_residual(d, modes, pseudo):
+    """sqrt(mean over sensors of ||W (H - fit)||^2 / ||W H||^2): the part of the FRF the
+    modal fit leaves unexplained, each line weighted by its certainty (the lines where
+    the input is buried in the input sensor's noise count for little)."""
+    _, r, _ = lsfd.fit(d, modes, pseudo)
+    per = np.sum(np.abs(r) ** 2, axis=0) / np.sum(np.abs(d.W * d.H) ** 2, axis=0)
     return float(np.sqrt(np.mean(per)))
 
 

@@ -49,6 +49,8 @@ from scipy import ndimage, stats
 
 from volterra.lpm import DEFAULT_DEGREE, DEFAULT_HALF_WIDTH, local_polynomial
 
+#: the words of an estimate that holds the force noise's response (the force's own noise unknown)
+HOLDS_FORCE_NOISE = "holds the sensor noise, the force noise's response"
 #: half-width R of the local window [lines] and degree of the local polynomials: those of
 #: volterra.lpm (the one local polynomial fit, which volterra.estimate_modes reads FRFs with)
 #: a line's residual variance is unresolved (model error) beyond the running median of
@@ -78,22 +80,31 @@ def _detrend(x: np.ndarray) -> np.ndarray:
 
 
 def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
-              degree: int = DEFAULT_DEGREE) -> LPMNoise:
+              degree: int = DEFAULT_DEGREE, force_noise_sd: float | None = None) -> LPMNoise:
     """Noise of ``response`` [its unit] given ``force`` from the LPM (module docstring).
 
     Both records are detrended (offsets, slow drifts) and transformed whole
-    (no window).  Raises ValueError for a record too short for the local
-    windows or a response that is not 1-D.
+    (no window).  The residual holds the response to the force channel's
+    noise too (the fit is driven by the recorded force): with
+    ``force_noise_sd`` [N] (white) it is taken out line by line through the
+    LPM's FRF, ``v - |G|^2 s_u^2`` (at least a tenth of v: where the force's
+    noise dominates, the sensor's cannot be told from it), and the estimate is
+    the sensor's own; without, the estimate holds both and says so.  Raises
+    ValueError for a record too short for the local windows or a response
+    that is not 1-D.
     """
     u = _detrend(np.asarray(force, float))
     y = _detrend(np.asarray(response, float))
     if u.ndim != 1 or y.shape != u.shape:
         raise ValueError(f"force and response must be 1-D records of equal length, got {u.shape}, {y.shape}")
-    lp = local_polynomial(u, y, half_width, degree, frf=False)
+    lp = local_polynomial(u, y, half_width, degree, frf=force_noise_sd is not None)
     R, d, N = int(half_width), int(degree), u.size
     K = N // 2 + 1
     centres = lp.k
     v, q = lp.noise[:, 0], lp.dof
+    if force_noise_sd is not None:
+        # the force noise's response: |G|^2 times the force noise's variance per line (white: s_u^2)
+        v = np.maximum(v - np.abs(lp.G[:, 0]) ** 2 * float(force_noise_sd) ** 2, 0.1 * v)
     f = np.fft.rfftfreq(N, 1.0 / fs)
     v, unresolved = _unresolved_lines(v, int(q.min()), MEDIAN_WINDOWS * (2 * R + 1))
     if unresolved.mean() > MAX_UNRESOLVED_SHARE:
@@ -111,7 +122,9 @@ def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
     sd = float(np.sqrt(np.sum(weight * var_line) / N))
     dof = float(2 * np.mean(q) * K / (2 * R + 1))
     detail = (f"local polynomial method (model-free linear fit, {2 * R + 1}-line windows, degree {d}; "
-              "holds the sensor noise, the force noise's response and any incoherent distortion)")
+              + ("the force's noise taken out through the fit's FRF; holds the sensor noise and any incoherent "
+                 "distortion)" if force_noise_sd is not None else
+                 f"{HOLDS_FORCE_NOISE} (the force's own noise is unknown) and any incoherent distortion)"))
     if unresolved.any():
         fu = f[centres][unresolved]
         detail += (f"; {int(unresolved.sum())} of {unresolved.size} lines ({fu.min():.4g}-{fu.max():.4g} Hz) "

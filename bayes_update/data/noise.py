@@ -15,15 +15,22 @@ Sources, best first (:data:`METHODS`):
     stretches where the force is at its floor, after the free decay of the
     previous excitation has died out (:mod:`bayes_update.data.quiet`).
 ``quiet_band``
-    the band from 3x the top of the excited band to 0.45 fs, white noise
-    assumed (today's method, where such a band exists).
+    the band from 3x the top of the excited band to 0.45 fs, where such a
+    band exists and holds white noise (its level the same across it within
+    3 dB: coloured noise's level there does not stand for the excited
+    band's, and a record's harmonics change it too).
 ``fit_residual``
     the residual of a model-free linear fit (the local polynomial method,
     :mod:`bayes_update.data.lpm`) on the test with role ``linear`` (the
     low-level test, whose response is linear to well below the noise);
-    sensors only.
+    sensors only.  It holds the response to the force's noise too: taken out
+    when the force's noise is known, else kept (the detail says so, and it
+    is then what the weights need: the force's noise counts as zero).
 ``carried``
-    on any other test without a source of its own: the sensor's estimate on
+    on any other test without a source of its own, or whose own source the
+    record's harmonics or transient fill (its estimate more than twice the
+    ``linear`` test's: a quiet band holding the high-level test's harmonics,
+    periods of a response that does not repeat): the sensor's estimate on
     the ``linear`` test (sensor noise does not grow with the excitation
     level; nonlinear distortion does, and would count as noise in a fit
     residual of a high-level test).  Sensors only: the force is never carried.
@@ -154,7 +161,9 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
                 continue
             if fit and name != "force":
                 try:
-                    est = lpm_noise(force, x, fs)
+                    # the force's own noise, where known, is taken out of the fit's residual
+                    known = out.get("force")
+                    est = lpm_noise(force, x, fs, force_noise_sd=known.sd if known and known.known else None)
                     out[name] = NoiseEstimate(est.sd, "fit_residual", est.detail, est.dof)
                     continue
                 except ValueError as exc:
@@ -163,11 +172,51 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
     return out
 
 
-def carried(estimate: NoiseEstimate, from_test: str) -> NoiseEstimate:
-    """A known estimate of the same sensor on another test, carried to this one."""
+def carried(estimate: NoiseEstimate, from_test: str, why: str = "") -> NoiseEstimate:
+    """A known estimate of the same sensor on another test, carried to this one
+    (``why``: the reason its own could not be used, to lead the detail)."""
     return NoiseEstimate(estimate.sd, "carried",
-                         f"carried from test {from_test!r} ({estimate.method}: {estimate.detail})",
+                         f"{why}carried from test {from_test!r} ({estimate.method}: {estimate.detail})",
                          estimate.dof, (), from_test)
+
+
+#: a sensor's own estimate on a test that is not the low-level one is the record's own content,
+#: not noise, when it rose from the low-level test's by more than this factor times what the
+#: force's own estimate rose (a sensor's noise does not grow with the level, or grows as the
+#: force's does when noise is added in proportion to it; harmonics, distortion and transients
+#: of the response grow faster)
+CONTAMINATION = 2.0
+#: the sources a test measures itself (not declared, carried or unknown)
+OWN_METHODS = ("periods", "zero_input", "quiet_band", "fit_residual")
+
+
+def _uncontaminated(dataset, out: dict) -> None:
+    """Replace, on every test but the low-level ones, a sensor's own estimate that rose
+    from the first ``linear`` test's own by more than :data:`CONTAMINATION` times the
+    force's own rise (1 where the force's noise is not known on both) with that test's,
+    carried, the reason leading the detail (the issue's "noise that is noise")."""
+    linear = [t.name for t in dataset.tests if t.role == "linear"]
+    for name, _ in dataset.sensors:
+        ref = next((s for s in linear if out[s][name].method in OWN_METHODS), None)
+        if ref is None:
+            continue
+        base, force_base = out[ref][name], out[ref].get("force")
+        for t in dataset.tests:
+            est, force = out[t.name][name], out[t.name].get("force")
+            if t.role == "linear" or est.method not in OWN_METHODS:
+                continue
+            rise = 1.0
+            if force is not None and force_base is not None and force.known and force_base.known \
+                    and force.method in OWN_METHODS and force_base.method in OWN_METHODS:
+                rise = max(1.0, force.sd / force_base.sd)
+            if est.sd <= CONTAMINATION * rise * base.sd:
+                continue
+            forces = f" (the force's {rise:.3g}x)" if rise > 1 else ""
+            why = (f"its own {est.method} estimate ({est.sd:.3g}: {est.detail}) is {est.sd / base.sd:.3g}x the "
+                   f"low-level test's{forces}: the record's "
+                   "harmonics, distortion or transient fill that source, and a sensor's noise does not grow "
+                   "with the response; ")
+            out[t.name][name] = carried(base, ref, why)
 
 
 def what_to_add(sensor: str, kind: str | None = None) -> str:
@@ -185,8 +234,11 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
 
     Each test from its own data (:func:`record_noise`, the declared noise
     merged by :meth:`Dataset.declared_noise_sd`; ``fit_residual`` only on
-    tests with role ``linear``); a sensor still unknown then takes its
-    estimate on the first ``linear`` test that has one (``carried``).
+    tests with role ``linear``); a sensor whose own estimate on another test
+    exceeds the ``linear`` test's by more than :data:`CONTAMINATION` holds the
+    record's harmonics or transient, not noise, and takes the ``linear``
+    test's (``carried``, the reason in its detail); a sensor still unknown
+    then takes its estimate on the first ``linear`` test that has one.
 
     strict : raise :class:`NoiseEstimationError` if a sensor of any test is
         still unknown (the message names each, why, and what to add);
@@ -201,6 +253,7 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
     out = {t.name: record_noise(t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear",
                                 fit_residual=fits.get(t.name))
            for t in dataset.tests}
+    _uncontaminated(dataset, out)
     linear = [t.name for t in dataset.tests if t.role == "linear"]
     kinds = dict(dataset.sensors)
     missing = []

@@ -44,6 +44,10 @@ HALF_TOLERANCE = 4.0
 BAND_HARMONIC = 3.0
 BAND_TOP = 0.45
 BAND_LINES = 16
+#: the quiet band holds white noise when its level (harmonic lines left out) changes less than
+#: this factor between its lowest and highest thirds (3 dB; a sensor's anti-alias filter is flat
+#: to well within 1 dB below 0.45 fs); coloured noise or the record's harmonics change it more
+WHITE_RATIO = 2.0
 
 
 def window_samples(fs: float) -> int:
@@ -188,7 +192,10 @@ def band_noise(x, fs: float, band):
     """White-noise sd of one channel from its PSD in ``band`` [Hz]: ``(sd, dof,
     detail, ())`` with ``sd^2 = mean PSD x fs / 2`` (one-sided PSD of white noise
     of variance v: 2 v / fs), the lines above 4x the band's median (harmonics,
-    a mode) left out; or a sentence saying why not."""
+    a mode) left out; or a sentence saying why not: too few lines, or a level
+    that changes more than :data:`WHITE_RATIO` across the band (coloured noise,
+    whose level there does not stand for the excited band's, or the record's
+    own harmonics filling it)."""
     x = np.asarray(x, float)
     nper = min(x.size, 256)
     f, p = welch(x, fs=fs, nperseg=nper, detrend="linear")
@@ -197,6 +204,13 @@ def band_noise(x, fs: float, band):
         return f"the band {band[0]:.4g}-{band[1]:.4g} Hz holds fewer than {BAND_LINES} PSD lines"
     pb = p[sel]
     keep = pb <= 4.0 * np.median(pb)
+    third = max(1, pb.size // 3)
+    low, high = pb[:third][keep[:third]], pb[-third:][keep[-third:]]
+    if low.size and high.size:
+        change = float(max(np.mean(low) / np.mean(high), np.mean(high) / np.mean(low)))
+        if change > WHITE_RATIO:
+            return (f"the quiet band {band[0]:.4g}-{band[1]:.4g} Hz does not hold white noise (its level changes "
+                    f"{change:.3g}x across it: coloured noise, or the record's own harmonics filling it)")
     n_seg = max(1, (x.size - nper) // (nper // 2) + 1)
     return (float(np.sqrt(np.mean(pb[keep]) * fs / 2.0)), float(keep.sum() * n_seg),
             f"quiet band {band[0]:.4g}-{band[1]:.4g} Hz (white noise assumed)", ())
