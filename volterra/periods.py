@@ -124,6 +124,29 @@ def _best_chain(f: np.ndarray, period: int):
     return s0 + r0 * period, n + 1, worst
 
 
+def _with_leading(f: np.ndarray, period: int, chain):
+    """``chain`` with the period before it joined as its first, when the chain is one
+    period short of :data:`MIN_PERIODS` and that period repeats within
+    :data:`MAX_REPEAT_RATIO`: a record of three periods from rest, whose first
+    holds the input's own start-up (an anti-alias filter's, a generator's) and so
+    differs more than :data:`REPEAT_TOLERANCE` x the others, is still periodic; its
+    first period is the transient :func:`steady_periods` drops anyway.  The
+    ratio reported is the steady pair's."""
+    if chain is None or chain[1] != MIN_PERIODS - 1:
+        return chain
+    # the start, at most a period before the chain's, where the first pair (the start-up) and the
+    # second (steady) repeat best together: a lead of zero force or a trailing rest stays outside
+    Q = _pair_ratios(f, period)
+    k = np.arange(max(0, chain[0] - period), min(chain[0], Q.size - 1 - period) + 1)
+    if k.size == 0:
+        return chain
+    ok = (Q[k] <= MAX_REPEAT_RATIO) & (Q[k + period] <= MAX_REPEAT_RATIO)
+    if not ok.any():
+        return chain
+    start = int(k[ok][np.argmin((Q[k] + Q[k + period])[ok])])
+    return start, MIN_PERIODS, float(Q[start + period])
+
+
 def _candidates(f: np.ndarray, max_period: int) -> list:
     """Lags of the highest local maxima of the input's normalised autocorrelation,
     beyond its main lobe, up to ``max_period`` (inclusive: a record of exactly
@@ -172,7 +195,7 @@ def find_periods(u, period_samples: int | None = None):
         if f.size < MIN_PERIODS * period:
             return (f"the record holds {f.size / period:.1f} periods of {period} samples; "
                     f"at least {MIN_PERIODS} are needed (the first is a transient)")
-        chain = _best_chain(f, period)
+        chain = _with_leading(f, period, _best_chain(f, period))
         if chain is None or chain[1] < MIN_PERIODS:
             found = "no two consecutive periods" if chain is None else f"only {chain[1]} consecutive periods"
             return (f"the force does not repeat with the declared period of {period} samples "
@@ -181,7 +204,7 @@ def find_periods(u, period_samples: int | None = None):
         return PeriodLayout(period, chain[0], chain[1], True, chain[2])
     found = []
     for lag in _candidates(f, f.size // MIN_PERIODS):
-        chain = _best_chain(f, lag)
+        chain = _with_leading(f, lag, _best_chain(f, lag))
         if chain is not None and chain[1] >= MIN_PERIODS \
                 and _share(f, chain[0], chain[0] + lag * chain[1]) >= MIN_ENERGY_SHARE:
             found.append(PeriodLayout(lag, chain[0], chain[1], False, chain[2]))
