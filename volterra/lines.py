@@ -178,7 +178,7 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
         method = ("local polynomial method" if all(rough) else "whole record, transient fitted" if not any(rough)
                   else "local polynomial method / whole record, transient fitted")
         correlated = 2 * LPM_HALF_WIDTH + 1 if any(rough) else 1
-    if not lo < hi:
+    if f_range is not None and not lo < hi:
         raise ValueError(f"f_range must be (f_min, f_max) with f_min < f_max, got {f_range!r}")
     cat = {key: np.concatenate([p[key] for p in parts]) for key in
            ("f", "H", "var", "coh", "upow", "inv_u", "detect", "detect_var")}

@@ -1,35 +1,43 @@
-"""Poles of every mode a record shows in the band it excites: :func:`estimate_modes`.
+"""Poles of every mode a record shows in the band it excites, and none outside it: :func:`estimate_modes`.
 
 1. The FRF lines and their variance (:mod:`volterra.lines`): period-synchronous
    spectra when the input repeats (the period declared, or found in the input
-   by :func:`volterra.find_periods`), the whole record's spectra when it ends
-   at rest, else the local polynomial method; each record's mean removed.
-   Lines outside the band (``f_range``, default the excited band) or
-   incoherent on every sensor are left out.  Each line is weighted by the
-   inverse sd of its estimate (a running median over 31 lines: a robust
+   by :func:`volterra.find_periods`), the local polynomial method's FRF for a
+   rough (random) input, the whole record's Y / U otherwise (its transient
+   fitted in 3); each record's mean removed.  Lines outside the band
+   (``f_range``, default the excited band, no wider than the coherent lines)
+   or incoherent are left out.  Each line is weighted by the inverse sd of its
+   estimate (the output noise a running median over 31 lines: a robust
    level, never one line's chance value).
-2. Candidate poles: LSCF fits of all sensors with a common denominator over
+2. Candidates: LSCF fits of all sensors with a common denominator over
    orders 2..``max_order``, in windows of two octaves when the band is wider
    (:func:`volterra.lscf.subband_clusters`), read as stabilisation diagrams;
-   a cluster stable at 30 % of its window's orders is a candidate.  A
-   candidate whose half-power band is not inside the band (with two lines to
-   spare) cannot be told from a mode outside it: it joins the fits as a
-   *pseudo* pole (as do the stable clusters just outside the band), never as
-   a mode.
-3. Selection: the FRF is fitted as modes plus residual terms for the modes
-   outside the band (:mod:`volterra.lsfd`); each mode's significance is the
-   rise of the weighted residual's chi-square when it is left out.  The least
-   significant mode is dropped while it is below ``min_significance`` (25,
-   and 5 per real unknown it adds: 2 per sensor and its pole) times the fit's
-   chi-square per degree of freedom (at least 1): a mode whose energy is
-   small but whose peak stands clear of the noise is kept; a pole that only
-   models noise, or the tail of a mode outside the band, is not.
-   ``n_modes`` keeps that many, those with the most response energy (topped
-   up by the most stable weaker clusters when there are fewer candidates).
-4. ``refine``: the poles that minimise the weighted residual of that fit,
-   all sensors jointly (variable projection), each mode inside f0 (1 +-
-   max(4 zeta0, 1 %)) cut halfway to its neighbours and zeta0 / 4 .. 4
-   zeta0; then the selection again.
+   a cluster stable at 30 % of its window's orders is a candidate, one stable
+   at 3 orders or more a weak one.  A candidate whose half-power band is not
+   inside the band (two lines to spare, and one line inside it) cannot be
+   told from a mode outside it: it is a *pseudo* pole, fitted and never
+   reported, as are the stable clusters just outside the band and a broad
+   pole pair beyond each edge (refined there, never entering the band).
+3. The modal fit (:mod:`volterra.lsfd`): modes, pseudo poles, residual terms
+   for the modes outside the band, and the transient of a record that does not
+   start or end at rest.
+4. Selection (:mod:`volterra.selection`): each mode's significance is the rise
+   of the weighted residual's chi-square when it is left out.  The least
+   significant mode is dropped while it is below ``min_significance`` (25, and
+   5 per real unknown it adds) times the residual's local level around it
+   (at least 1) times the lines neighbouring estimates share (the LPM's
+   window): a mode whose energy is small but whose peak stands clear of the
+   noise is kept; a pole that only models noise, or the tail of a mode
+   outside the band, is not.  ``n_modes`` keeps that many, those with the most
+   response energy (topped up by the less stable clusters).
+5. ``refine``: the poles that minimise the weighted residual of the fit, all
+   sensors jointly (variable projection), each in a box around its start,
+   re-centred where a pole ends on it; a mode whose half-power band leaves
+   the band or whose damping reaches ``max_damping`` becomes a pseudo pole,
+   one that does not settle is dropped; then the selection again.  A mode the
+   LSCF did not stabilise (weak beside strong ones) leaves a peak in the
+   fit's residual: up to 8 such starts are tried, each kept only if it
+   survives the selection.
 
 Modes come back sorted by their response energy, the largest first.  What
 cannot be trusted raises :class:`PoleEstimationError`, saying what to check.
@@ -58,6 +66,10 @@ MAX_LSCF_ORDER = 40
 MAX_RESIDUAL = 0.5
 #: starts tried from peaks of the residual, at most, and in a row without a mode
 MAX_TRIED, MAX_FAILED = 8, 2
+#: a cluster stable at fewer orders than 30 % of its window's, but at this many, is a weak candidate
+MIN_STABLE = 3
+#: the pseudo pole pairs beyond the band's edges: a factor PSEUDO_STEP outside, damping PSEUDO_ZETA
+PSEUDO_STEP, PSEUDO_ZETA = 1.05, 0.03
 
 
 @dataclass(frozen=True)
@@ -193,15 +205,34 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     strong = [c for c in clusters if c[2] >= c[3]]
     pseudo = [(c[0], c[1]) for c in outside if c[2] >= c[3]]
     pseudo += [(c[0], c[1]) for c in strong if not inside(c[0], c[1], band, spacing)]
+    # a broad pole pair beyond each edge of the band, refined there: the modes just outside it
+    # whose tails the residual terms cannot follow (it never enters the band)
+    pseudo += [(lo / PSEUDO_STEP, PSEUDO_ZETA), (hi * PSEUDO_STEP, PSEUDO_ZETA)]
     cand = [(c[0], c[1]) for c in strong if inside(c[0], c[1], band, spacing)]
-    weak = sorted((c for c in clusters if c[2] < c[3] and inside(c[0], c[1], band, spacing)), key=lambda c: -c[2])
+    weak = sorted((c for c in clusters if MIN_STABLE <= c[2] < c[3] and inside(c[0], c[1], band, spacing)),
+                  key=lambda c: -c[2])
+    if n_modes is None:
+        # a cluster stable at few orders (a weak mode beside a strong one) is a candidate too:
+        # the selection keeps it only if it stands out
+        cand += [(c[0], c[1]) for c in weak]
     if n_modes is not None and len(cand) < n_modes:
-        if len(cand) + len(weak) < n_modes:
+        # topped up by the most stable other clusters, however few their orders; one mode: the
+        # largest peak when no cluster is left (a strong nonlinearity's record blurs the diagram)
+        rest = [(c[0], c[1]) for c in clusters if c[2] < c[3] and inside(c[0], c[1], band, spacing)]
+        if rest:
+            # the other clusters by the response energy their modes carry (their stability is poor)
+            idx = fit_lines(f, cand + rest, spacing)
+            parts, _, _ = lsfd.fit(d.take(idx), cand + rest, pseudo)
+            shares = energies(H[idx], lines.u_power[idx], parts)[len(cand):]
+            cand += [rest[i] for i in np.argsort(-shares)[:n_modes - len(cand)]]
+        peak = peak_mode(f, lines.detect) if not cand and n_modes == 1 else None
+        if peak is not None and inside(*peak, band, spacing):
+            cand = [peak]
+        if len(cand) < n_modes:
             raise PoleEstimationError(
-                f"n_modes = {n_modes}, but the stabilisation diagram holds only {len(cand) + len(weak)} stable "
+                f"n_modes = {n_modes}, but the stabilisation diagram holds only {len(cand)} stable "
                 "pole cluster(s) in the band. Check the band (f_range), the coherence and the record length "
                 "(frequency resolution), or ask for fewer modes.")
-        cand += [(c[0], c[1]) for c in weak[:n_modes - len(cand)]]
     elif n_modes is not None and len(cand) > n_modes:
         parts, _, _ = lsfd.fit(d.take(fit_lines(f, cand, spacing)), cand, pseudo)
         idx = fit_lines(f, cand, spacing)

@@ -152,7 +152,15 @@ def refine_modes(d, modes, pseudo, band, spacing, tries: int = 3):
     fr, ze = np.array([m[0] for m in allp]), np.array([m[1] for m in allp])
     M = len(modes)
     for _ in range(tries):
-        fr, ze, edge = lsfd.refine(d, fr, ze, bounds(list(zip(fr, ze))))
+        box = bounds(list(zip(fr, ze)))
+        # a pseudo pole outside the band stays outside it (it stands for modes there)
+        (flo, fhi), _ = box
+        for i in range(M, fr.size):
+            if fr[i] > band[1]:
+                flo[i], fhi[i] = max(flo[i], band[1]), max(fhi[i], 1.5 * fr[i])
+            elif fr[i] < band[0]:
+                flo[i], fhi[i] = min(flo[i], fr[i] / 1.5), min(fhi[i], band[0])
+        fr, ze, edge = lsfd.refine(d, fr, ze, box)
         if not edge[:M].any():
             break
     stuck = [int(m) for m in np.flatnonzero(edge[:M]) if inside(fr[m], ze[m], band, spacing)]

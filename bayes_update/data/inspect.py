@@ -55,17 +55,19 @@ def _detrended(x) -> np.ndarray:
     return x - np.polyval(np.polyfit(t, x, 1), t)
 
 
-def find_modes(force, response, fs: float, period_samples=None) -> list:
+def find_modes(force, response, fs: float, period_samples=None, n_modes=None) -> list:
     """``[(freq_hz, damping_ratio), ...]`` of every mode a record shows in the band
     it excites, sorted by frequency: :func:`volterra.estimate_modes` with its
     defaults (the same modes ``calibrate``'s basis takes; period-synchronous
-    spectra when the force repeats, with ``period_samples`` or without).
-    Offsets and linear drifts are removed first.  Raises
+    spectra when the force repeats, with ``period_samples`` or without);
+    ``n_modes``: that many, the most energetic (a high-level test's equivalent
+    linear modes, where its distortion would read as more).  Offsets and
+    linear drifts are removed first.  Raises
     :class:`volterra.PoleEstimationError` (a ValueError) when no mode is found.
     """
     u, y = _detrended(force), np.asarray(response, float)
     y = _detrended(y) if y.ndim == 1 else np.column_stack([_detrended(c) for c in y.T])
-    est = volterra.estimate_modes(u, y, fs, period_samples=period_samples)
+    est = volterra.estimate_modes(u, y, fs, period_samples=period_samples, n_modes=n_modes)
     return sorted((float(p.freq_hz), float(p.damping_ratio)) for p in est.poles)
 
 
@@ -175,7 +177,9 @@ def _level_dependence(dataset, modes, fs, warnings) -> list:
         if not inside:
             continue
         try:
-            found = find_modes(t.force, t.response, fs, t.period_samples)
+            # as many modes as the linear test has in this test's band: a strong nonlinearity's
+            # distortion would read as more (its equivalent linear modes are what moves with level)
+            found = find_modes(t.force, t.response, fs, t.period_samples, n_modes=len(inside))
         except ValueError as exc:
             warnings.append(f"test {t.file}: no mode found ({exc})")
             continue
