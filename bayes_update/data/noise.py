@@ -155,6 +155,12 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
                 out[name] = _estimate(method, result)
                 break
             why.append(f"{method}: {result}")
+        if name in out:
+            if out[name].method == "quiet_band" and fit and name != "force" \
+                    and not (fit_residual and name in fit_residual):
+                # the quiet band's white level stands for the record only if the noise is white:
+                # where the model-free fit sees the noise inside the band too, they must agree
+                out[name] = _white_or_fit(out[name], force, x, fs, out.get("force"))
         else:
             if fit_residual and name in fit_residual:
                 out[name] = fit_residual[name]
@@ -170,6 +176,31 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
                     why.append(f"fit_residual: {exc}")
             out[name] = NoiseEstimate(None, "unknown", "; ".join(why))
     return out
+
+
+#: the quiet band and the model-free fit agree within this factor where the noise is white
+COLOURED = 1.5
+#: the words that mark an estimate taken over from the quiet band for coloured noise
+COLOURED_WORDS = "coloured noise"
+
+
+def _white_or_fit(band_est: NoiseEstimate, force, x, fs, force_est) -> NoiseEstimate:
+    """The quiet band's estimate, or the fit residual's where they differ by more than
+    :data:`COLOURED` (the noise is coloured: its level above the band does not stand
+    for the record's, which the fit sees on every line)."""
+    try:
+        known = force_est if force_est is not None and force_est.known else None
+        est = lpm_noise(force, x, fs, force_noise_sd=known.sd if known else None)
+    except ValueError:
+        return band_est
+    ratio = est.sd / band_est.sd
+    if 1.0 / COLOURED <= ratio <= COLOURED:
+        return band_est
+    return NoiseEstimate(est.sd, "fit_residual",
+                         f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
+                         f"{ratio:.3g}x below the fit's, which sees every line; {est.detail}" if ratio > 1 else
+                         f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
+                         f"{1 / ratio:.3g}x above the fit's, which sees every line; {est.detail}", est.dof)
 
 
 def carried(estimate: NoiseEstimate, from_test: str, why: str = "") -> NoiseEstimate:
@@ -204,6 +235,10 @@ def _uncontaminated(dataset, out: dict) -> None:
         for t in dataset.tests:
             est, force = out[t.name][name], out[t.name].get("force")
             if t.role == "linear" or est.method not in OWN_METHODS:
+                continue
+            if est.method == "quiet_band" and base.detail.startswith(COLOURED_WORDS):
+                out[t.name][name] = carried(base, ref, f"its quiet band ({est.sd:.3g}) reads coloured noise "
+                                                       "as white, as on the low-level test; ")
                 continue
             rise = 1.0
             if force is not None and force_base is not None and force.known and force_base.known \
@@ -301,7 +336,8 @@ def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None 
         spectra = [welch(q, fs=fs, nperseg=nper, detrend="linear") for q in parts]
         weights = np.array([len(q) for q in parts], float)
         return spectra[0][0], np.average([p for _, p in spectra], axis=0, weights=weights)
-    if estimate.method == "fit_residual" and estimate.detail.startswith("local polynomial method"):
+    # the LPM's fit: its own detail, or one that leads with why it replaced a quiet band's
+    if estimate.method == "fit_residual" and "local polynomial method" in estimate.detail:
         est = lpm_noise(record.force, x, fs)
         return est.f, est.psd
     return white

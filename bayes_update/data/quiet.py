@@ -204,13 +204,14 @@ def band_noise(x, fs: float, band):
         return f"the band {band[0]:.4g}-{band[1]:.4g} Hz holds fewer than {BAND_LINES} PSD lines"
     pb = p[sel]
     keep = pb <= 4.0 * np.median(pb)
+    # its level at the two ends: the medians of its lowest and highest thirds (a harmonic line does
+    # not move a median; a coloured noise's slope, or harmonics filling a third, do)
     third = max(1, pb.size // 3)
-    low, high = pb[:third][keep[:third]], pb[-third:][keep[-third:]]
-    if low.size and high.size:
-        change = float(max(np.mean(low) / np.mean(high), np.mean(high) / np.mean(low)))
-        if change > WHITE_RATIO:
-            return (f"the quiet band {band[0]:.4g}-{band[1]:.4g} Hz does not hold white noise (its level changes "
-                    f"{change:.3g}x across it: coloured noise, or the record's own harmonics filling it)")
+    a, b = float(np.median(pb[:third])), float(np.median(pb[-third:]))
+    change = max(a / b, b / a) if min(a, b) > 0 else np.inf
+    if change > WHITE_RATIO:
+        return (f"the quiet band {band[0]:.4g}-{band[1]:.4g} Hz does not hold white noise (its level changes "
+                f"{change:.3g}x across it: coloured noise, or the record's own harmonics filling it)")
     n_seg = max(1, (x.size - nper) // (nper // 2) + 1)
     return (float(np.sqrt(np.mean(pb[keep]) * fs / 2.0)), float(keep.sum() * n_seg),
             f"quiet band {band[0]:.4g}-{band[1]:.4g} Hz (white noise assumed)", ())

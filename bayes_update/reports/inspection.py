@@ -75,7 +75,7 @@ def plot_noise(dataset, channel: str, noise: dict) -> Figure:
         spec = noise_spectrum(t, channel, est, fs)
         if spec is not None:
             fn, pn = spec
-            if est.method == "fit_residual":      # the LPM's per-line spectrum: smoothed for reading
+            if est.method == "fit_residual" and pn.size > 15:   # the LPM's per-line spectrum: smoothed
                 pn = np.convolve(pn, np.ones(15) / 15, mode="same")
             ax.semilogy(fn, pn, lw=1.6, ls="--", color=f"C{i}", zorder=3,
                         label=f"noise ({est.method}, sd {est.sd:.3g})")
