@@ -17,8 +17,10 @@ first, and is scored against its truth:
   within 0.5 % in frequency and 15 % in damping ratio, no other mode found.
 
 A record's modes are *resolvable* (:func:`resolvable`) when every mode in the
-band has its half-power band inside it and every mode outside has its
-outside, neighbours are more than their half-power half-widths apart
+band has its half-power band inside it with a half-power half-width to spare
+(a mode whose flank leaves the band cannot be told from the tail of one
+outside it) and every mode outside has its outside likewise, neighbours are
+more than their half-power half-widths apart
 (|f_i - f_j| > zeta_i f_i + zeta_j f_j), the record's line spacing is at most
 a half-power bandwidth and half the closest spacing, and every mode's peak is
 clear (its own response at resonance at least 10 times the noise's power
@@ -68,11 +70,11 @@ def resolvable(truth, n_samples: int, fs: float, period) -> tuple[bool, str]:
     if not modes:
         return False, "no mode in the band"
     for f, z in modes:
-        if f * (1 - z) < lo or f * (1 + z) > hi:
-            return False, f"the half-power band of {f:.4g} Hz crosses the band's edge"
+        if f * (1 - 2 * z) < lo or f * (1 + 2 * z) > hi:
+            return False, f"the half-power band of {f:.4g} Hz is not a half-power half-width inside the band"
     for f, z in truth.outside:
-        if f * (1 + z) >= lo and f * (1 - z) <= hi:
-            return False, f"the half-power band of {f:.4g} Hz (outside) crosses the band's edge"
+        if f * (1 + 2 * z) >= lo and f * (1 - 2 * z) <= hi:
+            return False, f"the half-power band of {f:.4g} Hz (outside) is not a half-power half-width outside"
     df = fs / (period if period else n_samples)
     for (f1, z1), (f2, z2) in zip(modes[:-1], modes[1:]):
         if f2 - f1 <= z1 * f1 + z2 * f2:

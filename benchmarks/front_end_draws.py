@@ -289,9 +289,13 @@ def draw(seed: int, cls: str | None = None):
         tests.append(Record(f"{name}.csv", kind, level, role, np.arange(n) / fs, meas[:, 0], resp,
                             sensors=sensors, period_samples=P if (P and declare) else None))
         noise[name] = dict(zip(("force",) + tuple(s for s, _ in sensors), map(float, sds)))
-        # what a fit driven by the measured force cannot tell from a sensor's noise: its own and
-        # the (linearised) structure's response to the force's noise
-        through = lin.respond(added[:, 0], 1.0 / fs)
+        # what a fit driven by the measured force cannot tell from a sensor's noise: its own and the
+        # (linearised) structure's response to the force's noise in the excited band (outside it the
+        # fit does not follow the force, and sees the sensor's noise alone)
+        spec = np.fft.rfft(added[:, 0])
+        fk = np.fft.rfftfreq(n, 1.0 / fs)
+        spec[(fk < band[0]) | (fk > band[1])] = 0.0
+        through = lin.respond(np.fft.irfft(spec, n), 1.0 / fs)
         effective[name] = {s: float(np.std(added[:, 1 + j] - through[:, j])) for j, (s, _) in enumerate(sensors)}
         period[name] = P if (P and (n - meta.get("lead", 0) - meta.get("tail", 0)) // P >= 3) else None
         details[name] = {**meta, "force_rms": float(np.std(clean[:, 0]))}
