@@ -41,7 +41,7 @@ class LocalPolynomial:
     """The LPM on lines ``k`` (indices into the record's rfft, R .. K - R - 1 or the
     ones asked for): ``G`` (m, S) the FRF, ``noise`` (m, S) the noise variance of
     Y per line (DFT / sqrt(N)), ``var_g`` (m, S) the variance of G, ``dof`` (m,)
-    the residual's degrees of freedom per line, ``u_power`` (m,) |U(k)|^2."""
+    the residual's degrees of freedom per line, ``u_power`` (m,) ``|U(k)|^2``."""
 
     k: np.ndarray
     G: np.ndarray

@@ -4,8 +4,6 @@ Per sensor s, on the lines f of the band::
 
     H_s(f) ~ sum_m [R_ms / (j w - lam_m) + conj(R_ms) / (j w - conj lam_m)]
              + sum_p c_ps (j w / w_c)^p,          p in RESIDUAL_POWERS = (-2, -1, 0, 1, 2)
-#: degree of the polynomial in Omega that stands for the transients of the modes outside the band
-TRANSIENT_DEGREE = 3
              + T_s(Omega) / U(f)                   (records that are not periodic)
 
 with w = 2 pi f, complex residues R_ms, real residual coefficients c_ps and

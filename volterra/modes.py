@@ -56,7 +56,8 @@ from . import lsfd
 from .selection import (MIN_SIGNIFICANCE, PoleEstimationError, energies, fit_lines, inside, peak_mode,
                         refine_modes, relative_residual, residual_peak, select, weights)
 
-__all__ = ["PoleEstimationError", "ModalEstimate", "estimate_modes"]
+# PoleEstimationError is defined in volterra.selection (and exported by the package): listed once
+__all__ = ["ModalEstimate", "estimate_modes"]
 
 #: Default lowest coherence of the lines the poles are fitted on (on one sensor at least).
 MIN_COHERENCE = 0.5

@@ -224,7 +224,7 @@ def energies(H, upow, parts):
 
 
 def peak_mode(f, H):
-    """(f, zeta) of the largest peak of the sensors' summed |H|^2 and its half-power width."""
+    """(f [Hz], zeta [-]) of the largest peak of the sensors' summed ``|H|^2`` and its half-power width."""
     p = np.sum(np.abs(H) ** 2, axis=1)
     i = int(np.argmax(p))
     lo = next((k for k in range(i, -1, -1) if p[k] <= p[i] / 2), None)
