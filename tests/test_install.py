@@ -55,7 +55,8 @@ def _scratch_env(tmp_path):
 
 def test_install_run_uninstall_leaves_nothing(tmp_path, wheel):
     python, purelib = _scratch_env(tmp_path)
-    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    # a checkout on PYTHONPATH would shadow the scratch install (the check below would fail on it)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_") and k != "PYTHONPATH"}
     env["XDG_CACHE_HOME"] = str(tmp_path / "user-cache")
     env["MPLBACKEND"] = "Agg"
     _run([str(python), "-m", "pip", "install", "-q", "--no-deps", str(wheel)], env=env)
