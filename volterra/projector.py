@@ -113,6 +113,13 @@ class VolterraProjector:
         out.update({n: self._Gs[:, b] @ theta_s[b] for n, b in self._blocks.items()})
         return out
 
+    def span(self, orders) -> np.ndarray:
+        """An orthonormal basis (N, p) of the outputs the components of ``orders`` can
+        take, ``sum_n y_n`` over them: the space a metric on those components lives in."""
+        cols = np.concatenate([np.arange(self._blocks[n].start, self._blocks[n].stop) for n in orders])
+        U, s, _ = np.linalg.svd(self._Gs[:, cols], full_matrices=False)
+        return U[:, s > 1e-10 * s[0]]
+
     def model(self, y) -> VolterraModel:
         """The fitted :class:`VolterraModel` (without fit diagnostics)."""
         h0, theta_s = self._solve(y)

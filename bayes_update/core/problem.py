@@ -285,6 +285,17 @@ class Problem:
         return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
 
     @property
+    def response_unit(self) -> str:
+        """Unit of the records' responses: the sensors' common unit, else each sensor's
+        (``"acc1: m/s^2, disp: m"``)."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        units = [RESPONSE_UNITS[kind] for _, kind in self.sensors]
+        if len(set(units)) == 1:
+            return units[0]
+        return ", ".join(f"{name}: {u}" for (name, _), u in zip(self.sensors, units))
+
+    @property
     def sensor_keys(self) -> tuple:
         """A JSON key per sensor naming it and its unit, ``<name>_<unit>`` with the
         unit's ``/`` as ``_`` and no ``^``: ``velocity_m_s``, ``displacement_m``,

@@ -55,7 +55,11 @@ class PosteriorResult:
                 "settings": asdict(self.settings),
                 **{name: {k: v for k, v in extra.items() if not k.startswith("_")}
                    for name, extra in self.extras.items()},
-                "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
+                "predictive_coverage": self.predictive.get("coverage", {}),
+                "prediction_error": self.predictive.get("prediction_error", {}),
+                "error_model": self.predictive.get("error_model", {}),
+                "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_") and
+                                    k not in ("coverage", "prediction_error", "error_model")},
                 "sensitivity": self.sensitivity,
                 "fit_warnings": self.diagnostics.get("fit_warnings", []),
                 "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
