@@ -160,7 +160,17 @@ def test_no_hidden_effect_names_nothing(no_effect):
     assert res.gap_after == res.gap_before and res.gap_before["validation"] < 0.02, res.gap_before
 
 
-class _NoCandidates(Duffing):
+class _NoCandidates:
+    """The Duffing without candidate_effects()."""
+
+    parameters = Duffing.parameters
+    simulate = Duffing.simulate
+
+    def __init__(self, substeps=4):
+        self.substeps = substeps
+
+
+class _NoneCandidates(Duffing):
     candidate_effects = None
 
 
@@ -176,6 +186,9 @@ def test_a_model_without_candidates_or_nulls_is_told_what_to_add():
     data = make_dataset(n=1024)
     with pytest.raises(ModelSpecError, match=r"has no candidate_effects\(\).*add a method"):
         find_discrepancy(data, _NoCandidates(), workers=1)
+    # a hook set to None is a member of the wrong type (told by the contract's check, for every command)
+    with pytest.raises(ModelSpecError, match=r"candidate_effects is None .*not a method.*candidate_effects\(\) ->"):
+        find_discrepancy(data, _NoneCandidates(), workers=1)
     with pytest.raises(ModelSpecError, match="parameter 'k2' has no null value"):
         find_discrepancy(data, _NoNull(), workers=1)
 

@@ -55,14 +55,13 @@ import numpy as np
 
 from bayes_update.core.logs import info
 from bayes_update.core.calibrate import find_start, problem_for
-from bayes_update.core.effects import (DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, WithNulls,
-                                       candidate_effects, misfit_ratios)
+from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, misfit_ratios
 from bayes_update.core.likelihood import estimate_likelihood, likelihood_runs
 from bayes_update.core.fits import (Fit, _at_bound, _at_null, _best_extra_starts, _effect_starts, _excludes_null,
                                     _signature_check, fit_model, gap, names_effect, names_pair, noise_floor)
-from bayes_update.core.model import check_model_on
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.problem import DatasetError, Problem
+from bayes_update.core.preflight import preflight
+from bayes_update.core.problem import Problem
 from bayes_update.core.steps import StepLog
 from surrogates.evaluation import default_executor
 
@@ -281,7 +280,7 @@ class _Workflow:
 
 
 def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: DiscrepancySettings | None = None,
-                     metrics: str | None = None, executor=None, workers=None, progress: bool = False,
+                     metrics: str | None = None, space=None, executor=None, workers=None, progress: bool = False,
                      log=info) -> DiscrepancyResult:
     """The workflow of the module docstring for ``model`` (any model of the contract
     with ``candidate_effects()``) on ``dataset`` (tests with roles ``linear``,
@@ -294,26 +293,22 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
     candidates : effect names to consider (default: all the model offers).
     metrics : the metric set (default: the model's ``default_metrics``, else
         ``full``; :mod:`bayes_update.core.problem`).
+    space : the prior of the model's parameters (default: the declared ones).
     """
     settings = settings or DiscrepancySettings()
     steps = StepLog()
-    base = ParameterSet(model.parameters, model)
-    effects = candidate_effects(model, base.names)
+    with steps("check_and_screen"):
+        # the check before any long step: the contract, the effects, the data set's roles, one run at
+        # the nulls (problem_for below finds it done)
+        checked = preflight(dataset, model, space, effects=True, candidates=candidates)
+    base, effects = checked.space, checked.effects
     names = list(effects) if candidates is None else list(candidates)
-    unknown = [n for n in names if n not in effects]
-    if unknown:
-        raise ValueError(f"unknown candidate effect(s) {unknown}; {type(model).__name__} offers {sorted(effects)}")
-    nulls = {p.name: p.null for ps in effects.values() for p in ps}
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
         with steps("check_and_screen"):
-            check_model_on(model, dataset, theta={**base.center(), **nulls})
-            problem = problem_for(dataset, WithNulls(model, nulls), base, metrics, executor=pool)
-            steps.add_runs(2 + problem.n_screen_runs)
-        if "nonlinear" not in problem.stages:
-            raise DatasetError(f"{problem.source}: the discrepancy workflow needs the high-level test "
-                               "(role 'nonlinear') as well as the linear one")
+            problem = problem_for(dataset, model, space, metrics, executor=pool, effects=True)
+            steps.add_runs(1 + problem.n_screen_runs)
         flow = _Workflow(dataset, problem, base, effects, settings, pool, steps, log)
         with steps("start"):
             if start is None:

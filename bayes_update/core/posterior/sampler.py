@@ -26,7 +26,7 @@ from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
                                                 WhitenedLogPosterior, _ExecutorPool)
-from bayes_update.core.problem import DatasetError, Problem
+from bayes_update.core.problem import Problem
 from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
@@ -64,9 +64,6 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         with steps("check_and_screen"):
             problem = problem_for(dataset, model, space, metrics, executor=pool)
             steps.add_runs(1 + problem.n_screen_runs)
-        if "nonlinear" not in problem.stages:
-            raise DatasetError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
-                               "(the high-level test) as well as the 'linear' one")
         seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
         run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
         start, start_info = _start(run, start)
