@@ -27,9 +27,11 @@ import numpy as np                                   # noqa: E402
 
 import bayes_update as bu                            # noqa: E402
 from _machine import machine                         # noqa: E402
+import circuit_kit                                   # noqa: E402
 import shear_frame_kit as kit                        # noqa: E402
 
 CASES = {"right": (), "damper": ("damper",), "stiffness": ("stiffness",)}
+CIRCUIT = {"A": circuit_kit.SET_A, "B": circuit_kit.SET_B}
 
 
 def dataset(case: str):
@@ -40,6 +42,63 @@ def dataset(case: str):
     if not (folder / "dataset.json").exists():
         write_dataset(kit.make_dataset(CASES[case]), folder)
     return bu.read_dataset(folder)
+
+
+def circuit_dataset(name: str):
+    """A circuit data set: estimation set ``name`` (A or B) and the held-out tests, cached."""
+    from bayes_update.data.folder import write_dataset
+
+    folder = HERE / "results" / ".cache" / f"circuit_{name}"
+    if not (folder / "dataset.json").exists():
+        write_dataset(circuit_kit.make_dataset(CIRCUIT[name] + circuit_kit.HELD_OUT), folder)
+    return bu.read_dataset(folder)
+
+
+def run_circuit(predictive: int, seed: int, log=None) -> dict:
+    """The circuit (a model of another form than the rig): the posterior from two independent
+    estimation sets, their agreement in combined sd, and the held-out prediction errors of the
+    posterior's mean against calibrate's."""
+    out = {"case": "circuit"}
+    quiet = log or (lambda *a: None)
+    for name in CIRCUIT:
+        data = circuit_dataset(name)
+        t0 = time.perf_counter()
+        res = bu.sample(data, circuit_kit.Oscillator(), bu.PosteriorSettings(seed=seed, n_predictive=predictive),
+                        workers=2, progress=False, log=quiet)
+        wall = time.perf_counter() - t0
+        cal = bu.calibrate(data, circuit_kit.Oscillator(), workers=2, progress=False, log=quiet)
+        out[name] = {"wall_s": wall, "model_runs": int(sum(res.n_model_runs.values())),
+                     "summary": {k: {m: v[m] for m in ("mean", "sd", "r_hat", "ess_bulk", "ess_tail")}
+                                 for k, v in res.summary.items()},
+                     "prediction_error": res.predictive.get("prediction_error"),
+                     "predictive_coverage": res.predictive.get("coverage"),
+                     "calibrate": {"theta": {k: float(v) for k, v in cal.theta.items()},
+                                   "prediction_error": {k: float(v) for k, v in cal.prediction_errors.items()}},
+                     "between_tests": (res.adjustment.between_tests or {}).get("chi2") if res.adjustment else None}
+    a, b = out["A"]["summary"], out["B"]["summary"]
+    out["agreement_combined_sd"] = {k: abs(a[k]["mean"] - b[k]["mean"]) / float(np.hypot(a[k]["sd"], b[k]["sd"]))
+                                    for k in a}
+    return out
+
+
+def circuit_markdown(r: dict) -> str:
+    lines = [f"## the circuit: two estimation sets, held-out tests {[t[0] for t in circuit_kit.HELD_OUT]}", "",
+             "| parameter | set A mean +- sd | set B mean +- sd | A - B in combined sd |", "|---|---|---|---|"]
+    for k, z in r["agreement_combined_sd"].items():
+        a, b = r["A"]["summary"][k], r["B"]["summary"][k]
+        lines.append(f"| {k} | {a['mean']:.5g} +- {a['sd']:.2g} | {b['mean']:.5g} +- {b['sd']:.2g} | {z:.2f} |")
+    lines.append("")
+    for name in CIRCUIT:
+        x = r[name]
+        lines.append(f"- set {name} ({x['model_runs']} runs, {x['wall_s']:.0f} s): prediction error of the "
+                     "posterior mean / calibrate's: " + ", ".join(
+                         f"{t} {100 * e['posterior_mean']:.3f} % / {100 * x['calibrate']['prediction_error'][t]:.3f} % "
+                         f"({e['posterior_mean'] / x['calibrate']['prediction_error'][t]:.3f}x)"
+                         for t, e in (x["prediction_error"] or {}).items()))
+        for test, cov in (x.get("predictive_coverage") or {}).items():
+            lines.append(f"  - bands, {test}: " + ", ".join(f"{100 * c['50']:.0f} / {100 * c['90']:.0f} %"
+                                                         for c in cov.values()))
+    return "\n".join(lines) + "\n"
 
 
 def run_case(case: str, predictive: int, seed: int, log=None, figures: bool = False) -> dict:
@@ -91,7 +150,7 @@ def markdown(results: list) -> str:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    ap.add_argument("--cases", nargs="+", default=list(CASES) + ["circuit"], choices=list(CASES) + ["circuit"])
     ap.add_argument("--predictive", type=int, default=0)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--tag", default="")
@@ -99,12 +158,18 @@ def main():
     ap.add_argument("--figures", action="store_true", help="write each case's posterior folder (figures)")
     a = ap.parse_args()
     results = []
+    circuit = None
     for case in a.cases:
+        if case == "circuit":
+            circuit = run_circuit(a.predictive, a.seed, print if a.verbose else None)
+            print(circuit_markdown(circuit), flush=True)
+            continue
         results.append(run_case(case, a.predictive, a.seed, print if a.verbose else None, a.figures))
         print(markdown(results[-1:]), flush=True)
     stem = HERE / "results" / f"honest_posterior{a.tag}"
-    stem.with_suffix(".json").write_text(json.dumps(results, indent=1, default=float))
-    stem.with_suffix(".md").write_text(markdown(results) + "\n")
+    stem.with_suffix(".json").write_text(json.dumps({"shear_frame": results, "circuit": circuit}, indent=1,
+                                                    default=float))
+    stem.with_suffix(".md").write_text(markdown(results) + "\n" + (circuit_markdown(circuit) if circuit else ""))
 
 
 if __name__ == "__main__":

@@ -117,8 +117,7 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     record, within = None, None
     if between is not None:
         record = _between_record(between, widths, names)
-        record["offsets"] = {name: (np.where(between["shared"], xk, 0.0) * widths).tolist()
-                             for name, xk in between["estimates"]}
+        record["offsets"] = {name: (xk * widths).tolist() for name, xk in between["estimates"]}
         # draws of the adjusted posterior -> draws of the within-test one (without T), about the centre
         within = (np.linalg.solve(A_within, A_s)) * np.outer(widths, 1.0 / widths)
     return CurvatureAdjustment(center=np.asarray(center, float), A=A, variance_ratios=omega,
@@ -140,9 +139,32 @@ def _sqrt_and_inverse(H):
 
 #: the tests disagree when their estimates' chi-square exceeds this quantile of its distribution
 DISAGREEMENT_QUANTILE = 0.99
-#: a coordinate is compared between tests when every test pins it to less than this share of
-#: its prior width (1 sd): a test that hardly sees a parameter says nothing of it
-IDENTIFIED_WIDTH = 0.5
+#: a test's own estimate moves along a direction only where it holds at least this share of the
+#: joint information there; two tests are compared along the directions where each does.  A
+#: direction a test barely pins (the circuit's low level: the trade of f0 and k3) is noise and
+#: overshoot in its own estimate, not information: a Gauss-Newton step along it put k3 at its bound
+MIN_SHARE = 0.1
+
+
+def _shares(blocks, H):
+    """(H^-1/2, eigenvectors U of the first test's information in coordinates whitened by the
+    joint H, and every test's share of the joint information along each of them)."""
+    _, h_ihalf = _sqrt_and_inverse(H)
+    _, U = np.linalg.eigh(h_ihalf @ blocks[0][1] @ h_ihalf)
+    shares = np.array([np.einsum("ij,ik,kj->j", U, h_ihalf @ Hk @ h_ihalf, U) for _, Hk, _, _ in blocks])
+    return h_ihalf, U, shares
+
+
+def own_step(Hk, gk, H) -> np.ndarray:
+    """A test's own Gauss-Newton step from the joint mode (coordinates divided by the
+    prior widths), along the directions where it holds at least :data:`MIN_SHARE` of the
+    joint information ``H`` (elsewhere it stays at the joint estimate): with
+    ``W = H^-1/2 H_k H^-1/2 = sum_j l_j u_j u_j^T``, ``-H^-1/2 sum_{l_j >= MIN_SHARE}
+    u_j u_j^T H^-1/2 g_k / l_j``."""
+    _, h_ihalf = _sqrt_and_inverse(H)
+    lam, U = np.linalg.eigh(h_ihalf @ Hk @ h_ihalf)
+    keep = lam >= MIN_SHARE
+    return -h_ihalf @ (U[:, keep] @ ((U[:, keep].T @ (h_ihalf @ gk)) / lam[keep]))
 
 
 def between_test_covariance(blocks, n_stages: int):
@@ -152,9 +174,9 @@ def between_test_covariance(blocks, n_stages: int):
     ``blocks``: per test ``(name, H_k, M_k, g_k)`` in coordinates divided by the prior
     widths, at the joint mode: ``H_k = J_k^T J_k``, ``M_k`` the second moment of its
     errors through J_k, ``g_k = J_k^T r_k``.  Each test alone would move the joint
-    estimate by one Gauss-Newton step, ``x_k = -(H_k + I/K)^-1 g_k``, with the sandwich
-    covariance ``C_k``.  On the coordinates every test identifies
-    (:data:`IDENTIFIED_WIDTH`), Cochran's ``Q = sum_k (x_k - x_w)^T C_k^-1 (x_k - x_w)``
+    estimate by its own step (:func:`own_step`), with the sandwich covariance ``C_k``.
+    Along the directions where every test holds at least :data:`MIN_SHARE` of the joint
+    information (r of them), Cochran's ``Q = sum_k (x_k - x_w)^T C_k^-1 (x_k - x_w)``
     (``x_w`` the precision-weighted mean) against chi^2 with (K - 1) r degrees of
     freedom (:data:`DISAGREEMENT_QUANTILE`); beyond it, the method of moments of a
     random-effects meta-analysis (DerSimonian & Laird 1986, multivariate): T is the
@@ -163,18 +185,24 @@ def between_test_covariance(blocks, n_stages: int):
     joint) is what pulls a low- and a high-level test apart; T is how far the
     model-form error moves a parameter from one test to the next, which the
     noise of either test does not hold."""
-    info = np.eye(blocks[0][1].shape[0]) / n_stages
-    x, C = [], []
-    for _, Hk, Mk, gk in blocks:
-        P = np.linalg.inv(Hk + info)
-        x.append(own_step(Hk, gk, n_stages))
-        C.append(P @ (Mk + info) @ P)
-    shared = np.all([np.sqrt(np.clip(np.diag(c), 0, None)) < IDENTIFIED_WIDTH for c in C], axis=0)
-    r, K = int(shared.sum()), len(blocks)
-    if r == 0 or K < 2:
+    K = len(blocks)
+    if K < 2:
         return None
-    xs = np.array([xk[shared] for xk in x])
-    Cs = [c[np.ix_(shared, shared)] for c in C]
+    H = np.eye(blocks[0][1].shape[0]) + sum(b[1] for b in blocks)
+    h_ihalf, U, shares = _shares(blocks, H)
+    V = U[:, np.all(shares >= MIN_SHARE, axis=0)]          # the shared directions, whitened
+    r = V.shape[1]
+    if r == 0:
+        return None
+    h_half = np.linalg.inv(h_ihalf)
+    x = [own_step(Hk, gk, H) for _, Hk, _, gk in blocks]
+    info = np.eye(len(H)) / n_stages
+    C = []
+    for _, Hk, Mk, _ in blocks:
+        P = np.linalg.inv(Hk + info)
+        C.append(P @ (Mk + info) @ P)
+    xs = np.array([V.T @ h_half @ xk for xk in x])         # (K, r) in whitened shared coordinates
+    Cs = [V.T @ h_half @ c @ h_half @ V for c in C]
     W = [np.linalg.inv(c) for c in Cs]
     x_w = np.linalg.solve(sum(W), sum(w @ xk for w, xk in zip(W, xs)))
     Q = float(sum((xk - x_w) @ w @ (xk - x_w) for w, xk in zip(W, xs)))
@@ -184,20 +212,13 @@ def between_test_covariance(blocks, n_stages: int):
     if Q <= limit:
         return None
     S = np.cov(xs.T, ddof=1).reshape(r, r)
-    w, V = np.linalg.eigh(S - sum(Cs) / K)
-    T = np.zeros((len(shared), len(shared)))
-    T[np.ix_(shared, shared)] = (V * np.clip(w, 0.0, None)) @ V.T
-    if not np.any(T):
+    w, E = np.linalg.eigh(S - sum(Cs) / K)
+    T_s = (E * np.clip(w, 0.0, None)) @ E.T
+    if not np.any(T_s):
         return None
-    return {"T": T, "Q": Q, "limit": limit, "shared": shared, "estimates": [(b[0], xk) for b, xk in zip(blocks, x)],
-            "covariances": C}
-
-
-def own_step(Hk, gk, n_stages: int) -> np.ndarray:
-    """A test's own Gauss-Newton step from the joint mode, ``-(H_k + I / K)^-1 g_k``
-    (coordinates divided by the prior widths; the prior's unit of information shared
-    among the K tests, so that a coordinate the test does not see stays put)."""
-    return -np.linalg.solve(Hk + np.eye(len(gk)) / n_stages, gk)
+    back = h_ihalf @ V                                      # whitened shared -> scaled coordinates
+    return {"T": back @ T_s @ back.T, "Q": Q, "limit": limit, "n_directions": r,
+            "estimates": [(b[0], back @ xk) for b, xk in zip(blocks, xs)], "covariances": C}
 
 
 def own_points(jacobian, residual, sizes, x, box) -> list:
@@ -207,20 +228,23 @@ def own_points(jacobian, residual, sizes, x, box) -> list:
     widths = box[:, 1] - box[:, 0]
     J = np.asarray(jacobian, float) * widths
     r = np.asarray(residual, float)
-    out, row = [], 0
+    blocks, row = [], 0
     for n in sizes:
         Jk, rk = J[row:row + n], r[row:row + n]
         row += n
-        step = own_step(Jk.T @ Jk, Jk.T @ rk, len(sizes)) * widths
-        out.append(np.clip(np.asarray(x, float) + step, box[:, 0], box[:, 1]))
-    return out
+        blocks.append((Jk.T @ Jk, Jk.T @ rk))
+    H = np.eye(J.shape[1]) + sum(Hk for Hk, _ in blocks)
+    return [np.clip(np.asarray(x, float) + own_step(Hk, gk, H) * widths, box[:, 0], box[:, 1])
+            for Hk, gk in blocks]
 
 
 def _between_record(between: dict, widths, names) -> dict:
-    """JSON-ready: the test statistic, and per test and parameter the shift of its own
-    estimate from the joint one in sd of the between-test spread."""
-    sd_T = np.sqrt(np.diag(between["T"])) * widths
-    return {"chi2": between["Q"], "chi2_limit": between["limit"],
-            "between_test_sd": {n: float(v) for n, v, s in zip(names, sd_T, between["shared"]) if s},
-            "shift_from_joint": {name: {n: float(v * w) for n, v, w, s in zip(names, xk, widths, between["shared"]) if s}
+    """JSON-ready: the test statistic, the between-test sd of each parameter (those the
+    tests' disagreement moves) and each test's own estimate's shift from the joint one
+    along the shared directions, in the parameters' units."""
+    sd_T = np.sqrt(np.clip(np.diag(between["T"]), 0.0, None)) * widths
+    moved = sd_T > 1e-9 * widths
+    return {"chi2": between["Q"], "chi2_limit": between["limit"], "n_directions": between["n_directions"],
+            "between_test_sd": {n: float(v) for n, v, m in zip(names, sd_T, moved) if m},
+            "shift_from_joint": {name: {n: float(v * w) for n, v, w, m in zip(names, xk, widths, moved) if m}
                                  for name, xk in between["estimates"]}}

@@ -363,9 +363,10 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
       what no parameter value takes up is the model-form error.  A model that is
       right leaves nothing beyond the noise and keeps its scales.
 
-    Per stage one run of the model at the stage's own point and, where it has
-    ``refined()``, one of the refined model at the mode (through ``executor``, all
-    side by side); the model's compared output at the mode comes from the mode's
+    Per stage a run of the model at the mode and one at the stage's own point
+    (the better residual counts: a Gauss-Newton step along a direction the test
+    barely pins may overshoot) and, where it has ``refined()``, one of the refined
+    model at the mode (through ``executor``, all side by side); the model's compared output at the mode comes from the mode's
     scaled ``residual`` (no run) and the span from its ``jacobian`` (rows in
     ``problem.stages`` order).  With the model
     error switched off (``model_error=False``: data made by the updating model
@@ -374,13 +375,18 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
         return likelihood
     ref_model = problem.refined_model()
     own = own_points or {}
-    tasks = [_RunAt(problem, own.get(st, params), None, st) for st in problem.stages]
-    if ref_model is not None:
-        tasks += [_RunAt(problem, params, ref_model, st) for st in problem.stages]
+    stages = problem.stages
+    # per stage the model at the mode and at the stage's own point (its better residual is taken:
+    # a Gauss-Newton step along a direction the test barely pins may overshoot), and the refined model
+    tasks = ([_RunAt(problem, params, None, st) for st in stages] +
+             [_RunAt(problem, own[st], None, st) for st in stages if st in own] +
+             ([_RunAt(problem, params, ref_model, st) for st in stages] if ref_model is not None else []))
     runs = evaluate_many(_call, tasks, executor, batch_size=1, progress=False)
-    own_runs, refined_runs = runs[:len(problem.stages)], runs[len(problem.stages):]
+    at_mode, runs = runs[:len(stages)], runs[len(stages):]
+    at_own = {st: runs.pop(0) for st in stages if st in own}
+    refined_runs = runs
     scales, forms, row = {}, {}, 0
-    for i, (stage, y_run) in enumerate(zip(problem.stages, own_runs)):
+    for i, stage in enumerate(stages):
         sc = likelihood.scales[stage]
         ref = problem.output(stage, problem.reference_components(stage))
         norm, n = np.linalg.norm(ref), ref.size
@@ -393,15 +399,15 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
             changes.update(model_error=float(np.linalg.norm(d) / norm),
                            model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
         spectrum = (likelihood.noise_spectra or {}).get(stage)
-        where = "its own best point" if stage in own else "the MAP"
-        if y_run is None:
-            y_run, where = problem.run(params, problem.tests[stage].force), "the MAP (its own best point failed)"
+        test = problem.tests[stage]
+        where, resid = _best_residual(problem, test, at_mode[i], at_own.get(stage))
         if spectrum is None:
             changes["model_form_source"] = "not measured: the likelihood has no noise spectrum (given by hand)"
+        elif resid is None:
+            changes["model_form_source"] = "not measured: the model cannot run at the MAP"
         else:
-            test = problem.tests[stage]
             rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(100 + i,)))
-            draws, excess = form_draws(test.response - problem.compared_response(y_run), spectrum, n_draws, rng)
+            draws, excess = form_draws(resid, spectrum, n_draws, rng)
             D = np.array([problem.output(stage, problem.components(stage, dk)) / norm for dk in draws])
             forms[stage] = (D, np.full(len(D), 1.0 / len(D)))
             y = test.response.reshape(len(test.response), -1)
@@ -413,6 +419,19 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
         scales[stage] = dataclasses.replace(sc, **changes)
     return Likelihood(scales, likelihood.noise_residuals, likelihood.sensitivities, likelihood.noise_spectra,
                       forms or None)
+
+
+def _best_residual(problem, test, at_mode, at_own):
+    """(where, the record's residual) of the better of the model's runs at the mode and
+    at the test's own point (by rms; None where a run failed)."""
+    best = None
+    for where, run in (("the MAP", at_mode), ("its own best point", at_own)):
+        if run is None:
+            continue
+        r = test.response - problem.compared_response(run)
+        if best is None or np.sum(r ** 2) < np.sum(best[1] ** 2):
+            best = (where, r)
+    return best if best is not None else (None, None)
 
 
 def _column_span(J) -> np.ndarray:

@@ -232,8 +232,8 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
                          own_points={st: space.to_parameters(x) for st, x in zip(stages, own)})
     if new is lik:
         return lik, mp
-    # per stage a run at its own best point, and the refined model's at the MAP
-    run.steps.add_runs(len(stages) * (1 + (problem.refined_model() is not None)))
+    # per stage a run at the MAP and one at its own best point, and the refined model's at the MAP
+    run.steps.add_runs(len(stages) * (2 + (problem.refined_model() is not None)))
     ratios = np.array([lik.scales[st].sd / new.scales[st].sd for st in stages])
     factor = np.concatenate([np.full(k, f) for k, f in zip(n, ratios)])
     mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
