@@ -56,7 +56,7 @@ def judge(case, effects, res) -> dict:
     b, a = res.gap_before, res.gap_after
     # a gap already at the noise floor (the null case: validation beyond its noise is 0) cannot shrink
     shrink_e = 1 - (a["e_lin"] + a["e_nlin"]) / (b["e_lin"] + b["e_nlin"]) if b["e_lin"] + b["e_nlin"] > 0 else 0.0
-    shrink_v = 1 - a["validation"] / b["validation"] if b["validation"] > 0 else 0.0
+    shrink_v = 1 - a["held_out_error_beyond_noise"] / b["held_out_error_beyond_noise"] if b["held_out_error_beyond_noise"] > 0 else 0.0
     final = res.to_json()["final_mode"]["effects"]
     inside = []
     for e in effects:
@@ -124,7 +124,7 @@ def main(argv=None):
         lines.append(f"| {r['seed']} | {r['case']} | {hid} | {', '.join(r['named']) or 'none'} | "
                      f"{r['evidence'][0]['two_ln_B']:.1f} ({r['evidence'][0]['name']}) | "
                      f"{100 * (b['e_lin'] + b['e_nlin']):.2f} % -> {100 * (a['e_lin'] + a['e_nlin']):.2f} % | "
-                     f"{100 * b['validation']:.2f} % -> {100 * a['validation']:.2f} % | {pars or '-'} | "
+                     f"{100 * b['held_out_error_beyond_noise']:.2f} % -> {100 * a['held_out_error_beyond_noise']:.2f} % | {pars or '-'} | "
                      f"{r['time_s']:.0f} s | {'OK' if r['success'] else 'FAIL'} |")
     (ROOT / "benchmarks" / "results" / "discrepancy_cases.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

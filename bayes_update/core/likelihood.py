@@ -172,7 +172,8 @@ class Likelihood:
         comparison should count as explained.  The posterior keeps the whole
         model error, so that its bias moves a parameter by at most one sd."""
         return Likelihood({st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
-                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()})
+                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()},
+                          self.noise_residuals, self.sensitivities, self.noise_spectra, self.form_residuals)
 
     def log_likelihood(self, metrics: dict) -> float:
         """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""

@@ -72,13 +72,22 @@ class PosteriorResult:
         the sd resolves (:mod:`bayes_update.core.numbers`)."""
         from bayes_update.core.numbers import format_sd, format_value
 
-        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
+        from bayes_update.core.posterior.mcmc import MIN_ESS, RHAT_TARGET
+
+        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS | tail ESS |", "|---|---|---|---|---|---|---|"]
         for var, v in self.summary.items():
             unit = f" [{v['units']}]" if v["units"] else ""
             sd = v["sd"]          # the mean and the HDI to the decimal place of sd's second digit
             lines.append(f"| {var}{unit} | {format_value(v['mean'], sd)} | {format_sd(sd)} | "
                          f"{format_value(v['hdi_3%'], sd)} - {format_value(v['hdi_97%'], sd)} | "
-                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
+                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} | {v['ess_tail']:.0f} |")
+        ok = all(v["r_hat"] < RHAT_TARGET and min(v["ess_bulk"], v["ess_tail"]) >= MIN_ESS
+                 for v in self.summary.values())
+        steps = self.diagnostics.get("convergence", {}).get("n_steps")
+        lines.append("")
+        lines.append(("converged" if ok else "NOT converged") + f": R-hat < {RHAT_TARGET} and bulk and tail ESS >= "
+                     f"{MIN_ESS} for every variable {'holds' if ok else 'fails'}"
+                     + (f" ({steps} steps of {self.settings.n_walkers} walkers)" if steps else ""))
         return "\n".join(lines)
 
     def run_json(self) -> dict:

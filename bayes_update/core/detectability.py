@@ -1,0 +1,189 @@
+"""What the tests could have seen: for each candidate effect, the smallest magnitude
+the discrepancy workflow would name on these tests (``detectable_from``).
+
+A magnitude m in (0, 1] puts every parameter of the effect at ``null + m (far -
+null)``, far the bound of its prior farther from the null (a symmetric effect,
+whose prior spans both sides, is measured on its upper side).  On a geometric
+ladder of magnitudes, with the model at the baseline's mode and the effect at m
+(one run per test and magnitude, the effect's Jacobian by forward differences:
+one more per parameter):
+
+* the evidence the workflow would find on data holding the effect at m: the
+  part of the effect's residual change no change of the baseline's parameters
+  takes up, ``chi2(m) = ||(I - P_J) dr(m)||^2`` (scaled residuals of the
+  likelihood the workflow compares with), plus the noise's share along the
+  effect (k, its number of parameters), plus twice its Laplace Occam factor
+  ``log det(2 pi C_e)^1/2 - log(prior volume)`` (C_e the effect's covariance with
+  the baseline's parameters profiled out): ``2 ln B(m)``;
+* the held-out gain: the validation tests' response change, with the baseline's
+  parameters moved as the fit would move them (their Gauss-Newton step on the
+  estimation tests' change), in units of the records' noise: the gain's z is
+  half its norm (:mod:`bayes_update.core.held_out`: a model with the effect
+  against one without, on a record holding it).
+
+``detectable_from`` is the smallest m with ``2 ln B > DECISIVE`` and the held-out
+z above :data:`~bayes_update.core.held_out.SIGNIFICANT_SD` (the log of m
+interpolated between ladder points), reported in the effect's parameters' units;
+None when not even the prior's far bound would be named.  Linearised about the
+baseline's mode, so a limit is an estimate: the tests
+(``tests/test_detectability.py``) run the whole workflow on data with the effect
+just above and just below it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from bayes_update.core.effects import DECISIVE, ExtendedSpace
+from bayes_update.core.held_out import SIGNIFICANT_SD
+from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, SpacePoint
+from surrogates.evaluation import evaluate_many
+
+__all__ = ["LADDER", "detectability"]
+
+#: the magnitudes tried, as fractions of the way from the null to the prior's far bound
+LADDER = tuple(np.geomspace(1e-3, 1.0, 10))
+
+
+@dataclass
+class _Point:
+    """Picklable: the estimation tests' scaled residual and the validation tests'
+    responses at internal point x of ``space`` (None where the model cannot run)."""
+
+    fun: ResidualFunction
+    space: ExtendedSpace
+
+    def __call__(self, x):
+        problem, theta = self.fun.problem, self.space.to_parameters(x)
+        r = self.fun(x) if self.fun.stages else np.zeros(0)
+        if np.any(r == FAILED_RESIDUAL):
+            return None
+        try:
+            v = {n: problem.compared_response(problem.run(theta, t.force, model=problem.model))
+                 for n, t in problem.validation.items()}
+        except problem.failures:
+            return None
+        return r, v
+
+
+def _far(p) -> float:
+    """The bound of ``p``'s prior farther from its null (the upper one on a tie)."""
+    return p.high if abs(p.high - p.null) >= abs(p.low - p.null) else p.low
+
+
+def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tuple[dict, int]:
+    """``({effect: record}, model runs)`` for the baseline ``fit`` (its mode and
+    Jacobian under ``lik``; module docstring).  Each record: ``detectable_from``
+    ({parameter: value} or None), ``magnitude`` (its fraction of the way to the far
+    bound), and the ladder's ``two_ln_B`` and ``held_out_z``."""
+    out, runs = {}, 0
+    x0 = np.asarray(fit.mode.x, float)
+    Jb, r0 = np.asarray(fit.mode.jacobian, float), np.asarray(fit.mode.residual, float)
+    Q = _span(Jb)
+    steps = _base_steps(problem, fit, base, executor)
+    runs += steps["runs"]
+    for name, params in effects.items():
+        space = ExtendedSpace(base, list(params))
+        fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
+                               SpacePoint(space, problem.model))
+        k, n0 = len(params), len(x0)
+        far = np.array([_far(p) for p in params])
+        null = np.array([p.null for p in params])
+        box = space.box()[n0:]
+        h = 1e-3 * (box[:, 1] - box[:, 0])
+        points, shifts = [], []
+        for m in LADDER:
+            xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
+            points.append(np.concatenate([x0, xe]))
+            for i in range(k):               # the effect's Jacobian: a step of 1e-3 of its range, inwards
+                step = h[i] if xe[i] + h[i] <= box[i, 1] else -h[i]
+                points.append(points[-1 - i].copy())
+                points[-1][n0 + i] += step
+                shifts.append(step)
+        done = evaluate_many(_Point(fun, space), points, executor, progress=False)
+        runs += len(points) * (len(problem.stages) + len(problem.validation))
+        ladder = []
+        for j, m in enumerate(LADDER):
+            at, cols = done[j * (k + 1)], done[j * (k + 1) + 1:(j + 1) * (k + 1)]
+            if at is None or any(c is None for c in cols):
+                ladder.append((m, None, None))
+                continue
+            dr = at[0] - r0
+            perp = dr - Q @ (Q.T @ dr)
+            Je = np.column_stack([(c[0] - at[0]) / shifts[j * k + i] for i, c in enumerate(cols)])
+            Je_perp = Je - Q @ (Q.T @ Je)
+            sign, logdet = np.linalg.slogdet(Je_perp.T @ Je_perp)
+            # twice the Laplace Occam factor of the effect's k coordinates (prior uniform on its box)
+            occam = 0.5 * k * math.log(2 * math.pi) - 0.5 * logdet - float(np.sum(np.log(box[:, 1] - box[:, 0])))
+            two_ln_b = float(perp @ perp) + k + 2.0 * occam if sign > 0 else None
+            ladder.append((m, two_ln_b, _held_out_z(problem, at[1], steps, dr)))
+        out[name] = _limit(ladder, params, null, far)
+    return out, runs
+
+
+def _span(J) -> np.ndarray:
+    U, S, _ = np.linalg.svd(J, full_matrices=False)
+    return U[:, :int(np.sum(S > 1e-8 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
+
+
+def _base_steps(problem, fit, base, executor) -> dict:
+    """The validation tests' responses at the baseline's mode and their derivative with
+    respect to its parameters (forward differences, d + 1 runs per validation test), and
+    the Gauss-Newton map from an estimation-residual change to the baseline's parameter step."""
+    if not problem.validation:
+        return {"runs": 0}
+    space = ExtendedSpace(base)
+    fun = ResidualFunction(problem, (), (), SpacePoint(space, problem.model))
+    x0 = np.asarray(fit.mode.x, float)
+    box = space.box()
+    h = 1e-4 * (box[:, 1] - box[:, 0])
+    pts = [x0] + [x0 + np.eye(len(x0))[i] * h[i] for i in range(len(x0))]
+    done = evaluate_many(_Point(fun, space), pts, executor, progress=False)
+    if any(d is None for d in done):
+        return {"runs": len(pts) * len(problem.validation)}
+    v0 = done[0][1]
+    Jv = {n: np.stack([(d[1][n] - v0[n]) / h[i] for i, d in enumerate(done[1:])], axis=-1) for n in v0}
+    return {"runs": len(pts) * len(problem.validation), "v0": v0, "Jv": Jv,
+            "gn": np.linalg.pinv(np.asarray(fit.mode.jacobian, float))}
+
+
+def _held_out_z(problem, v, steps, dr) -> float | None:
+    """The held-out gain's z of a model with the effect against one without, on records
+    that hold it: half the noise-weighted norm of the validation tests' change, the
+    baseline's parameters moved by their Gauss-Newton step on the estimation change."""
+    if "v0" not in steps:
+        return None
+    dx = -steps["gn"] @ dr
+    total = 0.0
+    for n, t in problem.validation.items():
+        change = (v[n] - steps["v0"][n]) + steps["Jv"][n] @ dx
+        sigma = np.asarray(problem.test_noise(n), float)
+        total += float(np.sum(change.reshape(len(change), -1) ** 2 / sigma ** 2))
+    return 0.5 * math.sqrt(total)
+
+
+def _limit(ladder, params, null, far) -> dict:
+    """The smallest magnitude on ``ladder`` [(m, 2 ln B, held-out z)] that would be named."""
+    def named(two_ln_b, z):
+        return two_ln_b is not None and two_ln_b > DECISIVE and (z is None or z > SIGNIFICANT_SD)
+
+    def margin(two_ln_b, z):     # > 0 where named: the smaller of the two margins, in log
+        if two_ln_b is None:
+            return -math.inf
+        a = math.log(max(two_ln_b, 1e-3) / DECISIVE)
+        return a if z is None else min(a, math.log(max(z, 1e-6) / SIGNIFICANT_SD))
+
+    record = {"ladder": [{"magnitude": m, "two_ln_B": b, "held_out_z": z} for m, b, z in ladder],
+              "detectable_from": None, "magnitude": None}
+    for i, (m, b, z) in enumerate(ladder):
+        if not named(b, z):
+            continue
+        if i > 0 and ladder[i - 1][1] is not None:
+            m0, g0, g1 = ladder[i - 1][0], margin(*ladder[i - 1][1:]), margin(b, z)
+            m = math.exp(math.log(m0) + (math.log(m) - math.log(m0)) * (-g0) / (g1 - g0)) if g1 > g0 else m
+        record["magnitude"] = float(m)
+        record["detectable_from"] = {p.name: float(n + m * (f - n)) for p, n, f in zip(params, null, far)}
+        break
+    return record
