@@ -137,7 +137,9 @@ def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
     assert res.n_model_runs["total"] < 300, res.n_model_runs
     for name in free:
         s = res.summary[name]
-        assert s["hdi_3%"] <= TRUTH[name] <= s["hdi_97%"] and s["r_hat"] < 1.02, (name, s)
+        assert s["hdi_3%"] <= TRUTH[name] <= s["hdi_97%"], (name, s)
+        # a default posterior converges: R-hat < 1.01, bulk and tail ESS >= 400
+        assert s["r_hat"] < 1.01 and min(s["ess_bulk"], s["ess_tail"]) >= 400, (name, s)
 
 
 def test_the_thorough_and_quick_options_exclude_each_other(tmp_path, capsys):
