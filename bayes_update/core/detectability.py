@@ -8,13 +8,14 @@ ladder of magnitudes, with the model at the baseline's mode and the effect at m
 (one run per test and magnitude, the effect's Jacobian by forward differences:
 one more per parameter):
 
-* the evidence the workflow would find on data holding the effect at m: the
-  part of the effect's residual change no change of the baseline's parameters
-  takes up, ``chi2(m) = ||(I - P_J) dr(m)||^2`` (scaled residuals of the
-  likelihood the workflow compares with), plus the noise's share along the
-  effect (k, its number of parameters), plus twice its Laplace Occam factor
-  ``log det(2 pi C_e)^1/2 - log(prior volume)`` (C_e the effect's covariance with
-  the baseline's parameters profiled out): ``2 ln B(m)``;
+* the evidence the workflow would find on records holding the effect at m,
+  scored as it scores it (:mod:`bayes_update.core.comparison`: each model under
+  the noise and the model-form error its own mode leaves): the model with the
+  effect leaves there what the baseline leaves on its own records; the model
+  without it leaves that plus the part of the effect's change no change of the
+  baseline's parameters takes up, and its form error holds the effect's time
+  response too; ``2 ln B(m)`` is twice the difference of their Laplace log
+  evidences (the effect's Jacobian in the first);
 * the held-out gain: the validation tests' response change, with the baseline's
   parameters moved as the fit would move them (their Gauss-Newton step on the
   estimation tests' change), in units of the records' noise: the gain's z is
@@ -36,6 +37,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bayes_update.core.comparison import error_covariance, evidence
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
 from bayes_update.core.held_out import SIGNIFICANT_SD
 from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, SpacePoint
@@ -49,8 +51,8 @@ LADDER = tuple(np.geomspace(1e-3, 1.0, 10))
 
 @dataclass
 class _Point:
-    """Picklable: the estimation tests' scaled residual and the validation tests'
-    responses at internal point x of ``space`` (None where the model cannot run)."""
+    """Picklable: at internal point x of ``space``, the estimation tests' scaled residual
+    and time responses and the validation tests' responses (None where the model cannot run)."""
 
     fun: ResidualFunction
     space: ExtendedSpace
@@ -61,11 +63,13 @@ class _Point:
         if np.any(r == FAILED_RESIDUAL):
             return None
         try:
+            y = {st: problem.compared_response(problem.run(theta, problem.tests[st].force, model=problem.model))
+                 for st in self.fun.stages}
             v = {n: problem.compared_response(problem.run(theta, t.force, model=problem.model))
                  for n, t in problem.validation.items()}
         except problem.failures:
             return None
-        return r, v
+        return r, v, y
 
 
 def _far(p) -> float:
@@ -73,7 +77,7 @@ def _far(p) -> float:
     return p.high if abs(p.high - p.null) >= abs(p.low - p.null) else p.low
 
 
-def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tuple[dict, int]:
+def detectability(problem, base, fit, lik, effects: dict, executor=None, seed: int = 0) -> tuple[dict, int]:
     """``({effect: record}, model runs)`` for the baseline ``fit`` (its mode and
     Jacobian under ``lik``; module docstring).  Each record: ``detectable_from``
     ({parameter: value} or None), ``magnitude`` (its fraction of the way to the far
@@ -84,16 +88,19 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
     Q = _span(Jb)
     steps = _base_steps(problem, fit, base, executor)
     runs += steps["runs"]
+    base_space = ExtendedSpace(base)
+    base_prior, base_widths = base_space.log_prior_density(x0), base_space.widths()
+    sizes = [problem.output(st, problem.reference_components(st)).size for st in problem.stages]
+    sd = [lik.scales[st].sd for st in problem.stages]
     for name, params in effects.items():
         space = ExtendedSpace(base, list(params))
-        fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
-                               SpacePoint(space, problem.model))
+        fun = ResidualFunction(problem, problem.stages, tuple(sd), SpacePoint(space, problem.model))
         k, n0 = len(params), len(x0)
         far = np.array([_far(p) for p in params])
         null = np.array([p.null for p in params])
         box = space.box()[n0:]
         h = 1e-3 * (box[:, 1] - box[:, 0])
-        points, shifts = [], []
+        points, shifts = [np.concatenate([x0, space.null_internal()])], []      # the baseline itself first
         for m in LADDER:
             xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
             points.append(np.concatenate([x0, xe]))
@@ -104,20 +111,44 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
                 shifts.append(step)
         done = evaluate_many(_Point(fun, space), points, executor, progress=False)
         runs += len(points) * (len(problem.stages) + len(problem.validation))
+        if done[0] is None:
+            out[name] = {"ladder": [], "detectable_from": None, "magnitude": None}
+            continue
+        y0 = done[0][2]
+        # the baseline on its own records: its error covariance (noise and its own form error)
+        base_cov = {st: error_covariance(problem, lik, st, problem.tests[st].response - y0[st],
+                                         np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(300 + i,))))
+                    for i, st in enumerate(problem.stages)}
         ladder = []
         for j, m in enumerate(LADDER):
-            at, cols = done[j * (k + 1)], done[j * (k + 1) + 1:(j + 1) * (k + 1)]
+            at = done[1 + j * (k + 1)]
+            cols = done[2 + j * (k + 1):1 + (j + 1) * (k + 1)]
             if at is None or any(c is None for c in cols):
                 ladder.append((m, None, None))
                 continue
             dr = at[0] - r0
             perp = dr - Q @ (Q.T @ dr)
             Je = np.column_stack([(c[0] - at[0]) / shifts[j * k + i] for i, c in enumerate(cols)])
-            Je_perp = Je - Q @ (Q.T @ Je)
-            sign, logdet = np.linalg.slogdet(Je_perp.T @ Je_perp)
-            # twice the Laplace Occam factor of the effect's k coordinates (prior uniform on its box)
-            occam = 0.5 * k * math.log(2 * math.pi) - 0.5 * logdet - float(np.sum(np.log(box[:, 1] - box[:, 0])))
-            two_ln_b = float(perp @ perp) + k + 2.0 * occam if sign > 0 else None
+            # on records holding the effect at m: the model with it leaves what the baseline leaves on
+            # its own records; the model without it leaves that plus what of the effect's change its
+            # parameters cannot take up, and a form error that holds the effect's change too
+            a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
+            for i, (st, n) in enumerate(zip(problem.stages, sizes)):
+                S0, Qo, _ = base_cov[st]
+                sl = slice(row, row + n)
+                row += n
+                a_with[st] = Qo.T @ (r0[sl] * sd[i])
+                J_with[st] = Qo.T @ (np.column_stack([Jb[sl], Je[sl]]) * sd[i])
+                S_with[st] = S0
+                a_wo[st] = Qo.T @ ((r0[sl] - perp[sl]) * sd[i])          # r = (ref - out): the data moved by dout
+                J_wo[st] = Qo.T @ (Jb[sl] * sd[i])
+                rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(400 + i, j)))
+                S_wo[st] = error_covariance(problem, lik, st, problem.tests[st].response - y0[st]
+                                            + (at[2][st] - y0[st]), rng)[0]
+            z_with = evidence(a_with, J_with, S_with, space.log_prior_density(points[1 + j * (k + 1)]),
+                              space.widths())[0]
+            z_wo = evidence(a_wo, J_wo, S_wo, base_prior, base_widths)[0]
+            two_ln_b = 2.0 * (z_with - z_wo) if np.isfinite(z_with) and np.isfinite(z_wo) else None
             ladder.append((m, two_ln_b, _held_out_z(problem, at[1], steps, dr)))
         out[name] = _limit(ladder, params, null, far)
     return out, runs

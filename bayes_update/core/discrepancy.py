@@ -25,10 +25,10 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    credited to an effect); a fit that still ends below the model without it
    is run again from there, and reported as failed if it does once more
    (:func:`~bayes_update.core.fits.failed_fit`, never as a Bayes factor);
-   Laplace log evidence and ``2 ln B`` of each at its own optimum under the
-   honest likelihood (the baseline's model-form error counted,
-   :func:`~bayes_update.core.likelihood.errors_at_mode`: no model's misfit beyond
-   the noise is taken for evidence); each fit's prediction of the held-out
+   Laplace log evidence and ``2 ln B`` of each at its own optimum, each model
+   under the noise and the model-form error its own mode leaves
+   (:mod:`bayes_update.core.comparison`: a misfit no candidate explains counts
+   for none of them); each fit's prediction of the held-out
    tests (:mod:`bayes_update.core.held_out`).  Named when ``2 ln B >``
    :data:`~bayes_update.core.effects.DECISIVE`, the Laplace interval (mode +- 2
    sd) of one of its parameters excludes the null, the fit is neither at its
@@ -102,7 +102,7 @@ class DiscrepancySettings:
     @classmethod
     def quick(cls, **kw) -> "DiscrepancySettings":
         base = dict(n_replicates=8, max_iterations=30, extra_starts=False, reestimate_likelihood=False,
-                    cost_tolerance=0.01)
+                    cost_tolerance=0.01, detectability=False)
         base.update(kw)
         return cls(**base)
 
@@ -175,7 +175,7 @@ class _Workflow:
     def fit(self, added, lik, starts, iterations=None) -> Fit:
         space = ExtendedSpace(self.base, [p for e in added for p in self.effects[e]])
         f = fit_model(self.problem, space, added, lik, starts, self.settings, self.pool, iterations)
-        self.steps.add_runs(f.mode.n_evaluations * len(self.problem.stages))
+        self.steps.add_runs((f.mode.n_evaluations + 1) * len(self.problem.stages))     # + its score's run
         return f
 
     def baseline(self, start) -> tuple[Fit, object]:
@@ -385,7 +385,8 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
         detectable = {}
         if settings.detectability:
             with steps("detectability"):
-                detectable, n = detectability(problem, base, baseline, lik, {e: effects[e] for e in names}, pool)
+                detectable, n = detectability(problem, base, baseline, lik, {e: effects[e] for e in names}, pool,
+                                              settings.seed)
                 steps.add_runs(n)
             log("detectable from: " + "; ".join(
                 f"{e} " + (", ".join(f"{k} = {v:.3g}" for k, v in d["detectable_from"].items())

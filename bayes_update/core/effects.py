@@ -236,8 +236,8 @@ def evidence_table(res) -> str:
 
 
 #: the naming rule in words (the evidence table and discrepancy.json)
-NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum, under a likelihood "
-               "that counts the baseline's model-form error; the effect's mode more than 2 Laplace sd from its null "
+NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
+               "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
                "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
                "(validation) tests predicted better, by more than 3 sd of what their noise could give")
 
