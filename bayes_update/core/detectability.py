@@ -43,10 +43,14 @@ from bayes_update.core.held_out import SIGNIFICANT_SD
 from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, SpacePoint
 from surrogates.evaluation import evaluate_many
 
-__all__ = ["LADDER", "detectability"]
+__all__ = ["LADDER", "detectability", "limit_text"]
 
 #: the magnitudes tried, as fractions of the way from the null to the prior's far bound
 LADDER = tuple(np.geomspace(1e-3, 1.0, 10))
+#: the ratio of neighbouring rungs, and how far below the ladder it is extended where its
+#: first rung is already named
+RUNG = LADDER[1] / LADDER[0]
+MIN_MAGNITUDE = 1e-7
 
 
 @dataclass
@@ -77,7 +81,7 @@ def _far(p) -> float:
     return p.high if abs(p.high - p.null) >= abs(p.low - p.null) else p.low
 
 
-def detectability(problem, base, fit, lik, effects: dict, executor=None, seed: int = 0) -> tuple[dict, int]:
+def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tuple[dict, int]:
     """``({effect: record}, model runs)`` for the baseline ``fit`` (its mode and
     Jacobian under ``lik``; module docstring).  Each record: ``detectable_from``
     ({parameter: value} or None), ``magnitude`` (its fraction of the way to the far
@@ -100,58 +104,90 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None, seed: i
         null = np.array([p.null for p in params])
         box = space.box()[n0:]
         h = 1e-3 * (box[:, 1] - box[:, 0])
-        points, shifts = [np.concatenate([x0, space.null_internal()])], []      # the baseline itself first
-        for m in LADDER:
-            xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
-            points.append(np.concatenate([x0, xe]))
-            for i in range(k):               # the effect's Jacobian: a step of 1e-3 of its range, inwards
-                step = h[i] if xe[i] + h[i] <= box[i, 1] else -h[i]
-                points.append(points[-1 - i].copy())
-                points[-1][n0 + i] += step
-                shifts.append(step)
-        done = evaluate_many(_Point(fun, space), points, executor, progress=False)
-        runs += len(points) * (len(problem.stages) + len(problem.validation))
-        if done[0] is None:
+        base_cov = None
+
+        def rungs(magnitudes):
+            """The ladder's (m, 2 ln B, held-out z) at ``magnitudes`` (the baseline
+            itself run first on the first call: its error covariance)."""
+            nonlocal base_cov, runs
+            points, shifts = [np.concatenate([x0, space.null_internal()])], []
+            for m in magnitudes:
+                xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
+                points.append(np.concatenate([x0, xe]))
+                for i in range(k):               # the effect's Jacobian: a step of 1e-3 of its range, inwards
+                    step = h[i] if xe[i] + h[i] <= box[i, 1] else -h[i]
+                    points.append(points[-1 - i].copy())
+                    points[-1][n0 + i] += step
+                    shifts.append(step)
+            if base_cov is not None:
+                points = points[1:]
+            done = evaluate_many(_Point(fun, space), points, executor, progress=False)
+            runs += len(points) * (len(problem.stages) + len(problem.validation))
+            if base_cov is None:
+                if done[0] is None:
+                    return None
+                # the baseline on its own records: its error covariance (noise and its own form error)
+                base_cov = {st: (done[0][2][st], error_covariance(problem, lik, st,
+                                                                 problem.tests[st].response - done[0][2][st]))
+                            for st in problem.stages}
+                done = done[1:]
+            at = points[-len(done):]
+            return [_rung(problem, lik, space, fun.stages, sizes, sd, base_cov, r0, Jb, Q, steps,
+                          m, at[j * (k + 1)], done[j * (k + 1)], done[1 + j * (k + 1):(j + 1) * (k + 1)],
+                          shifts[j * k:(j + 1) * k], base_prior, base_widths)
+                    for j, m in enumerate(magnitudes)]
+
+        ladder = rungs(LADDER)
+        if ladder is None:
             out[name] = {"ladder": [], "detectable_from": None, "magnitude": None}
             continue
-        y0 = done[0][2]
-        # the baseline on its own records: its error covariance (noise and its own form error)
-        base_cov = {st: error_covariance(problem, lik, st, problem.tests[st].response - y0[st],
-                                         np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(300 + i,))))
-                    for i, st in enumerate(problem.stages)}
-        ladder = []
-        for j, m in enumerate(LADDER):
-            at = done[1 + j * (k + 1)]
-            cols = done[2 + j * (k + 1):1 + (j + 1) * (k + 1)]
-            if at is None or any(c is None for c in cols):
-                ladder.append((m, None, None))
-                continue
-            dr = at[0] - r0
-            perp = dr - Q @ (Q.T @ dr)
-            Je = np.column_stack([(c[0] - at[0]) / shifts[j * k + i] for i, c in enumerate(cols)])
-            # on records holding the effect at m: the model with it leaves what the baseline leaves on
-            # its own records; the model without it leaves that plus what of the effect's change its
-            # parameters cannot take up, and a form error that holds the effect's change too
-            a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
-            for i, (st, n) in enumerate(zip(problem.stages, sizes)):
-                S0, Qo, _ = base_cov[st]
-                sl = slice(row, row + n)
-                row += n
-                a_with[st] = Qo.T @ (r0[sl] * sd[i])
-                J_with[st] = Qo.T @ (np.column_stack([Jb[sl], Je[sl]]) * sd[i])
-                S_with[st] = S0
-                a_wo[st] = Qo.T @ ((r0[sl] - perp[sl]) * sd[i])          # r = (ref - out): the data moved by dout
-                J_wo[st] = Qo.T @ (Jb[sl] * sd[i])
-                rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(400 + i, j)))
-                S_wo[st] = error_covariance(problem, lik, st, problem.tests[st].response - y0[st]
-                                            + (at[2][st] - y0[st]), rng)[0]
-            z_with = evidence(a_with, J_with, S_with, space.log_prior_density(points[1 + j * (k + 1)]),
-                              space.widths())[0]
-            z_wo = evidence(a_wo, J_wo, S_wo, base_prior, base_widths)[0]
-            two_ln_b = 2.0 * (z_with - z_wo) if np.isfinite(z_with) and np.isfinite(z_wo) else None
-            ladder.append((m, two_ln_b, _held_out_z(problem, at[1], steps, dr)))
+        # named already at the first rung: the limit lies below it; go down until it is not
+        # (a limit at the first rung would only be an upper bound)
+        while (_named(*ladder[0][1:]) and ladder[0][0] / RUNG > MIN_MAGNITUDE):
+            lower = tuple(ladder[0][0] / RUNG ** np.arange(3, 0, -1))
+            ladder = rungs(lower) + ladder
         out[name] = _limit(ladder, params, null, far)
     return out, runs
+
+
+def _rung(problem, lik, space, stages, sizes, sd, base_cov, r0, Jb, Q, steps, m, x_at, at, cols, shifts,
+          base_prior, base_widths) -> tuple:
+    """One ladder point: (m, 2 ln B, held-out z) from the runs at the effect's magnitude
+    ``m`` (internal point ``x_at``, its runs ``at``) and its Jacobian's steps (``cols``,
+    ``shifts``)."""
+    if at is None or any(c is None for c in cols):
+        return (m, None, None)
+    dr = at[0] - r0
+    perp = dr - Q @ (Q.T @ dr)
+    Je = np.column_stack([(c[0] - at[0]) / shifts[i] for i, c in enumerate(cols)])
+    # on records holding the effect at m: the model with it leaves what the baseline leaves on
+    # its own records; the model without it leaves that plus what of the effect's change its
+    # parameters cannot take up, and a form error that holds the effect's change too
+    a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
+    for i, (st, n) in enumerate(zip(stages, sizes)):
+        y0, (S0, Qo, _) = base_cov[st]
+        sl = slice(row, row + n)
+        row += n
+        a_with[st] = Qo.T @ (r0[sl] * sd[i])
+        J_with[st] = Qo.T @ (np.column_stack([Jb[sl], Je[sl]]) * sd[i])
+        S_with[st] = S0
+        a_wo[st] = Qo.T @ ((r0[sl] - perp[sl]) * sd[i])          # r = (ref - out): the data moved by dout
+        J_wo[st] = Qo.T @ (Jb[sl] * sd[i])
+        S_wo[st] = error_covariance(problem, lik, st, problem.tests[st].response - y0 + (at[2][st] - y0))[0]
+    z_with = evidence(a_with, J_with, S_with, space.log_prior_density(x_at), space.widths())[0]
+    z_wo = evidence(a_wo, J_wo, S_wo, base_prior, base_widths)[0]
+    two_ln_b = 2.0 * (z_with - z_wo) if np.isfinite(z_with) and np.isfinite(z_wo) else None
+    return (m, two_ln_b, _held_out_z(problem, at[1], steps, dr))
+
+
+def limit_text(record: dict) -> str:
+    """An effect's limit in words, for tables and logs: "k2 = 0.43"; "at most ..." where
+    even the ladder's lowest rung would be named; "not even at its prior's bound"."""
+    lim = record.get("detectable_from")
+    if not lim:
+        return "not even at its prior's bound"
+    text = ", ".join(f"{k} = {v:.3g}" for k, v in lim.items())
+    return f"at most {text} (the lowest magnitude tried)" if record.get("below_ladder") else text
 
 
 def _span(J) -> np.ndarray:
@@ -195,10 +231,14 @@ def _held_out_z(problem, v, steps, dr) -> float | None:
     return 0.5 * math.sqrt(total)
 
 
+def _named(two_ln_b, z) -> bool:
+    return two_ln_b is not None and two_ln_b > DECISIVE and (z is None or z > SIGNIFICANT_SD)
+
+
 def _limit(ladder, params, null, far) -> dict:
-    """The smallest magnitude on ``ladder`` [(m, 2 ln B, held-out z)] that would be named."""
-    def named(two_ln_b, z):
-        return two_ln_b is not None and two_ln_b > DECISIVE and (z is None or z > SIGNIFICANT_SD)
+    """The smallest magnitude on ``ladder`` [(m, 2 ln B, held-out z)] that would be named;
+    ``below_ladder`` where even its lowest rung is (the limit is then an upper bound)."""
+    named = _named
 
     def margin(two_ln_b, z):     # > 0 where named: the smaller of the two margins, in log
         if two_ln_b is None:
@@ -207,7 +247,7 @@ def _limit(ladder, params, null, far) -> dict:
         return a if z is None else min(a, math.log(max(z, 1e-6) / SIGNIFICANT_SD))
 
     record = {"ladder": [{"magnitude": m, "two_ln_B": b, "held_out_z": z} for m, b, z in ladder],
-              "detectable_from": None, "magnitude": None}
+              "detectable_from": None, "magnitude": None, "below_ladder": bool(ladder and named(*ladder[0][1:]))}
     for i, (m, b, z) in enumerate(ladder):
         if not named(b, z):
             continue

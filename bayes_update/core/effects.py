@@ -225,10 +225,10 @@ def evidence_table(res) -> str:
     if getattr(res, "detectability", None):
         lines += ["What these tests would name (linearised about the baseline, "
                   "`bayes_update.core.detectability`):", "", "| candidate | detectable from |", "|---|---|"]
+        from bayes_update.core.detectability import limit_text
+
         for e, d in res.detectability.items():
-            lim = d["detectable_from"]
-            lines.append(f"| {e} | " + (", ".join(f"{k} = {v:.3g}" for k, v in lim.items()) if lim else
-                                        "not even at its prior's bound") + " |")
+            lines.append(f"| {e} | {limit_text(d)} |")
         lines.append("")
     lines.append(f"Named: **{', '.join(res.named) or 'none'}** (rule: {NAMING_RULE})")
     lines.append(f"Verdict: {res.verdict}. {res.gap_sentence()}")
@@ -299,7 +299,7 @@ class NamingVerdict:
             held = (f"; the held-out tests' error is {100 * r['held_out_relative_error']:.3g} %, "
                     f"{100 * r['held_out_error_beyond_noise']:.3g} % beyond their noise"
                     + (f" ({times:.2g} times the noise's)" if times is not None else ""))
-        what = ("with " + " + ".join(self.named)) if self.named else "the baseline"
+        what = "with " + (" + ".join(self.named) if self.named else "the baseline alone")
         if r["closed"]:
             return f"The gap is closed {what}: misfit {ratios} what noise and model error allow{held}."
         return (f"A gap remains {what}: misfit {ratios} what noise and model error allow{held}: "

@@ -143,15 +143,16 @@ def names_effect(row: dict) -> bool:
                 and not row["at_null"] and not row["at_bound"] and _improves_held_out(row))
 
 
-def names_pair(row: dict, partner_alone: float) -> bool:
+def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
     """The naming rule for two effects fitted together, tried when the strongest
     single candidate sat on a bound of its prior (``row["members"]``: each
     member's flags): decisive against the model without both, decisive against
-    the partner alone (``partner_alone``, its 2 ln B: the effect on the bound
-    must add what the partner cannot), each member more than 2 sd from its
+    each member alone (``partner_alone`` and ``first_alone``, their 2 ln B: each
+    must add what the other cannot), each member more than 2 sd from its
     null, neither at its null nor on a bound, and the held-out tests predicted
     better beyond their noise."""
     return bool(row["two_ln_B"] > DECISIVE and row["two_ln_B"] - partner_alone > DECISIVE
+                and row["two_ln_B"] - first_alone > DECISIVE
                 and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"]
                         for m in row["members"].values()) and _improves_held_out(row))
 
