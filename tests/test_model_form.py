@@ -4,8 +4,7 @@ and the variance their projections carry, which a random-phase process has in
 closed form."""
 import numpy as np
 
-from bayes_update.core.model_form import (BAND_BINS, THRESHOLD_SD, excess_gain, form_covariance, form_draws,
-                                          periodogram)
+from bayes_update.core.model_form import BAND_BINS, THRESHOLD_SD, excess_gain, form_draws, periodogram
 
 N = 4096
 
@@ -86,23 +85,3 @@ def test_excess_gain_is_between_zero_and_one():
     g = excess_gain(P, 0.5 * np.ones_like(P))
     assert g.shape == P.shape and np.all((g >= 0) & (g <= 1))
 
-
-def test_the_exact_form_covariance_is_the_limit_of_the_draws():
-    """form_covariance against the draws it summarises: two sensors with a common
-    narrow-band part (their cross-covariance kept), maps of more rows than draws
-    could span; the draws' sample covariance converges to it at the rate of its
-    own sampling error, and a few draws span only as many directions as they are."""
-    rng = np.random.default_rng(6)
-    n, p = 1024, 12
-    s = _band_signal(rng, n=n, lo=40, hi=200)
-    r = np.column_stack([s + 0.3 * _band_signal(rng, n=n, lo=150, hi=300), -0.5 * s]) + 1e-3 * rng.standard_normal((n, 2))
-    spectrum = np.full((n // 2 + 1, 2), 1e-6)
-    maps = [rng.standard_normal((2 * p, n)) / np.sqrt(n) for _ in range(2)]
-    exact = form_covariance(r, spectrum, maps)
-    assert np.allclose(exact, exact.T) and np.linalg.eigvalsh(exact).min() > -1e-12 * np.trace(exact)
-    draws, _ = form_draws(r, spectrum, 20000, rng)
-    F = np.einsum("jpn,dnj->dp", np.stack(maps), draws)
-    mc = F.T @ F / len(F)
-    # 20 000 draws: the sample covariance scatters by about sqrt(2 / 20000) = 1 % of its scale
-    assert np.abs(mc - exact).max() < 0.03 * np.abs(exact).max(), np.abs(mc - exact).max() / np.abs(exact).max()
-    assert np.linalg.matrix_rank(F[:8].T @ F[:8]) == 8 < np.linalg.matrix_rank(exact)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.ndimage import uniform_filter1d
 
-__all__ = ["BAND_BINS", "THRESHOLD_SD", "excess_gain", "form_covariance", "form_draws", "periodogram"]
+__all__ = ["BAND_BINS", "THRESHOLD_SD", "excess_gain", "form_draws", "periodogram"]
 
 #: frequency bins averaged into one band for the comparison with the noise: the
 #: band's periodogram then scatters by 1/sqrt(BAND_BINS) of its mean (25 %)
@@ -78,39 +78,3 @@ def form_draws(residual, noise_spectrum, n_draws: int, rng, bins: int = BAND_BIN
     draws = np.fft.irfft(A[None] * phase.reshape(shape), n, axis=1)
     return draws, excess
 
-
-def form_covariance(residual, noise_spectrum, maps, bins: int = BAND_BINS) -> np.ndarray:
-    """The exact covariance of ``sum_j maps[j] @ delta_j`` over the random phases of
-    :func:`form_draws` (the limit of infinitely many draws): what the model-form error
-    puts into coordinates that are linear in the record, ``(p, p)``.
-
-    A draw holds, at each frequency f strictly between 0 and Nyquist, ``(2/n)
-    Re(A_f e^(i phi) e^(2 pi i f t / n))`` (A the residual's shrunk Fourier
-    amplitudes, one phase phi for every sensor); through a real map B its
-    coordinates are ``(2/n) Re(e^(i phi) z_f)``, ``z_f = conj(rfft(B)_f) A_f``,
-    whose mean square over phi is ``(2/n^2) Re(z_f z_f^H)``; the Nyquist line
-    (a sign, not a phase) gives ``(1/n^2) z z^T``; the mean is removed.  A sample
-    of draws spans only as many directions as it has draws, and a residual many
-    times the noise then weighs the others by the noise alone.
-
-    Parameters
-    ----------
-    residual, noise_spectrum : as :func:`form_draws` ((n,) or (n, k)).
-    maps : one real (p, n) matrix per sensor (k of them); the coordinates are the
-        sum of the maps' outputs (a map that fills only its sensor's rows stacks them).
-    """
-    r = np.asarray(residual, float)
-    n = r.shape[0]
-    r2 = r.reshape(n, -1)
-    R = np.fft.rfft(r2, axis=0)
-    g = excess_gain(np.abs(R) ** 2 / n, np.asarray(noise_spectrum, float).reshape(R.shape), bins)
-    A = g * R
-    if len(maps) != A.shape[1]:
-        raise ValueError(f"{len(maps)} maps for a residual of {A.shape[1]} sensor(s)")
-    weight = np.full(A.shape[0], 2.0 / n ** 2)
-    weight[0] = 0.0                                  # no mean
-    if n % 2 == 0:
-        weight[-1] = 1.0 / n ** 2                    # the Nyquist line: a sign, not a phase
-    Z = sum(np.conj(np.fft.rfft(np.asarray(B, float), axis=1)) * A[:, j] for j, B in enumerate(maps))
-    Zw = Z * np.sqrt(weight)
-    return np.real(Zw @ Zw.conj().T)
