@@ -23,7 +23,6 @@ HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent)]
 
 from _machine import machine                                                   # noqa: E402
-from bayes_update.core.detectability import limit_text                        # noqa: E402
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy  # noqa: E402
 from bayes_update.models.beam.model import EFFECT_PARAMETERS, _effect, beam_model  # noqa: E402
 from bayes_update.models.beam.virtual_rig import VirtualRig, load_default_dataset, make_dataset  # noqa: E402
@@ -65,7 +64,7 @@ def main(argv=None):
     default = load_default_dataset()
     base = _run(default)
     limits = {e: d["detectable_from"] for e, d in base.detectability.items()}
-    texts = {e: limit_text(d) for e, d in base.detectability.items()}
+    texts = {e: d["text"] for e, d in base.detectability.items()}
     print("limits:", texts, flush=True)
     rows = []
     for effect in a.effects:

@@ -139,7 +139,8 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
 
         ladder = rungs(LADDER)
         if ladder is None:
-            out[name] = {"ladder": [], "detectable_from": None, "magnitude": None}
+            out[name] = {"ladder": [], "detectable_from": None, "magnitude": None,
+                         "text": "not known: the model cannot run at the baseline"}
             continue
         # named already at the first rung: the limit lies below it; go down until it is not
         # (a limit at the first rung would only be an upper bound)
@@ -257,4 +258,5 @@ def _limit(ladder, params, null, far) -> dict:
         record["magnitude"] = float(m)
         record["detectable_from"] = {p.name: float(n + m * (f - n)) for p, n, f in zip(params, null, far)}
         break
+    record["text"] = limit_text(record)
     return record

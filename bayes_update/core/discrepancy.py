@@ -66,7 +66,7 @@ import numpy as np
 from bayes_update.core.logs import info
 from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.adjustment import own_points
-from bayes_update.core.detectability import detectability, limit_text
+from bayes_update.core.detectability import detectability
 from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, misfit_ratios
 from bayes_update.core.held_out import held_out_comparison, held_out_runs
 from bayes_update.core.likelihood import errors_at_mode, estimate_likelihood, likelihood_runs
@@ -394,7 +394,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             with steps("detectability"):
                 detectable, n = detectability(problem, base, baseline, lik, {e: effects[e] for e in names}, pool)
                 steps.add_runs(n)
-            log("detectable from: " + "; ".join(f"{e} {limit_text(d)}" for e, d in detectable.items()))
+            log("detectable from: " + "; ".join(f"{e} {d['text']}" for e, d in detectable.items()))
         with steps("naming"):
             current, baseline, rounds, named = flow.name_effects(baseline, lik, names)
         with steps("re_update"):

@@ -225,10 +225,8 @@ def evidence_table(res) -> str:
     if getattr(res, "detectability", None):
         lines += ["What these tests would name (linearised about the baseline, "
                   "`bayes_update.core.detectability`):", "", "| candidate | detectable from |", "|---|---|"]
-        from bayes_update.core.detectability import limit_text
-
         for e, d in res.detectability.items():
-            lines.append(f"| {e} | {limit_text(d)} |")
+            lines.append(f"| {e} | {d['text']} |")
         lines.append("")
     lines.append(f"Named: **{', '.join(res.named) or 'none'}** (rule: {NAMING_RULE})")
     lines.append(f"Verdict: {res.verdict}. {res.gap_sentence()}")
