@@ -85,7 +85,7 @@ def _check_named_effect(res, effect):
 
 
 def _check_explains(res):
-    assert res.explains_gap and res.tentative == [], (res.misfit_ratio, res.tentative)
+    assert res.explains_gap, res.misfit_ratio
     assert all(r <= EXPLAINED_FACTOR for r in res.misfit_ratio.values()), res.misfit_ratio
 
 
@@ -98,7 +98,7 @@ def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     b, a = res.gap_before, res.gap_after
     # docs/discrepancy.md's success criterion: e_lin + e_nlin and the validation misfit each shrink by more than 50 %
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
-    assert a["validation"] <= 0.5 * b["validation"]
+    assert a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"]
     _check_named_effect(res, effect)
     _check_explains(res)
 
@@ -112,34 +112,32 @@ def test_the_real_baseline_search_from_no_start_names_the_bow():
     assert res.named == ["initial_imperfection"], res.rounds[0]["candidates"]
     b, a = res.gap_before, res.gap_after
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
-    assert a["validation"] <= 0.5 * b["validation"]
+    assert a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"]
     _check_named_effect(res, effect)
     _check_explains(res)
 
 
 @pytest.mark.slow   # 114 s: the 15-minute budget; benchmarks/discrepancy_cases.py runs the null cases
 def test_an_effect_outside_the_catalogue_is_not_given_a_wrong_name(tmp_path):
-    """A clamp compliance hidden, the catalogue without clamp_compliance: a
-    damper still wins the evidence decisively (2 ln B = 35 measured), but
-    leaves e_nlin at 45x what noise and model error allow (0.4-1.06 where
-    the right effect was named; threshold 3): nothing is named and the
-    verdict says no candidate explains the gap."""
+    """A clamp compliance hidden, the catalogue without clamp_compliance.  Under the
+    landed likelihood (noise and model error only) a damper won the evidence decisively
+    (2 ln B = 35) while leaving e_nlin at 45x what noise and model error allow; the
+    honest likelihood counts the baseline's model-form error (the clamp's signature) for
+    every model alike, and the held-out tests must be predicted better: nothing is named,
+    and the gap is stated as a number."""
     _, data, res = run_case("clamp_outside_catalogue")
     assert res.named == [] and res.named_effect is None
     assert res.verdict == "no candidate explains the gap" and not res.explains_gap
     assert res.misfit_ratio["e_nlin"] > EXPLAINED_FACTOR
-    # the evidence rule alone would have named it: the misfit test is what refuses
     best = res.rounds[0]["candidates"][0]
-    assert best["two_ln_B"] > DECISIVE and best["excludes_null"] and res.tentative == [best["name"]], best
-    # the gap is stated: nothing was added, so after = before; what the best candidate would have left
+    print("\n[outside the catalogue] best", best["name"], best["two_ln_B"], best["held_out"])
     assert res.gap_after == res.gap_before
-    assert res.tentative and res.gap_with_tentative["e_nlin"] > 0.5 * res.gap_before["e_nlin"]
     doc = write_discrepancy(res, tmp_path)
     saved = json.loads((tmp_path / "discrepancy.json").read_text())
-    assert saved["named_effect"] is None and saved["verdict"] == "no candidate explains the gap"
-    assert saved["explains_gap"] is False and saved["tentative_effects"] == res.tentative
+    assert saved["named_effect"] is None and saved["named"] == [] and saved["verdict"] == "no candidate explains the gap"
+    assert saved["explains_gap"] is False and saved["gap_remaining"]["closed"] is False
     assert doc["verdict"] == saved["verdict"]
-    assert "no candidate explains the gap" in (tmp_path / "evidence.md").read_text()
+    assert "A gap remains" in (tmp_path / "evidence.md").read_text()
 
 
 @pytest.mark.parametrize("name", [pytest.param("none", marks=pytest.mark.slow),
@@ -174,7 +172,7 @@ def test_combined_case_names_both_and_closes_the_gap():
     assert set(res.named) == {e.name for e in effects}, res.rounds
     b, a = res.gap_before, res.gap_after
     assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"])
-    assert a["validation"] <= 0.5 * b["validation"]
+    assert a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"]
     for effect in effects:
         _check_named_effect(res, effect)
     _check_explains(res)
@@ -279,7 +277,7 @@ def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset
     assert main(["discrepancy", "--data", str(hidden_bow_dataset / "a"), "--quick", "--workers", "2",
                  "--candidates", "initial_imperfection", "amplitude_dependent_damping", "--out", str(out)]) == 0
     doc = json.loads((out / "discrepancy.json").read_text())
-    assert {"named_effect", "named_effects", "verdict", "explains_gap", "candidates", "gap_before",
+    assert {"named_effect", "named", "verdict", "explains_gap", "candidates", "gap_before",
             "gap_after", "signature_check", "truth"} <= set(doc)
     assert doc["named_effect"] == "initial_imperfection" and doc["verdict"] == "named" and doc["explains_gap"]
     assert {c["name"] for c in doc["candidates"]} == {"initial_imperfection", "amplitude_dependent_damping"}
@@ -288,7 +286,7 @@ def test_cli_discrepancy_writes_the_decision_and_the_evidence(hidden_bow_dataset
     for key in ("gap_before", "gap_after"):
         assert {"e_lin", "e_nlin", "validation"} <= set(doc[key])
     b, a = doc["gap_before"], doc["gap_after"]
-    assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"]) and a["validation"] <= 0.5 * b["validation"]
+    assert a["e_lin"] + a["e_nlin"] <= 0.5 * (b["e_lin"] + b["e_nlin"]) and a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"]
     # the truth block travels to the output; the re-updated bow covers it
     (hidden,) = doc["truth"]["effects"]
     got = doc["final_mode"]["effects"]["initial_imperfection"]["bow_amplitude"]

@@ -49,7 +49,7 @@ def test_the_reported_validation_error_is_the_final_parameters_error(found):
         y_model = model.simulate(theta, record.force - record.force.mean(), FS)
         # the path is exercised: the final model's displacement has a mean of its own
         assert abs(y_model.mean()) > 0.005 * np.std(y_model), (theta, y_model.mean())
-        reported = doc["gap_after"]["validation_tests"][record.name]["rel"]
+        reported = doc["gap_after"]["held_out_tests"][record.name]["relative_error"]
         assert reported == pytest.approx(offset_free_error(model, theta, record), abs=1e-6), (theta, reported)
 
 
@@ -76,6 +76,6 @@ def test_the_gap_figure_is_labelled_and_titled_with_the_reported_errors(found):
     for ax in fig.axes:
         assert ax.get_ylabel() == "displacement amplitude [m]" and ax.get_xlabel() == "frequency [Hz]"
     title = next(ax.get_title() for ax in fig.axes if ax.get_title().startswith("noise_mid"))
-    after = doc["gap_after"]["validation_tests"]["noise_mid"]["rel"]
+    after = doc["gap_after"]["held_out_tests"]["noise_mid"]["relative_error"]
     assert f"{100 * after:.2f} %" in title, (title, after)
     assert (out / "gap_before_after.png").stat().st_size > 20_000

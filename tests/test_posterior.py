@@ -426,11 +426,20 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
     # variable per test, and every variable's unit
     assert {"posterior", "sample_stats", "observed_data", "posterior_predictive",
             "log_likelihood"} <= set(idata.groups())
-    assert set(idata.log_likelihood.data_vars) == set(idata.observed_data.data_vars) == {"chirp_low", "chirp_high"}
+    # the pointwise log-likelihood of every observation (named by test), the records of every test
+    names = [str(v) for v in idata.log_likelihood["observation"].values]
+    assert {n.split("[")[0] for n in names} == {"chirp_low", "chirp_high"}
+    assert set(idata.observed_data.data_vars) == {t.name for t in rom_posterior.problem.tests.values()} | set(
+        rom_posterior.problem.validation)
     assert idata.posterior["k_s"].attrs["units"] == "N/mm" and idata.observed_data["chirp_low"].attrs["units"] == "m/s"
     assert idata.posterior_predictive["chirp_high"].shape[-1] == idata.observed_data["chirp_high"].shape[-1]
-    # log L of each test at each draw: the likelihood's -1/2 (e / s)^2 <= 0, highest near the mode
-    assert float(idata.log_likelihood["chirp_low"].max()) <= 0.0
+    # one value per direction of the compared output (y1: J1 = 2 functions; y2 + y3 of the paper's set)
+    problem = rom_posterior.problem
+    assert sum(n.startswith("chirp_low[") for n in names) == problem.n_regressors("linear")
+    assert sum(n.startswith("chirp_high[") for n in names) == problem.n_regressors("nonlinear")
+    loo = az.loo(idata)                       # without an argument: every test's observations
+    assert np.isfinite(loo.elpd_loo) and loo.n_data_points == problem.n_regressors("linear") + problem.n_regressors(
+        "nonlinear")
     az.plot_ppc(idata, data_pairs={"chirp_high": "chirp_high"}, num_pp_samples=4)
     summary = json.loads((tmp_path / "posterior_summary.json").read_text())
     for name in ("eta", "c", "F", "k_s", "P_eff"):

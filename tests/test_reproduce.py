@@ -8,7 +8,7 @@ from bayes_update.cli import main
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
 PNG = b"\x89PNG\r\n\x1a\n"
-POSTERIOR_HEADER = "| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |"
+POSTERIOR_HEADER = "| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS | tail ESS |"
 
 
 @pytest.fixture(scope="module")

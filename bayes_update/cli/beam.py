@@ -15,7 +15,7 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from bayes_update.data import signals
-from bayes_update.data.dataset import Dataset, Record
+from bayes_update.data.dataset import Dataset, Record, SensorError, _is_single_velocity
 from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.rig import rig_of
 
@@ -120,11 +120,22 @@ def default_dataset() -> Dataset:
     return Dataset("paper-chirp", signals.PAPER_FS, fe.Rig(), [test])
 
 
+def _require_beam_sensor(data: Dataset) -> None:
+    """Before any beam run: the data set's sensor is the beam's (one velocity sensor), else a
+    :class:`SensorError` saying what ``simulate`` needs and what to run instead."""
+    if not _is_single_velocity(data.sensors):
+        raise SensorError(f"{data.source or data.name}: `simulate` runs the beam, whose one sensor measures "
+                          f"velocity; this data set's sensors are {list(data.sensors)}: give it a data set of "
+                          "the beam rig, or run a model of your own on these records with `bayes-update "
+                          "calibrate --model file.py:NAME`")
+
+
 def cmd_simulate(args) -> int:
     from bayes_update.models.beam.forward import simulate_dataset
     from bayes_update.reports.plots import plot_test
 
     data = read_dataset(args.data) if args.data else default_dataset()
+    _require_beam_sensor(data)
     rig = rig_for(data, args)
     if rig != rig_of(data):
         import dataclasses

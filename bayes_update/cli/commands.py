@@ -111,11 +111,12 @@ def _prior_ranges(items, names) -> dict:
     return ranges
 
 
-def _model_and_data(args, need_data: bool = False):
+def _model_and_data(args):
     """(model, data set, space or None, truth or None) the options ask for: the
     beam's truth in its (paper) units, else the data set's ``truth`` block as
     written (:func:`bayes_update.reports.posterior.truth_in_model_units` keeps
-    what names the model's parameters in their units)."""
+    what names the model's parameters in their units).  ``space``: the prior
+    that ``--prior`` makes of a model of your own's declared parameters."""
     if args.model in beam_cli.BEAM_MODELS:
         from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 
@@ -124,20 +125,40 @@ def _model_and_data(args, need_data: bool = False):
         data = dataclasses.replace(data, rig=rig)
         model = beam_cli.model_for(args, rig, _prior_ranges(args.prior, ("eta", "c", "F", "k_s")))
         return model, data, None, truth_paper_units(data)
-    from bayes_update.core import ParameterSet, load_model
+    from bayes_update.core import load_model
 
     model = load_model(args.model)
     if args.data is None:
         raise ValueError(f"--model {args.model} needs --data: the embedded default data set is the beam's")
+    space = _prior_space(model, args.prior)
     data = read_dataset(args.data)
-    space = None
-    if args.prior:
-        params = {p.name: p for p in model.parameters}
-        for name, (lo, hi) in _prior_ranges(args.prior, tuple(params)).items():
-            params[name] = dataclasses.replace(params[name], low=lo, high=hi)
-        space = ParameterSet(list(params.values()), model)
     truth = data.extra.get("truth")
     return model, data, space, truth if isinstance(truth, dict) else None
+
+
+def _prior_space(model, items):
+    """The prior of ``--prior NAME=LO:HI`` options over a model of your own's declared
+    parameters (checked first: their names and units are the options'), or None."""
+    if not items:
+        return None
+    from bayes_update.core import ParameterSet
+    from bayes_update.core.model import check_contract
+
+    params = {p.name: p for p in check_contract(model).parameters}
+    for name, (lo, hi) in _prior_ranges(items, tuple(params)).items():
+        try:
+            params[name] = dataclasses.replace(params[name], low=lo, high=hi)
+        except ValueError as exc:
+            raise ValueError(f"--prior {name}={lo:g}:{hi:g}: {exc}") from None
+    return ParameterSet(list(params.values()), model)
+
+
+def _check_first(data, model, space) -> None:
+    """The check before any long step (:func:`bayes_update.core.preflight.preflight`), here
+    before the first look at the data; the command's own call then finds it done."""
+    from bayes_update.core.preflight import preflight
+
+    preflight(data, model, space)
 
 
 def _first_look(data, out) -> None:
@@ -156,17 +177,51 @@ def _workers(args):
     return args.workers
 
 
+#: seconds a Dask scheduler has to accept a connection (the check before any long step)
+SCHEDULER_TIMEOUT = 3.0
+#: Dask's scheduler port when an address gives none
+DASK_PORT = 8786
+
+
+def _check_scheduler(args) -> None:
+    """``--scheduler ADDRESS``, before any long step: Dask's distributed is installed and
+    a tcp (or tls) address accepts a connection within :data:`SCHEDULER_TIMEOUT`.  Another
+    transport (inproc, ucx, ws) is left to Dask's own connection in :func:`_executor`."""
+    address = getattr(args, "scheduler", None)
+    if not address:
+        return
+    import importlib.util
+    import socket
+
+    if importlib.util.find_spec("distributed") is None:
+        raise ValueError("--scheduler needs Dask's distributed scheduler: pip install 'dask[distributed]'")
+    scheme, sep, rest = address.rpartition("://")
+    if sep and scheme not in ("tcp", "tls"):
+        return
+    if rest.startswith("["):                               # [IPv6]:port
+        host, _, tail = rest[1:].partition("]")
+        port = tail[1:] if tail.startswith(":") else ""
+    else:
+        host, _, port = rest.partition(":") if rest.count(":") == 1 else (rest, "", "")
+    if not host or (port and not port.isdigit()):
+        raise ValueError(f"--scheduler {address}: expected tcp://HOST:PORT (e.g. tcp://10.0.0.5:{DASK_PORT})")
+    try:
+        socket.create_connection((host, int(port or DASK_PORT)), timeout=SCHEDULER_TIMEOUT).close()
+    except OSError as exc:
+        raise ValueError(f"--scheduler {address}: no Dask scheduler answers there ({exc.strerror or exc}); start "
+                         "one (`dask scheduler`) or check the address and port") from None
+
+
 @contextlib.contextmanager
 def _executor(args):
-    """The executor of the model runs: a Dask cluster's (``--scheduler``), else None
-    (the functions then start a local process pool over ``--workers``)."""
+    """The executor of the model runs: a Dask cluster's (``--scheduler``, checked first by
+    :func:`_check_scheduler`), else None (the functions then start a local process pool
+    over ``--workers``)."""
     if not getattr(args, "scheduler", None):
         yield None
         return
-    try:
-        import distributed
-    except ImportError:
-        raise ValueError("--scheduler needs Dask's distributed scheduler: pip install 'dask[distributed]'") from None
+    import distributed
+
     try:
         client = distributed.Client(args.scheduler, set_as_default=False, timeout="10s")
     except (OSError, TimeoutError) as exc:
@@ -187,18 +242,30 @@ def _executor(args):
 
 # ----------------------------------------------------------------- commands
 def cmd_calibrate(args) -> int:
+    # every check before the first long step (the first look at the data, then the calibration)
     workers = _workers(args)
-    model, data, space, _ = _model_and_data(args)
     config = read_config(args.config, "calibrate")
-    _first_look(data, args.out)
     if args.model in beam_cli.BEAM_MODELS:
-        from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
-        from bayes_update.reports.beam_calibration import write_result
+        from bayes_update.models.beam.calibrate import CalibrationSettings
 
         if args.metrics not in (None, "paper"):
             raise ValueError("--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
                              "use `sample --metrics full` for the beam under the full set")
         settings = settings_from(CalibrationSettings, args.quick, config)
+    else:
+        from bayes_update.core.calibrate import check_settings
+
+        options = {"n_start": 16 if args.quick else 64, "seed": 0,
+                   **check_settings(config, f"--config {args.config}: [calibrate]"),
+                   **({"seed": args.seed} if args.seed is not None else {})}
+    _check_scheduler(args)
+    model, data, space, _ = _model_and_data(args)
+    _check_first(data, model, space)
+    _first_look(data, args.out)
+    if args.model in beam_cli.BEAM_MODELS:
+        from bayes_update.models.beam.calibrate import calibrate, format_tables
+        from bayes_update.reports.beam_calibration import write_result
+
         with _executor(args) as pool:
             result = calibrate(data, model, settings, workers=workers, executor=pool)
         write_result(result, data, args.out)
@@ -207,10 +274,9 @@ def cmd_calibrate(args) -> int:
         from bayes_update.core.calibrate import calibrate_model
         from bayes_update.reports.calibration import format_calibration, write_calibration
 
-        options = {"n_start": 16 if args.quick else 64, "seed": args.seed or 0, **config}
         with _executor(args) as pool:
-            cal = calibrate_model(data, model, metrics=args.metrics or "full", workers=workers, executor=pool,
-                                  **options)
+            cal = calibrate_model(data, model, metrics=args.metrics or "full", space=space, workers=workers,
+                                  executor=pool, **options)
         write_calibration(cal, args.out, sensors=data.sensors)
         print(format_calibration(cal))
     print(f"wrote {args.final_out}")
@@ -222,12 +288,8 @@ def cmd_sample(args) -> int:
     from bayes_update.core.posterior.settings import THOROUGH
     from bayes_update.reports.posterior import write_posterior
 
+    # every check before the first long step (the first look at the data, then the posterior)
     workers = _workers(args)
-    if args.direct and args.model == "fe":
-        print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
-              "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
-    model, data, space, truth = _model_and_data(args)
-    _first_look(data, args.out)
     if args.thorough and args.quick:
         raise ValueError("--thorough and --quick: choose one")
     config = {**(THOROUGH if args.thorough else {}), **read_config(args.config, "sample")}
@@ -235,6 +297,13 @@ def cmd_sample(args) -> int:
                              n_predictive=args.predictive, n_global=args.sensitivity,
                              **{("direct_walkers" if args.direct else "n_walkers"): args.walkers,
                                 ("direct_steps" if args.direct else "n_steps"): args.steps})
+    if args.direct and args.model == "fe":
+        print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
+              "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
+    _check_scheduler(args)
+    model, data, space, truth = _model_and_data(args)
+    _check_first(data, model, space)
+    _first_look(data, args.out)
     with _executor(args) as pool:
         res = sample(data, model, settings, workers=workers, direct=args.direct, space=space, executor=pool,
                      cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
@@ -255,24 +324,21 @@ def cmd_sample(args) -> int:
 
 def cmd_discrepancy(args) -> int:
     from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
-    from bayes_update.core.effects import candidate_effects
     from bayes_update.reports.discrepancy import format_result, write_discrepancy
 
+    # every check before the first long step; find_discrepancy's own first (the model's contract and
+    # candidate effects, the data set's roles, one run) comes before its long ones
     workers = _workers(args)
-    if args.model not in beam_cli.BEAM_MODELS:
-        from bayes_update.core import load_model
-
-        model = load_model(args.model)
-        candidate_effects(model, [p.name for p in getattr(model, "parameters", ())])   # before any data work
+    settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"),
+                             seed=args.seed)
+    _check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     if args.model in beam_cli.BEAM_MODELS:
         hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
         truth = {"parameters": truth, "effects": hidden} if truth else None
-    settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"),
-                             seed=args.seed)
     with _executor(args) as pool:
         res = find_discrepancy(data, model, settings=settings, workers=workers, candidates=args.candidates,
-                               metrics=args.metrics, executor=pool)
+                               metrics=args.metrics, space=space, executor=pool)
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")

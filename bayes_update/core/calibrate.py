@@ -36,6 +36,7 @@ Every model run goes through the executor; the least-squares engine is
 from __future__ import annotations
 
 import inspect
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -47,12 +48,15 @@ import volterra
 
 from bayes_update.core.checks import disagreement_sentence, fit_warnings, output_errors, test_disagreement
 from bayes_update.core.identifiability import gauss_newton_covariance, parameter_sd, unidentified_directions
-from bayes_update.core.mode import ResidualFunction, find_mode
-from bayes_update.core.model import check_model_on
+from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, find_mode
+from bayes_update.core.effects import WithNulls
+from bayes_update.core.model import ModelSpecError, model_label
+from bayes_update.core.preflight import preflight
 from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
 from bayes_update.core.problem import Problem
 
-__all__ = ["Calibration", "TwoStage", "calibrate_model", "find_start", "problem_for", "screen_linear", "two_stage"]
+__all__ = ["SETTINGS", "Calibration", "TwoStage", "calibrate_model", "check_settings", "find_start", "problem_for",
+           "screen_linear", "two_stage"]
 
 #: a step of this fraction of a prior range probes the linear test's sensitivity
 SCREEN_STEP = 0.05
@@ -79,13 +83,15 @@ class _PointMap:
 
 @dataclass(frozen=True)
 class _Cost:
-    """Picklable x -> 1/2 ||r(x)||^2 (a scalar travels back from a worker, not a long vector)."""
+    """Picklable x -> 1/2 ||r(x)||^2 (a scalar travels back from a worker, not a long vector);
+    inf where the model raised ModelError (its entries are exactly FAILED_RESIDUAL, which a
+    real residual never is), so that a design where every run failed is told as such."""
 
     fun: ResidualFunction
 
     def __call__(self, x) -> float:
         r = self.fun(x)
-        return 0.5 * float(r @ r)
+        return math.inf if np.any(r == FAILED_RESIDUAL) else 0.5 * float(r @ r)
 
 
 @dataclass
@@ -154,7 +160,11 @@ def screen_linear(problem: Problem, space, executor=None) -> tuple[list, dict, i
     r = evaluate_many(fun, points, executor, progress=False)
     move = np.array([np.linalg.norm(ri - r[0]) / SCREEN_STEP for ri in r[1:]])
     if not move.max() > 0:
-        raise RuntimeError("the linear test's output does not move with any parameter at the prior centre")
+        raise ModelSpecError(
+            f"{model_label(problem.model)}: the linear test's compared output does not move with any parameter "
+            f"at the middle of the prior (a step of {100 * SCREEN_STEP:g} % of each prior range changes "
+            "nothing): check that simulate uses theta[name] of every declared parameter, and that each "
+            "parameter's range and unit are those simulate expects")
     names = [n for n, m in zip(space.names, move) if m >= SCREEN_THRESHOLD * move.max()]
     return names, dict(zip(space.names, move.tolist())), len(points)
 
@@ -175,30 +185,39 @@ def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, c
     X = np.array([space.to_internal(space.theta(space.from_unit(u))) for u in U])[:, list(free)]
     cost = np.array(evaluate_many(_Cost(fun), list(X), executor, progress=progress, desc=desc), float)
     if not np.any(np.isfinite(cost)):
-        raise RuntimeError(f"the model failed at all {n_start} points of the {desc}")
+        raise ModelSpecError(
+            f"{model_label(fun.problem.model)} raised ModelError at all {n_start} points of the {desc} over the "
+            "prior: it cannot run over (nearly) all of its prior; narrow the prior (the Parameter bounds, or "
+            "--prior NAME=LO:HI) to where the model runs, or check when simulate raises ModelError")
     order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
     if costs:
         return [X[i] for i in order], len(X), [float(cost[i]) for i in order]
     return [X[i] for i in order], len(X)
 
 
-def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Problem:
+def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effects: bool = False) -> Problem:
     """The one builder of a :class:`Problem` for ``model`` on ``dataset``.
 
-    Checks the model with one run before any heavy work
-    (:func:`bayes_update.core.model.check_model_on`).  Under the ``full``
-    metric set the linear test's J1 follows the number of parameters it moves
-    (step 1's screen, d + 1 runs of the linear test; :func:`linear_n_functions`):
-    the problem is rebuilt with it and keeps the screen's result in
+    First the check before any long step (:func:`bayes_update.core.preflight.preflight`:
+    the model's contract, the data set's roles, one model run), then the
+    problem (the basis fit, the noise estimate).  Under the ``full`` metric set
+    the linear test's J1 follows the number of parameters it moves (step 1's
+    screen, d + 1 runs of the linear test; :func:`linear_n_functions`): the
+    problem is rebuilt with it and keeps the screen's result in
     ``linear_parameters``, ``linear_sensitivity`` and ``n_screen_runs``.
 
     space : the prior (default: the model's declared parameters), kept as
         ``problem.space``.
+    effects : the discrepancy workflow's problem: the model's candidate
+        effects checked, kept as ``problem.effects``, and every one passed at
+        its null (:class:`~bayes_update.core.effects.WithNulls`).
     """
-    checked = check_model_on(model, dataset)
-    space = checked if space is None else space
+    checked = preflight(dataset, model, space, effects=effects)
+    space = checked.space
+    if effects:
+        model = WithNulls(model, checked.nulls)
     problem = Problem(dataset, model, metrics=metrics)
-    problem.space, problem.n_screen_runs = space, 0
+    problem.space, problem.n_screen_runs, problem.effects = space, 0, checked.effects
     if problem.metrics == "full":
         names, sens, runs = screen_linear(problem, space, executor)
         basis = problem.basis
@@ -207,7 +226,7 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None) -> Prob
         if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
             basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
             problem = Problem(dataset, model, basis=basis, metrics=problem.metrics, noise=problem.noise)
-            problem.space = space
+            problem.space, problem.effects = space, checked.effects
         problem.linear_parameters, problem.linear_sensitivity, problem.n_screen_runs = tuple(names), sens, runs
     return problem
 
@@ -312,8 +331,25 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
                     covariance=gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
 
 
-def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64, n_best: int = 3,
-                    max_iterations: int = 40, seed: int = 0, executor=None, workers=None,
+#: the settings of :func:`calibrate_model` (a ``[calibrate]`` table of ``--config`` for a model of your own)
+SETTINGS = {"n_start": 64, "n_best": 3, "max_iterations": 40, "seed": 0}
+
+
+def check_settings(settings: dict, where: str = "calibrate") -> dict:
+    """``settings`` if every key is one of :data:`SETTINGS` with an integer value, else a
+    ``ValueError`` naming the key and the known ones."""
+    unknown = sorted(set(settings) - set(SETTINGS))
+    if unknown:
+        raise ValueError(f"{where}: unknown setting(s) {unknown}; known: {sorted(SETTINGS)}")
+    bad = {k: v for k, v in settings.items() if isinstance(v, bool) or not isinstance(v, int)}
+    if bad:
+        raise ValueError(f"{where}: setting(s) {bad} must be whole numbers")
+    return dict(settings)
+
+
+def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SETTINGS["n_start"],
+                    n_best: int = SETTINGS["n_best"], max_iterations: int = SETTINGS["max_iterations"],
+                    seed: int = SETTINGS["seed"], space=None, executor=None, workers=None,
                     progress: bool = True, log=info) -> Calibration:
     """The two-stage calibration of the module docstring.
 
@@ -325,19 +361,17 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = 64,
     metrics : ``"full"`` (default) or ``"paper"``.
     n_start, n_best : Sobol' points per stage and how many of the best start
         a least-squares search.
+    space : the prior (default: the model's declared parameters).
     """
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        problem = problem_for(dataset, model, metrics=metrics, executor=pool)
+        problem = problem_for(dataset, model, space, metrics=metrics, executor=pool)
         space, runs = problem.space, 1 + problem.n_screen_runs
         if problem.linear_parameters is None:        # the paper's set: no J1 to adapt, screen here
             problem.linear_parameters, problem.linear_sensitivity, n = screen_linear(problem, space, pool)
             runs += n
         lin_names, sens = list(problem.linear_parameters), problem.linear_sensitivity
-        if "nonlinear" not in problem.stages:
-            raise ValueError(f"{problem.source}: calibrate needs a test with role 'nonlinear' as well "
-                             "as the linear one")
         n_functions = tuple(problem.basis.n_functions[k] for k in (1, 2, 3))
         log(f"linear parameters (screen): {', '.join(lin_names)}; J = {n_functions}")
         found = two_stage(problem, space, lin_names, n_start=n_start, n_best=n_best,

@@ -156,7 +156,12 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
     disagree on it at 618 sd and a quadratic damper the model lacks at 36 sd.  For each pair
     of tests and each parameter both identify (sd below half its prior width),
     z = (x_a - x_b) / sqrt(var_a + var_b).  Returns the parameters with
-    ``|z|`` > :data:`DISAGREEMENT_SD`: [{"parameter", "tests", "sd", "values"}].
+    ``|z|`` > :data:`DISAGREEMENT_SD` whose difference also moves a test's compared
+    output by more than its noise (rms over its rows, in noise sd: a difference of
+    many sd of a very sharp estimate that no prediction would show is not worth a
+    warning; a model that fits its records exactly was told "tests disagree on k3
+    (3.2 sd)" for a 0.02 % difference): [{"parameter", "tests", "sd",
+    "shift_from_joint", "prediction_change_noise_sd"}].
     """
     J, r = np.asarray(jacobian, float), np.asarray(residual, float)
     widths = np.asarray(widths, float)
@@ -180,9 +185,11 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
                 if not (0 < sa[k] < 0.5 * widths[k] and 0 < sb[k] < 0.5 * widths[k]):
                     continue
                 z = (xa[k] - xb[k]) / math.hypot(sa[k], sb[k])
-                if abs(z) > DISAGREEMENT_SD:
+                moved = max(float(np.sqrt(np.mean((J[rows, k] * (xa[k] - xb[k])) ** 2))) for rows in blocks.values())
+                if abs(z) > DISAGREEMENT_SD and moved > 1.0:
                     out.append({"parameter": name, "tests": [a, b], "sd": float(abs(z)),
-                                "shift_from_joint": {a: float(xa[k]), b: float(xb[k])}})
+                                "shift_from_joint": {a: float(xa[k]), b: float(xb[k])},
+                                "prediction_change_noise_sd": moved})
     return out
 
 
@@ -190,5 +197,6 @@ def disagreement_sentence(d: dict) -> str:
     """One line for a parameter two tests pull apart (:func:`test_disagreement`)."""
     a, b = d["tests"]
     return (f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
-            "apart, beyond their noise; an amplitude-dependent effect the model lacks (damping or stiffness "
-            "that changes with level) is the usual cause: run `bayes-update discrepancy`")
+            f"apart, beyond their noise, a difference that moves a test's prediction by "
+            f"{d['prediction_change_noise_sd']:.2g} noise sd (rms); an amplitude-dependent effect the model lacks "
+            "(damping or stiffness that changes with level) is the usual cause: run `bayes-update discrepancy`")

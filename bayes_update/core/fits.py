@@ -10,11 +10,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
-from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
+from bayes_update.core.comparison import score_model
+from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
-__all__ = ["AT_VALUE", "Fit", "fit_model", "gap", "names_effect", "names_pair", "noise_floor"]
+__all__ = ["AT_VALUE", "GAP_LABELS", "Fit", "failed_fit", "fit_model", "gap", "names_effect", "names_pair",
+           "noise_floor"]
 
 
 @dataclass
@@ -44,17 +46,23 @@ class Fit:
 
 
 
-def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None) -> Fit:
-    """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``."""
+def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None,
+              iterations: int | None = None) -> Fit:
+    """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``
+    (``iterations``: per start, default ``settings.max_iterations``); the model run once more
+    per test at its mode for its own error covariance (:func:`~bayes_update.core.comparison.score_model`)."""
     stages = problem.stages
     fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
     box = space.box()
     lo, hi = box[:, 0], box[:, 1]
     tol = settings.cost_tolerance
-    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor, max_iterations=settings.max_iterations,
-                     cost_tolerance=tol, central=tol is None)
-    cov = mode.covariance(scale=hi - lo)
-    logz = laplace_log_evidence(mode, space.log_prior_density(mode.x), hi - lo)
+    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor,
+                     max_iterations=iterations or settings.max_iterations, cost_tolerance=tol, central=tol is None)
+    # each model scored under its own error covariance: the noise and what its own mode leaves
+    # beyond it (bayes_update.core.comparison; one run per test)
+    scored = score_model(problem, lik, mode, space.to_parameters(mode.x), space.log_prior_density(mode.x), hi - lo,
+                         executor)
+    cov, logz = scored.covariance, scored.log_evidence
     r, n = mode.residual, len(mode.residual) // len(stages)
     metrics = {("e_lin" if st == "linear" else "e_nlin"):
                float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd) for i, st in enumerate(stages)}
@@ -108,24 +116,45 @@ def _at_bound(fit: Fit, k: int, end: int | None = None) -> bool:
     return bool(np.any(on & (np.abs(x - null) > tol)))
 
 
+#: a nested fit whose log L ends more than this below the model without its effect has failed
+FAILED_FIT_LOG_L = 0.5
+
+
+def failed_fit(fit: Fit, without: Fit) -> bool:
+    """A model with an effect contains the model without it (the effect at its null), so
+    its optimum cannot be worse: a fit that ends more than :data:`FAILED_FIT_LOG_L` below
+    ``without`` in log L has not found its optimum (its 2 ln B is no evidence)."""
+    return bool(fit.mode.cost > without.mode.cost + FAILED_FIT_LOG_L)
+
+
+def _improves_held_out(row: dict) -> bool:
+    """The held-out tests predicted better beyond their noise (no validation test: the
+    evidence alone decides, and the result says so)."""
+    return row.get("held_out") is None or bool(row["held_out"]["improves"])
+
+
 def names_effect(row: dict) -> bool:
     """The naming rule for one candidate's evidence row: decisive evidence
-    (2 ln B > :data:`DECISIVE`), a parameter more than 2 sd from its null, and the
-    fit neither at its null nor on a bound of its prior."""
-    return bool(row["two_ln_B"] > DECISIVE and row["excludes_null"] and not row["at_null"]
-                and not row["at_bound"])
+    (2 ln B > :data:`DECISIVE`, each model under its own model-form error,
+    :mod:`bayes_update.core.comparison`), a parameter more than 2 sd from its null, the fit neither at its null
+    nor on a bound of its prior nor failed, and the held-out tests predicted better
+    beyond their noise (:mod:`bayes_update.core.held_out`)."""
+    return bool(row["two_ln_B"] is not None and row["two_ln_B"] > DECISIVE and row["excludes_null"]
+                and not row["at_null"] and not row["at_bound"] and _improves_held_out(row))
 
 
-def names_pair(row: dict, partner_alone: float) -> bool:
+def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
     """The naming rule for two effects fitted together, tried when the strongest
     single candidate sat on a bound of its prior (``row["members"]``: each
     member's flags): decisive against the model without both, decisive against
-    the partner alone (``partner_alone``, its 2 ln B: the effect on the bound
-    must add what the partner cannot), and each member more than 2 sd from its
-    null, neither at its null nor on a bound."""
+    each member alone (``partner_alone`` and ``first_alone``, their 2 ln B: each
+    must add what the other cannot), each member more than 2 sd from its
+    null, neither at its null nor on a bound, and the held-out tests predicted
+    better beyond their noise."""
     return bool(row["two_ln_B"] > DECISIVE and row["two_ln_B"] - partner_alone > DECISIVE
+                and row["two_ln_B"] - first_alone > DECISIVE
                 and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"]
-                        for m in row["members"].values()))
+                        for m in row["members"].values()) and _improves_held_out(row))
 
 
 def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
@@ -151,19 +180,30 @@ def noise_floor(problem: Problem, test) -> float:
     return float(np.sqrt(np.mean(np.square(ratios))))
 
 
+#: what each entry of a gap is (the rows of the gap table and the keys of discrepancy.json alike)
+GAP_LABELS = {
+    "e_lin": "e_lin: relative error of the linear test's compared components",
+    "e_nlin": "e_nlin: relative error of the nonlinear test's compared components",
+    "held_out_relative_error": "held-out tests: relative output error (mean over the tests)",
+    "held_out_error_beyond_noise": "held-out tests: output error beyond their noise (mean over the tests)",
+    "held_out_noise_floor": "held-out tests: the relative error their noise alone gives (mean)",
+}
+
+
 def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
-    """e_lin, e_nlin and the validation tests' output error at ``fit``'s mode:
-    ``validation`` is the error beyond the noise, sqrt(rel^2 - floor^2),
+    """e_lin, e_nlin and the held-out (validation) tests' output error at ``fit``'s mode
+    (:data:`GAP_LABELS`): ``held_out_error_beyond_noise`` is sqrt(rel^2 - floor^2)
     averaged over the tests (the noise alone gives rel = floor, which no model
-    removes); ``validation_rel`` the raw mean."""
+    removes), ``held_out_relative_error`` the raw mean, ``held_out_tests`` per test."""
     out = {"e_lin": fit.metrics["e_lin"], "e_nlin": fit.metrics["e_nlin"],
            "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"]}
     val = problem.prediction_errors(fit.theta)
     if val:
         excess = [math.sqrt(max(v ** 2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
-        out["validation"] = float(np.mean(excess))
-        out["validation_rel"] = float(np.mean(list(val.values())))
-        out["validation_tests"] = {k: {"rel": v, "noise_floor": floors.get(k)} for k, v in val.items()}
+        out["held_out_error_beyond_noise"] = float(np.mean(excess))
+        out["held_out_relative_error"] = float(np.mean(list(val.values())))
+        out["held_out_noise_floor"] = float(np.mean([floors.get(k) or 0.0 for k in val]))
+        out["held_out_tests"] = {k: {"relative_error": v, "noise_floor": floors.get(k)} for k, v in val.items()}
     return out
 
 

@@ -55,6 +55,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
+from bayes_update.core.model_form import form_draws, periodogram
 from bayes_update.core.problem import Problem
 from bayes_update.core.replicates import ScalesRun, control_variate_rows, draw_replicates, lti_fit
 from bayes_update.core.span import derivative_from, derivative_points, span_of
@@ -76,6 +77,12 @@ class StageScale:
     span_rank: int | None = None
     model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up
     model_error_source: str | None = None   # what e_model was measured against, or why it is zero
+    #: the model-form error's variance per direction of the span (its draws at the mode,
+    #: bayes_update.core.model_form), in the units of span_variance; 0 where not measured
+    model_form_variance: float = 0.0
+    #: {sensor: rms of the residual's excess over the noise at the mode / the record's rms}
+    model_form_rms: dict | None = None
+    model_form_source: str | None = None    # how the model-form error was measured, or why not
 
     @property
     def noise_sd(self) -> float:
@@ -86,12 +93,17 @@ class StageScale:
         return math.sqrt(self.noise_mean_square / self.noise_dof)
 
     @property
+    def model_form_sd(self) -> float:
+        """The model-form error's sd per direction of the span."""
+        return math.sqrt(self.model_form_variance)
+
+    @property
     def sd(self) -> float:
-        """s = sqrt(s_n^2 + e_model^2): the metric's scale in the likelihood."""
-        return math.hypot(self.noise_sd, self.model_error)
+        """s = sqrt(s_n^2 + s_form^2 + e_model^2): the metric's scale in the likelihood."""
+        return math.sqrt(self.noise_sd ** 2 + self.model_form_variance + self.model_error ** 2)
 
     def to_dict(self) -> dict:
-        return {**asdict(self), "noise_sd": self.noise_sd, "sd": self.sd}
+        return {**asdict(self), "noise_sd": self.noise_sd, "model_form_sd": self.model_form_sd, "sd": self.sd}
 
 
 @dataclass(frozen=True)
@@ -101,18 +113,37 @@ class Likelihood:
     ``noise_residuals`` (stage -> ((K, n) array, (K,) weights), optional): the
     bootstrap's replicate residual vectors, relative to the reference's norm,
     and their weights in the noise's second moment ``sum_i w_i d_i d_i^T``
-    (1/K each, or a control variate's, :func:`estimate_likelihood`), which
-    :func:`bayes_update.core.adjustment.curvature_adjustment` needs; not pickled (workers need only the
-    scales)."""
+    (1/K each, or a control variate's, :func:`estimate_likelihood`);
+    ``form_residuals`` the same of the model-form error's draws at the mode
+    (:func:`errors_at_mode`).  :func:`bayes_update.core.adjustment.curvature_adjustment`
+    needs both (:meth:`error_rows`); none of these is pickled (workers need only the scales)."""
 
     scales: dict   # stage -> StageScale
     noise_residuals: dict | None = field(default=None, compare=False, repr=False)
     #: stage -> :class:`~bayes_update.core.span.Sensitivity` at the point the scales were measured (the sensitivity
     #: span's runs), which a mode search from that point takes as its first Jacobian
     sensitivities: dict | None = field(default=None, compare=False, repr=False)
+    #: stage -> the noise's periodogram in a replicate's time-domain residual, (n // 2 + 1,) or
+    #: (n // 2 + 1, n_sensors): what the model-form error is measured beyond
+    noise_spectra: dict | None = field(default=None, compare=False, repr=False)
+    form_residuals: dict | None = field(default=None, compare=False, repr=False)
 
     def __getstate__(self):
-        return {"scales": self.scales, "noise_residuals": None, "sensitivities": None}
+        return {"scales": self.scales, "noise_residuals": None, "sensitivities": None, "noise_spectra": None,
+                "form_residuals": None}
+
+    def error_rows(self, stage: str):
+        """``(D, w)``: the noise replicates' rows and, where measured, the model-form
+        draws' (weights 1/K each), one second moment ``sum_i w_i d_i d_i^T``; None
+        without the noise replicates."""
+        res = (self.noise_residuals or {}).get(stage)
+        if res is None:
+            return None
+        D, w = res if isinstance(res, tuple) else (res, np.full(len(res), 1.0 / len(res)))
+        form = (self.form_residuals or {}).get(stage)
+        if form is None:
+            return D, w
+        return np.vstack([D, form[0]]), np.concatenate([w, form[1]])
 
     def __post_init__(self):
         for st, sc in self.scales.items():
@@ -130,9 +161,10 @@ class Likelihood:
         return "e_lin" if stage == "linear" else "e_nlin"
 
     def restricted(self, stages) -> "Likelihood":
-        res = self.noise_residuals
-        return Likelihood({s: self.scales[s] for s in stages},
-                          {s: res[s] for s in stages if s in res} if res else None)
+        def part(d):
+            return {s: d[s] for s in stages if s in d} if d else None
+        return Likelihood({s: self.scales[s] for s in stages}, part(self.noise_residuals),
+                          noise_spectra=part(self.noise_spectra), form_residuals=part(self.form_residuals))
 
     def unabsorbed(self) -> "Likelihood":
         """The same noise with only the unabsorbed part of the model error
@@ -140,7 +172,8 @@ class Likelihood:
         comparison should count as explained.  The posterior keeps the whole
         model error, so that its bias moves a parameter by at most one sd."""
         return Likelihood({st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
-                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()})
+                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()},
+                          self.noise_residuals, self.sensitivities, self.noise_spectra, self.form_residuals)
 
     def log_likelihood(self, metrics: dict) -> float:
         """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""
@@ -168,6 +201,12 @@ class Likelihood:
 
     def to_dict(self) -> dict:
         return {st: sc.to_dict() for st, sc in self.scales.items()}
+
+
+#: noise replicates whose time-domain residuals give the noise's spectrum (Likelihood.noise_spectra)
+SPECTRUM_REPLICATES = 32
+#: random-phase draws of the model-form error at the mode per stage (projections only, no model run)
+FORM_DRAWS = 96
 
 
 # --------------------------------------------------------------------- noise
@@ -234,7 +273,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     results = [None] * len(tasks)
     for j, value in zip(order, done):
         results[j] = value
-    scales, residuals, sensitivities = {}, {}, {}
+    scales, residuals, sensitivities, spectra = {}, {}, {}, {}
     for stage, plan in zip(stages, plans):
         res = results[plan["slice"]]
         v0, runs = res[0], res[1:1 + len(plan["forces"])]
@@ -253,10 +292,15 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         if plan["probe"] is not None:
             lti = lti_fit(plan["probe"], runs[0] - v0)
             D, w = control_variate_rows(row, lti, plan["cheap"], plan["pairs"], runs[1:], v0)
+            changes = [lti(du) for du, _ in plan["cheap"][:SPECTRUM_REPLICATES]]
         else:              # every replicate a model run (none needed without force noise)
             runs = runs if plan["forces"] else [v0] * len(plan["cheap"])
             D = np.array([row(noise, v - v0) for (_, noise), v in zip(plan["cheap"], runs)])
             w = np.full(len(D), 1.0 / len(D))
+            changes = [v - v0 for v in runs[:SPECTRUM_REPLICATES]]
+        # the noise's spectrum in a replicate's time-domain residual (sensor noise and the response
+        # to the force noise): what the model-form error at the mode is measured beyond
+        spectra[stage] = np.mean([periodogram(noise - dv) for (_, noise), dv in zip(plan["cheap"], changes)], axis=0)
         e2 = np.sum(D ** 2, axis=1)
         n_reg = problem.n_regressors(stage)
         _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
@@ -278,80 +322,123 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
                                    span_variance=span_var, span_rank=int(Q.shape[1]),
                                    model_error_unabsorbed=e_perp,
                                    model_error_source=error_source)
-    return Likelihood(scales, residuals, sensitivities)
+    return Likelihood(scales, residuals, sensitivities, spectra)
 
 
-def model_error_at(problem: Problem, likelihood: Likelihood, params, residual, jacobian,
-                   executor=None) -> Likelihood:
-    """``likelihood`` with its model-error terms measured again at ``params`` (the
-    mode): the model error depends on where it is measured, and a start for the
-    mode's search may lie far from it.  The model's output there comes from the
-    mode's scaled residual (no run), the refined model's from one run per stage,
-    the span of the parameters' sensitivities from the mode's Jacobian; the
-    noise terms stay.  With the term switched off the likelihood is returned as it
-    is; without a refined model, see :func:`misfit_beyond_noise`.  ``executor``: the
-    stages' refined runs in parallel."""
-    ref_model = problem.refined_model()
+@dataclass
+class _RunAt:
+    """Picklable: ``model`` (None: the problem's) at ``params`` on a stage's test; None where
+    it cannot run."""
+
+    problem: Problem
+    params: dict
+    model: object
+    stage: str
+
+    def __call__(self):
+        try:
+            return self.problem.run(self.params, self.problem.tests[self.stage].force, model=self.model)
+        except self.problem.failures:
+            return None
+
+
+def _call(task):
+    return task()
+
+
+def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, jacobian, executor=None,
+                   seed=0, n_draws: int = FORM_DRAWS, own_points: dict | None = None) -> Likelihood:
+    """``likelihood`` with its model errors measured at the mode ``params``; the noise terms stay.
+
+    * The discretisation error (where the model has ``refined()``): the model
+      against its refined version there, as :func:`estimate_likelihood`
+      measures it at the start (a start may lie far from the mode).
+    * The model-form error: what a test's residual holds beyond the noise at
+      the test's own best point (``own_points``: {stage: params}, default the
+      mode), as random-phase draws (:mod:`bayes_update.core.model_form`)
+      projected like the noise replicates; its variance per direction of the span
+      of the parameters' sensitivities is ``model_form_variance``.  Why the test's
+      own point: at the joint mode a test's residual also holds the pull of the
+      other test (a compromise the parameters could take up), which the tests'
+      disagreement counts (:func:`bayes_update.core.adjustment.between_test_covariance`);
+      what no parameter value takes up is the model-form error.  A model that is
+      right leaves nothing beyond the noise and keeps its scales.
+
+    Per stage a run of the model at the mode and one at the stage's own point
+    (the better residual counts: a Gauss-Newton step along a direction the test
+    barely pins may overshoot) and, where it has ``refined()``, one of the refined
+    model at the mode (through ``executor``, all side by side); the model's compared output at the mode comes from the mode's
+    scaled ``residual`` (no run) and the span from its ``jacobian`` (rows in
+    ``problem.stages`` order).  With the model
+    error switched off (``model_error=False``: data made by the updating model
+    itself) the likelihood is returned as it is."""
     if all((sc.model_error_source or "").startswith("off") for sc in likelihood.scales.values()):
         return likelihood
-    if ref_model is None:
-        return misfit_beyond_noise(problem, likelihood, residual)
-    if all(sc.model_error == 0.0 for sc in likelihood.scales.values()):
-        return likelihood
-    refined = evaluate_many(ScalesRun(problem, params, refined=ref_model),
-                            [("refined", st, problem.tests[st].force) for st in problem.stages], executor,
-                            batch_size=1, progress=False)
-    scales, row = {}, 0
-    for stage, v_ref in zip(problem.stages, refined):
+    ref_model = problem.refined_model()
+    own = own_points or {}
+    stages = problem.stages
+    # per stage the model at the mode and at the stage's own point (its better residual is taken:
+    # a Gauss-Newton step along a direction the test barely pins may overshoot), and the refined model
+    tasks = ([_RunAt(problem, params, None, st) for st in stages] +
+             [_RunAt(problem, own[st], None, st) for st in stages if st in own] +
+             ([_RunAt(problem, params, ref_model, st) for st in stages] if ref_model is not None else []))
+    runs = evaluate_many(_call, tasks, executor, batch_size=1, progress=False)
+    at_mode, runs = runs[:len(stages)], runs[len(stages):]
+    at_own = {st: runs.pop(0) for st in stages if st in own}
+    refined_runs = runs
+    scales, forms, row = {}, {}, 0
+    for i, stage in enumerate(stages):
         sc = likelihood.scales[stage]
         ref = problem.output(stage, problem.reference_components(stage))
         norm, n = np.linalg.norm(ref), ref.size
-        r, J = np.asarray(residual[row:row + n]), np.asarray(jacobian[row:row + n])
+        r, J = np.asarray(residual[row:row + n], float), np.asarray(jacobian[row:row + n], float)
         row += n
-        at_mode = ref - r * norm * sc.sd
-        d = at_mode - problem.output(stage, problem.components(stage, v_ref))
-        U, S, _ = np.linalg.svd(J, full_matrices=False)
-        Q = U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
-        scales[stage] = dataclasses.replace(sc, model_error=float(np.linalg.norm(d) / norm),
-                                            model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
-    return Likelihood(scales, likelihood.noise_residuals)
-
-
-#: the misfit at the mode counts as model error when its square exceeds the noise's by more
-#: than this many sd of the noise's (a chi-square of n_reg directions: sd sqrt(2 / n_reg) of it)
-MISFIT_SIGNIFICANCE = 3.0
-
-
-def misfit_beyond_noise(problem: Problem, likelihood: Likelihood, residual) -> Likelihood:
-    """The model error of a model without ``refined()``, from the mode's misfit.
-
-    A measured record is never matched to its noise: drift, a sensor's
-    dynamics, an effect the model lacks leave a misfit the noise replicates do
-    not know of, and with noise-only scales the posterior is then narrower than
-    the error it leaves (on lab records of a 3-DOF chain with drifting sensors, the
-    truth 10-55 posterior sd away; ``benchmarks/runs_per_posterior.py``, chain6).
-    Per stage: e_mode^2 = ||r||^2 s^2 (the mode's relative misfit) against the
-    noise's mean square e_n^2 (its replicates, all n_reg directions); where
-    e_mode^2 - e_n^2 exceeds ``MISFIT_SIGNIFICANCE`` sd of e_n^2 (sqrt(2 / n_reg) e_n^2),
-    e_model = sqrt(e_mode^2 - e_n^2) (budgeted as the refined model's would be:
-    one sd in any direction); else the stage keeps a zero model error.  The
-    residual is the scaled one of the mode search (order of ``problem.stages``)."""
-    scales, row = {}, 0
-    for stage in problem.stages:
-        sc = likelihood.scales[stage]
-        n = problem.output(stage, problem.reference_components(stage)).size
-        r = np.asarray(residual[row:row + n], float)
-        row += n
-        e2 = float(r @ r) * sc.sd ** 2
-        excess = e2 - sc.noise_mean_square
-        if excess > MISFIT_SIGNIFICANCE * math.sqrt(2.0 / max(sc.n_regressors, 1)) * sc.noise_mean_square:
-            scales[stage] = dataclasses.replace(
-                sc, model_error=math.sqrt(excess), model_error_unabsorbed=math.sqrt(excess),
-                model_error_source=f"the misfit at the MAP beyond the noise ({type(problem.model).__name__} has "
-                                   "no refined(): e_model^2 = e_MAP^2 - e_noise^2)")
+        Q = _column_span(J)
+        changes = {}
+        if ref_model is not None:
+            d = ref - r * norm * sc.sd - problem.output(stage, problem.components(stage, refined_runs[i]))
+            changes.update(model_error=float(np.linalg.norm(d) / norm),
+                           model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
+        spectrum = (likelihood.noise_spectra or {}).get(stage)
+        test = problem.tests[stage]
+        where, resid = _best_residual(problem, test, at_mode[i], at_own.get(stage))
+        if spectrum is None:
+            changes["model_form_source"] = "not measured: the likelihood has no noise spectrum (given by hand)"
+        elif resid is None:
+            changes["model_form_source"] = "not measured: the model cannot run at the MAP"
         else:
-            scales[stage] = sc
-    return Likelihood(scales, likelihood.noise_residuals)
+            rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(100 + i,)))
+            draws, excess = form_draws(resid, spectrum, n_draws, rng)
+            D = np.array([problem.output(stage, problem.components(stage, dk)) / norm for dk in draws])
+            forms[stage] = (D, np.full(len(D), 1.0 / len(D)))
+            y = test.response.reshape(len(test.response), -1)
+            rel = np.sqrt(np.mean(excess.reshape(len(excess), -1) ** 2, axis=0) / np.mean(y ** 2, axis=0))
+            changes.update(model_form_variance=float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / max(Q.shape[1], 1)),
+                           model_form_rms={name: float(v) for (name, _), v in zip(problem.sensors, rel)},
+                           model_form_source=f"the test's residual at {where} beyond the noise's spectrum "
+                                             f"({n_draws} random-phase draws)")
+        scales[stage] = dataclasses.replace(sc, **changes)
+    return Likelihood(scales, likelihood.noise_residuals, likelihood.sensitivities, likelihood.noise_spectra,
+                      forms or None)
+
+
+def _best_residual(problem, test, at_mode, at_own):
+    """(where, the record's residual) of the better of the model's runs at the mode and
+    at the test's own point (by rms; None where a run failed)."""
+    best = None
+    for where, run in (("the MAP", at_mode), ("its own best point", at_own)):
+        if run is None:
+            continue
+        r = test.response - problem.compared_response(run)
+        if best is None or np.sum(r ** 2) < np.sum(best[1] ** 2):
+            best = (where, r)
+    return best if best is not None else (None, None)
+
+
+def _column_span(J) -> np.ndarray:
+    """An orthonormal basis of the columns of J (singular values above 1e-6 of the largest)."""
+    U, S, _ = np.linalg.svd(J, full_matrices=False)
+    return U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
 
 
 def _noise_levels(estimates: dict, sensors) -> dict:

@@ -18,7 +18,7 @@ import numpy as np
 
 import volterra
 
-from bayes_update.core.model import ModelError, run_error
+from bayes_update.core.model import ModelError, check_response, run_error
 from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, FEEDTHROUGH, basis_from_reference, describe_basis
 from bayes_update.core.metrics import (METRIC_SETS, STAGE_ORDERS, STAGES, n_compared_regressors, relative_error,
                                        stage_output)
@@ -27,7 +27,29 @@ from bayes_update.data.checks import require_live_force
 from bayes_update.data.dataset import DatasetError
 from bayes_update.data.noise import dataset_noise
 
-__all__ = ["Problem"]
+__all__ = ["Problem", "require_roles"]
+
+
+def require_roles(dataset, needed=("linear",)) -> None:
+    """The data set's roles as the metrics need them: one test with each role of
+    :data:`STAGES` at most (e_lin and e_nlin compare one test each, and the
+    code supports no more), and one with each role in ``needed`` (the linear
+    test always: the basis's poles come from it).  Raises :class:`DatasetError`
+    naming the tests and what to set in dataset.json."""
+    source = dataset.source or dataset.name
+    for role in STAGES:
+        found = dataset.by_role(role)
+        if len(found) > 1:
+            raise DatasetError(f"{source}: {len(found)} tests have role {role!r} ({[t.name for t in found]}); the "
+                               f"metrics need exactly one: give the others role 'validation' (predicted and "
+                               "reported, never fitted) in dataset.json")
+    what = {"linear": "the low-level test that e_lin and the Kautz basis's poles come from",
+            "nonlinear": "the high-level test that e_nlin comes from, which calibrate, sample and discrepancy "
+                         "need as well as the linear one"}
+    for role in dict.fromkeys(("linear", *needed)):
+        if not dataset.by_role(role):
+            raise DatasetError(f"{source}: no test has role {role!r} ({what[role]}); set it in dataset.json "
+                               f"(roles now: {[(t.name, t.role) for t in dataset.tests]})")
 
 
 @dataclass(frozen=True)
@@ -83,6 +105,8 @@ class Problem:
     space = None
     #: model runs the builder's screen took
     n_screen_runs: int = 0
+    #: the candidate effects the builder checked, for the discrepancy workflow ({} otherwise)
+    effects: dict | None = None
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None, noise=None):
         if not hasattr(model, "simulate"):
@@ -102,19 +126,10 @@ class Problem:
         if metrics not in METRIC_SETS:
             raise ValueError(f"metrics must be one of {sorted(METRIC_SETS)}, got {metrics!r}")
         self.metrics = metrics
-        self.tests = {}
-        for role in STAGES:
-            found = dataset.by_role(role)
-            if len(found) > 1:
-                raise DatasetError(f"{self.source}: {len(found)} tests have role {role!r} "
-                                   f"({[t.name for t in found]}); the metrics need exactly one")
-            if found:
-                self.tests[role] = self._test(found[0])
+        require_roles(dataset)
+        self.tests = {role: self._test(dataset.by_role(role)[0]) for role in STAGES if dataset.by_role(role)}
         self.validation = {t.name: self._test(t) for t in dataset.by_role("validation")}
         found_linear = dataset.by_role("linear")
-        if "linear" not in self.tests:
-            raise DatasetError(f"{self.source}: no test has role 'linear' (the low-level test "
-                               "that e_lin and the Kautz pole come from); set it in dataset.json")
         lin = self.tests["linear"]
         if basis is None:
             # the poles are the structure's: every sensor shows them, fitted jointly; orders 2-3 on
@@ -248,23 +263,8 @@ class Problem:
 
     def _checked(self, model, params, y, n: int) -> np.ndarray:
         """A model's response as (n,) or (n, n_sensors), or a :class:`~bayes_update.core.model.ModelRunError`
-        naming the model, the theta and the remedy."""
-        try:
-            y = np.asarray(y, float)
-        except (TypeError, ValueError) as exc:
-            raise run_error(model, params, f"returned a {type(y).__name__} that is not an array of numbers ({exc})",
-                            "return a numpy array of the response, one value per input sample") from None
-        k = len(self.sensors)
-        shapes = [(n, k)] if k > 1 else [(n,), (n, 1)]
-        if y.shape not in shapes:
-            raise run_error(model, params, f"returned shape {y.shape} for a force of {n} samples and {k} "
-                            f"sensor(s)", f"it must return {' or '.join(map(str, shapes))} at every theta: one "
-                            "value per input sample" + (", one column per sensor" if k > 1 else "")
-                            + "; where the model cannot run, raise bayes_update.ModelError")
-        bad = int(np.count_nonzero(~np.isfinite(y)))
-        if bad:
-            raise run_error(model, params, f"returned {bad} NaN/inf value(s) of {y.size}")
-        return y[:, 0] if y.ndim == 2 and y.shape[1] == 1 else y
+        naming the model, the theta and the remedy (:func:`~bayes_update.core.model.check_response`)."""
+        return check_response(model, params, y, n, len(self.sensors))
 
     def simulate(self, params, stage: str) -> np.ndarray:
         """Model response under the stage's recorded force."""
@@ -283,6 +283,17 @@ class Problem:
         from bayes_update.data.dataset import RESPONSE_UNITS
 
         return RESPONSE_UNITS[self.sensors[0][1]] if len(self.sensors) == 1 else "noise sd"
+
+    @property
+    def response_unit(self) -> str:
+        """Unit of the records' responses: the sensors' common unit, else each sensor's
+        (``"acc1: m/s^2, disp: m"``)."""
+        from bayes_update.data.dataset import RESPONSE_UNITS
+
+        units = [RESPONSE_UNITS[kind] for _, kind in self.sensors]
+        if len(set(units)) == 1:
+            return units[0]
+        return ", ".join(f"{name}: {u}" for (name, _), u in zip(self.sensors, units))
 
     @property
     def sensor_keys(self) -> tuple:

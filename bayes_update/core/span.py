@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from bayes_update.core.model import ModelSpecError
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
@@ -76,5 +77,7 @@ def span_of(derivative, stage: str = "", tol: float = 1e-6) -> np.ndarray:
     U, S, _ = np.linalg.svd(np.asarray(derivative, float), full_matrices=False)
     r = int(np.sum(S > tol * S[0])) if S[0] > 0 else 0
     if r == 0:
-        raise RuntimeError(f"stage {stage}: the model output does not move with the parameters")
+        raise ModelSpecError(f"stage {stage}: the model's compared output does not move with any parameter here: "
+                             "check that simulate uses theta[name] of every declared parameter, and that each "
+                             "parameter's range and unit are those simulate expects")
     return U[:, :r]

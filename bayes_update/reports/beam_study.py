@@ -177,7 +177,7 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
     timing["total"] = time.perf_counter() - t_all
     head = _headline(calibrations, posteriors, stated, timing)
     if disc is not None:
-        head["discrepancy"] = {"hidden": hidden, "named_effects": disc.named,
+        head["discrepancy"] = {"hidden": hidden, "named": disc.named,
                                "gap_before": disc.gap_before, "gap_after": disc.gap_after}
     (out / "reproduce.json").write_text(json.dumps(head, indent=1, default=float) + "\n")
     (out / "report.md").write_text(_report(out, calibrations, posteriors, stated, truth, timing, quick, disc))
@@ -251,6 +251,7 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
                     if (out / f"posterior_{tag}" / f"{n}.png").exists()), ""]
     if disc is not None:
         from bayes_update.core.effects import evidence_table
+        from bayes_update.core.fits import GAP_LABELS
 
         hidden = json.loads((out / "discrepancy" / "discrepancy.json").read_text()).get("truth", {}).get("effects")
         b, a = disc.gap_before, disc.gap_after
@@ -261,9 +262,9 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
               "fitted and ranked by Laplace evidence, the named one added and re-updated.", "",
               evidence_table(disc), "",
               "| misfit | baseline | after |", "|---|---|---|"]
-        for k in ("e_lin", "e_nlin", "validation"):
+        for k, label in GAP_LABELS.items():
             if b.get(k) is not None:
-                L.append(f"| {k} | {100 * b[k]:.3f} % | {100 * a[k]:.3f} % |")
+                L.append(f"| {label} | {100 * b[k]:.3f} % | {100 * a[k]:.3f} % |")
         final = disc.to_json()["final_mode"]["effects"]
         for h in hidden:
             if h["name"] in final:

@@ -19,13 +19,14 @@ __all__ = ["format_result", "gap_figure", "write_discrepancy"]
 def format_result(res) -> str:
     """The evidence table, the gap before and after, the named effects' values and
     the signature check, as text."""
-    b, a, t = res.gap_before, res.gap_after, res.gap_with_tentative
-    lines = [evidence_table(res), "",
-             "gap          before      after" + ("   with " + " + ".join(res.tentative) if t else "")]
-    for k in ("e_lin", "e_nlin", "validation"):
+    from bayes_update.core.fits import GAP_LABELS
+
+    b, a = res.gap_before, res.gap_after
+    width = max(len(v) for v in GAP_LABELS.values())
+    lines = [evidence_table(res), "", f"{'gap':<{width}}    before      after"]
+    for k, label in GAP_LABELS.items():
         if b.get(k) is not None:
-            lines.append(f"{k:<12} {100 * b[k]:8.3f} %  {100 * a[k]:8.3f} %"
-                         + (f"  {100 * t[k]:8.3f} %" if t and t.get(k) is not None else ""))
+            lines.append(f"{label:<{width}} {100 * b[k]:8.3f} %  {100 * a[k]:8.3f} %")
     for e in res.named:
         for n, v in res.final.to_json(res.effects)["effects"][e].items():
             lines.append(f"{e}: {n} = {v['mode']:.5g} {v['unit']} (Laplace interval "

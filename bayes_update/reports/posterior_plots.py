@@ -149,6 +149,34 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     return fig
 
 
+def predictive_records(time_bands: dict, coverage: dict, fs: float, sensors, roles: dict | None = None):
+    """Every test's record (each sensor a row) on a window around its largest response,
+    over the posterior predictive's 50 % and 90 % bands (the model at posterior draws
+    with the error model: noise and model-form error), each title with the share of
+    the whole record's samples inside the bands (their targets 50 % and 90 %)."""
+    from bayes_update.data.dataset import RESPONSE_UNITS
+
+    rows = [(test, j, name, RESPONSE_UNITS[kind]) for test in time_bands for j, (name, kind) in enumerate(sensors)]
+    fig = Figure(figsize=(12, 2.3 * len(rows)), constrained_layout=True)
+    axes = fig.subplots(len(rows), 1, squeeze=False)[:, 0]
+    for ax, (test, j, sensor, unit) in zip(axes, rows):
+        b = time_bands[test]
+        rec = np.asarray(b["record"])[:, j]
+        t = (b["start"] + np.arange(len(rec))) / fs
+        ax.fill_between(t, b["q05"][:, j], b["q95"][:, j], color="C0", alpha=0.25, lw=0, label="90 % band")
+        ax.fill_between(t, b["q25"][:, j], b["q75"][:, j], color="C0", alpha=0.45, lw=0, label="50 % band")
+        ax.plot(t, b["median"][:, j], color="C0", lw=0.8, label="median")
+        ax.plot(t, rec, color="k", lw=0.6, label="record")
+        c = coverage.get(test, {}).get(sensor, {})
+        role = f" ({roles[test]})" if roles and test in roles else ""
+        ax.set_title(f"{test}{role}, {sensor}: {100 * c.get('50', np.nan):.0f} % of the record inside the 50 % "
+                     f"band, {100 * c.get('90', np.nan):.0f} % inside the 90 % band", fontsize=9)
+        ax.set_ylabel(f"{sensor} [{unit}]")
+        ax.legend(loc="upper right", fontsize=7, ncol=4)
+    axes[-1].set_xlabel("time [s]")
+    return fig
+
+
 def arviz_figures(res, truth: dict | None = None) -> dict:
     """Pair plot (with the truth, if given) and traces of a posterior, drawn by
     ArviZ, each variable labelled with its unit."""
@@ -174,6 +202,11 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
         figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names,
                                               sensors=res.problem.sensors, unit=res.problem.output_unit,
                                               metrics=res.problem.metrics)
+    if res.predictive.get("_time"):
+        roles = {t.name: st for st, t in res.problem.tests.items()}
+        roles.update({name: "validation" for name in res.problem.validation})
+        figs["predictive_records"] = predictive_records(res.predictive["_time"], res.predictive.get("coverage", {}),
+                                                        res.problem.fs, res.problem.sensors, roles)
     linear_only = res.extras.get("linear_only", {})
     if linear_only.get("_draws") is not None:
         figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
@@ -182,4 +215,4 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
     return figs
 
 
-__all__ = ["arviz_figures", "gp_diagnostics", "posterior_figures", "predictive_bands", "ridge"]
+__all__ = ["arviz_figures", "gp_diagnostics", "posterior_figures", "predictive_bands", "predictive_records", "ridge"]

@@ -11,6 +11,7 @@ import numpy as np
 import surrogates
 from surrogates.evaluation import evaluate_many
 from bayes_update.core.likelihood import Likelihood
+from bayes_update.core.model import ModelSpecError
 from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, WhitenedEvaluate, Whitening, WhitenedLogPosterior
 
@@ -76,7 +77,11 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
         if inside.sum() >= n0:
             break
     else:
-        raise RuntimeError(f"only {inside.sum()} of {len(cand)} design candidates fall inside the prior box")
+        raise ModelSpecError(f"the surrogates' design: only {inside.sum()} of {len(cand)} candidate points of the "
+                             f"local box around the MAP ({settings.box_sd:g} sd wide) fall inside the prior: the MAP "
+                             "sits in a corner of the prior, or the prior is far narrower than the posterior; "
+                             "widen the prior where the MAP is on a bound (--prior NAME=LO:HI), or sample on the "
+                             "model itself (--direct)")
     U0 = cand[inside][:n0]
     cache = _cache(cache_dir, ev.evaluate, "design", whitening, reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many

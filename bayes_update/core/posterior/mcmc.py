@@ -39,7 +39,8 @@ def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize
 
 
 def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.3) -> np.ndarray:
-    """Walkers drawn from N(x_map, scale^2 cov), kept where the density is finite."""
+    """Walkers drawn from N(x_map, scale^2 cov), kept where the density is finite
+    (the scale shrinks by 0.7 while too few are)."""
     rng = np.random.default_rng(seed)
     L = np.linalg.cholesky(cov + 1e-12 * np.diag(np.diag(cov)))
     out = []
@@ -57,26 +58,97 @@ def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.
                         "where the model raises ModelError, or widen the prior")
 
 
+# ------------------------------------------------------------ convergence
+#: a chain is converged when every reported variable has a rank-normalised split R-hat
+#: below this (Vehtari et al. 2021: 1.01) ...
+RHAT_TARGET = 1.01
+#: ... and a bulk and a tail ESS of at least this (ArviZ's draws: every walker a chain)
+MIN_ESS = 400
+#: the kept draws are thinned to at most this many (the pointwise log-likelihood of
+#: every kept draw goes into posterior.nc)
+MAX_KEPT_DRAWS = 8000
+
+
+def chain_convergence(draws: dict) -> dict:
+    """R-hat and bulk and tail ESS of ``{variable: (walkers, draws) array}`` (ArviZ,
+    each walker a chain), per variable, and whether all meet :data:`RHAT_TARGET`
+    and :data:`MIN_ESS`."""
+    import arviz as az
+
+    per = {}
+    for k, v in draws.items():
+        v = np.asarray(v, float)
+        per[k] = {"r_hat": float(az.rhat(v, method="rank")), "ess_bulk": float(az.ess(v, method="bulk")),
+                  "ess_tail": float(az.ess(v, method="tail"))}
+    worst = {"max_r_hat": max(p["r_hat"] for p in per.values()),
+             "min_ess_bulk": min(p["ess_bulk"] for p in per.values()),
+             "min_ess_tail": min(p["ess_tail"] for p in per.values())}
+    ok = worst["max_r_hat"] < RHAT_TARGET and min(worst["min_ess_bulk"], worst["min_ess_tail"]) >= MIN_ESS
+    return {**worst, "converged": bool(ok), "per_variable": per}
+
+
+def kept_slice(n_steps: int, n_walkers: int, burn: int, thin: int) -> tuple[int, int]:
+    """(burn, thin) of a chain of ``n_steps``: at least ``burn`` and a third of the
+    chain discarded (a chain extended for convergence keeps its later part), and
+    thinned to at most :data:`MAX_KEPT_DRAWS` draws."""
+    burn = max(int(burn), n_steps // 3)
+    thin = max(int(thin), -(-(n_steps - burn) * n_walkers // MAX_KEPT_DRAWS))
+    return burn, thin
+
+
+def run_to_convergence(sampler, extend, report, n_walkers: int, burn: int, thin: int, chunk: int,
+                       max_steps: int, log=None) -> tuple[int, int, dict]:
+    """Extend a chain by ``chunk`` steps at a time until its kept draws
+    (:func:`kept_slice`) meet :func:`chain_convergence`, or it is ``max_steps`` long.
+
+    ``sampler``: has ``iteration`` (or emcee's) and ``get_chain``; ``extend(n)``
+    runs n more steps; ``report((m, d) draws) -> {variable: (m,) values}`` (the
+    reported variables: R-hat is computed on what the summary shows).  Returns
+    (burn, thin, convergence record with ``n_steps`` and ``cap_reached``)."""
+    while True:
+        steps = int(sampler.iteration)
+        b, t = kept_slice(steps, n_walkers, burn, thin)
+        chain = sampler.get_chain(discard=b, thin=t)                     # (draws, walkers, d)
+        values = report(chain.reshape(-1, chain.shape[-1]))
+        conv = chain_convergence({k: np.swapaxes(v.reshape(chain.shape[:2]), 0, 1) for k, v in values.items()})
+        conv.update(n_steps=steps, cap_reached=False)
+        if conv["converged"]:
+            return b, t, conv
+        if steps + chunk > max_steps:
+            conv["cap_reached"] = True
+            return b, t, conv
+        if log is not None:
+            log(f"chain of {steps} steps: R-hat {conv['max_r_hat']:.4f}, ESS bulk {conv['min_ess_bulk']:.0f}, "
+                f"tail {conv['min_ess_tail']:.0f}: {chunk} steps more")
+        extend(chunk)
+
+
 def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None,
                       observed: dict | None = None):
     """ArviZ InferenceData (chain = walker) of the space's reported variables
     (:meth:`ParameterSet.report`: the parameters in their units, then derived
     coordinates such as the beam's P_eff), each with its ``units`` attribute;
-    ``sample_stats`` with the log posterior ``lp``; ``log_likelihood`` (one
-    variable per test: log L of its metric at each draw, shape like ``log_prob``)
-    and ``observed_data`` (one variable per test: the output its metric compares,
-    {name: (values, units)}) when given."""
+    ``sample_stats`` with the log posterior ``lp``; ``log_likelihood`` (the
+    pointwise log-likelihood of every observation at each draw,
+    :mod:`bayes_update.core.posterior.pointwise`: {test: (steps, walkers, n_obs)}
+    like ``chain``, stored as one variable ``observations`` whose coordinate
+    ``observation`` names the test and direction of each, so that ``az.loo(idata)``
+    and ``az.compare`` need no argument) and ``observed_data`` (one variable per
+    test: its record, {name: (values (n,) or (n, k), units)}) when given."""
     import arviz as az
 
     X = np.swapaxes(chain, 0, 1)                    # (walker, draw, d)
     values = space.report(X.reshape(-1, X.shape[-1]))
     post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
-    groups = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}}
+    groups = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}, "dims": {}, "coords": {}}
     if log_likelihood:
-        groups["log_likelihood"] = {k: np.swapaxes(v, 0, 1) for k, v in log_likelihood.items()}
+        groups["log_likelihood"] = {"observations": np.swapaxes(np.concatenate(list(log_likelihood.values()),
+                                                                                axis=-1), 0, 1)}
+        groups["dims"]["observations"] = ["observation"]
+        groups["coords"]["observation"] = [f"{k}[{j}]" for k, v in log_likelihood.items() for j in range(v.shape[-1])]
     if observed:
         groups["observed_data"] = {k: v for k, (v, _) in observed.items()}
-        groups["dims"] = {k: [f"{k}_sample"] for k in observed}
+        groups["dims"].update({k: _record_dims(k, v) for k, (v, _) in observed.items()})
     idata = az.from_dict(**groups, attrs=dict(attrs))
     for var, unit in space.report_units.items():
         idata.posterior[var].attrs["units"] = unit
@@ -85,14 +157,18 @@ def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict 
     return idata
 
 
+def _record_dims(name: str, values) -> list:
+    return [f"{name}_time"] + ([f"{name}_sensor"] if np.ndim(values) == 2 else [])
+
+
 def add_posterior_predictive(idata, draws: dict, units: dict) -> None:
-    """Add the ``posterior_predictive`` group: {test: (n draws, n samples)} of the
-    model's compared output at posterior draws (one chain), on the same sample
-    dimension as ``observed_data``."""
+    """Add the ``posterior_predictive`` group: {test: (n draws, n samples[, sensors])}
+    of the predicted record at posterior draws (one chain), on the dimensions of
+    ``observed_data``."""
     import arviz as az
 
     pp = az.from_dict(posterior_predictive={k: v[None] for k, v in draws.items()},
-                      dims={k: [f"{k}_sample"] for k in draws})
+                      dims={k: _record_dims(k, v[0]) for k, v in draws.items()})
     idata.add_groups({"posterior_predictive": pp.posterior_predictive})
     for k in draws:
         idata.posterior_predictive[k].attrs["units"] = units.get(k, "")

@@ -55,7 +55,11 @@ class PosteriorResult:
                 "settings": asdict(self.settings),
                 **{name: {k: v for k, v in extra.items() if not k.startswith("_")}
                    for name, extra in self.extras.items()},
-                "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_")},
+                "predictive_coverage": self.predictive.get("coverage", {}),
+                "prediction_error": self.predictive.get("prediction_error", {}),
+                "error_model": self.predictive.get("error_model", {}),
+                "surrogate_check": {k: v for k, v in self.predictive.items() if not k.startswith("_") and
+                                    k not in ("coverage", "prediction_error", "error_model")},
                 "sensitivity": self.sensitivity,
                 "fit_warnings": self.diagnostics.get("fit_warnings", []),
                 "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
@@ -68,13 +72,25 @@ class PosteriorResult:
         the sd resolves (:mod:`bayes_update.core.numbers`)."""
         from bayes_update.core.numbers import format_sd, format_value
 
-        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS |", "|---|---|---|---|---|---|"]
+        from bayes_update.core.posterior.mcmc import MIN_ESS, RHAT_TARGET
+
+        lines = ["| parameter | mean | sd | 94 % HDI | R-hat | bulk ESS | tail ESS |", "|---|---|---|---|---|---|---|"]
         for var, v in self.summary.items():
             unit = f" [{v['units']}]" if v["units"] else ""
             sd = v["sd"]          # the mean and the HDI to the decimal place of sd's second digit
             lines.append(f"| {var}{unit} | {format_value(v['mean'], sd)} | {format_sd(sd)} | "
                          f"{format_value(v['hdi_3%'], sd)} - {format_value(v['hdi_97%'], sd)} | "
-                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} |")
+                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} | "
+                         + (f"{v['ess_tail']:.0f} |" if "ess_tail" in v else "- |"))
+        # a summary written before the tail ESS was kept (posterior.json of an older
+        # run) is judged on what it has, its missing column shown as '-'
+        ok = all(v["r_hat"] < RHAT_TARGET and min(v["ess_bulk"], v.get("ess_tail", np.inf)) >= MIN_ESS
+                 for v in self.summary.values())
+        steps = self.diagnostics.get("convergence", {}).get("n_steps")
+        lines.append("")
+        lines.append(("converged" if ok else "NOT converged") + f": R-hat < {RHAT_TARGET} and bulk and tail ESS >= "
+                     f"{MIN_ESS} for every variable {'holds' if ok else 'fails'}"
+                     + (f" ({steps} steps of {self.settings.n_walkers} walkers)" if steps else ""))
         return "\n".join(lines)
 
     def run_json(self) -> dict:

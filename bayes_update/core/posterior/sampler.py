@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from bayes_update.core.logs import info
-from bayes_update.core.adjustment import curvature_adjustment
-from bayes_update.core.likelihood import Likelihood, estimate_likelihood, likelihood_runs, model_error_at
+from bayes_update.core.adjustment import curvature_adjustment, own_points
+from bayes_update.core.likelihood import Likelihood, errors_at_mode, estimate_likelihood, likelihood_runs
 from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
@@ -18,14 +18,15 @@ from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import _build_surrogates, gauss_newton_means
 from bayes_update.core.posterior.laplace import _map_result, capped_covariance, find_map, local_box
 from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
-                                              add_posterior_predictive, initial_walkers, run_emcee, summarize,
-                                              to_inference_data)
-from bayes_update.core.posterior.predictive import posterior_predictive
+                                              add_posterior_predictive, initial_walkers, run_emcee,
+                                              run_to_convergence, summarize, to_inference_data)
+from bayes_update.core.posterior.pointwise import linearisation_check, pointwise_log_likelihood
+from bayes_update.core.posterior.predictive import posterior_predictive, prediction_runs
 from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
                                                 WhitenedLogPosterior, _ExecutorPool)
-from bayes_update.core.problem import DatasetError, Problem
+from bayes_update.core.problem import Problem
 from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
@@ -63,9 +64,6 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         with steps("check_and_screen"):
             problem = problem_for(dataset, model, space, metrics, executor=pool)
             steps.add_runs(1 + problem.n_screen_runs)
-        if "nonlinear" not in problem.stages:
-            raise DatasetError(f"{problem.source}: the posterior needs a test with role 'nonlinear' "
-                               "(the high-level test) as well as the 'linear' one")
         seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
         run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
         start, start_info = _start(run, start)
@@ -171,16 +169,16 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
                 raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
             lik = likelihood
     for st, sc in lik.scales.items():
-        run.log(f"likelihood {st}: noise sd {100 * sc.noise_sd:.3f} % per direction of the parameters' span "
-                f"({sc.span_rank}), model error {100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
+        run.log(f"likelihood {st} at the start: noise sd {100 * sc.noise_sd:.3f} % per direction of the "
+                f"parameters' span ({sc.span_rank}), model error {100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
     return lik
 
 
 def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
     """3. MAP, Laplace covariance, local box and the curvature adjustment; the
-    model-error terms of a measured likelihood measured again at the MAP
-    (:func:`~bayes_update.core.likelihood.model_error_at`) and the Laplace
-    covariance rescaled to them."""
+    model errors of a measured likelihood (discretisation and model form) measured
+    at the MAP (:func:`_rescaled`) and the mode and its Laplace covariance
+    following them."""
     space, s = run.space, run.settings
     with run.steps("map_laplace"):
         ev = Evaluate(run.problem, space, run.problem.stages)
@@ -197,32 +195,74 @@ def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
     adj = None
     if s.curvature_adjustment and mp.mode is not None:
         adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0],
-                                   run.problem.stages, names=space.coordinate_names)
+                                   run.problem.stages, names=space.coordinate_names, residual=mp.mode.residual)
         if adj is not None:
-            run.log("curvature adjustment: noise variance / likelihood's along the parameters' directions "
+            run.log("curvature adjustment: error variance / likelihood's along the parameters' directions "
                     + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
                     + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
+            if adj.between_tests:
+                b = adj.between_tests
+                run.log(f"the tests disagree beyond their errors (chi^2 {b['chi2']:.1f} > {b['chi2_limit']:.1f}): "
+                        "their spread counts as model-form error, sd between tests "
+                        + ", ".join(f"{n} {v:.3g}" for n, v in b["between_test_sd"].items()))
     return mp, box, adj, lik
 
 
+#: the mode is searched again with the scales measured at it when, under them, a Gauss-Newton
+#: step from it would move it by more than this many sd (the scales change the stages' relative
+#: weights: a stage the model misses in form weighs less; where the tests disagree, a small
+#: change of weights moves the mode by many of the tests' own sd)
+REWEIGHT_SHIFT_SD = 0.1
+
+
 def _rescaled(run: _Run, lik: Likelihood, mp):
-    """(the likelihood with its model error measured at the MAP, the MAP result with
-    its residual and Jacobian rescaled to it): the mode stays (the scales move
-    little), its Laplace covariance follows the new scales."""
-    stages = run.problem.stages
-    new = model_error_at(run.problem, lik, run.space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian,
-                         executor=run.pool)
+    """(the likelihood with its model errors measured at the MAP, the MAP result for it):
+    the discretisation and model-form errors at the mode
+    (:func:`~bayes_update.core.likelihood.errors_at_mode`, one run per stage); the mode's
+    residual and Jacobian rescaled to the new scales, and the mode searched again from
+    there where the stages' relative weights moved (:data:`REWEIGHT_FACTOR`)."""
+    from bayes_update.core.mode import ResidualFunction, SpacePoint, find_mode
+    from bayes_update.core.posterior.laplace import FRUGAL_TOLERANCE
+
+    problem, stages, space = run.problem, run.problem.stages, run.space
+    n = [problem.output(st, problem.reference_components(st)).size for st in stages]
+    own = own_points(mp.mode.jacobian, mp.mode.residual, n, mp.x, space.box())
+    new = errors_at_mode(problem, lik, space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian,
+                         executor=run.pool, seed=run.seeds[0],
+                         own_points={st: space.to_parameters(x) for st, x in zip(stages, own)})
     if new is lik:
         return lik, mp
-    if run.problem.refined_model() is not None:      # one refined run per stage (else from the misfit)
-        run.steps.add_runs(len(stages))
-    n = [run.problem.output(st, run.problem.reference_components(st)).size for st in stages]
-    factor = np.concatenate([np.full(k, lik.scales[st].sd / new.scales[st].sd) for k, st in zip(n, stages)])
+    # per stage a run at the MAP and one at its own best point, and the refined model's at the MAP
+    run.steps.add_runs(len(stages) * (2 + (problem.refined_model() is not None)))
+    ratios = np.array([lik.scales[st].sd / new.scales[st].sd for st in stages])
+    factor = np.concatenate([np.full(k, f) for k, f in zip(n, ratios)])
     mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
                                cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)))
-    run.log("model error at the MAP: " + ", ".join(
-        f"{st} {100 * lik.scales[st].model_error:.3f} -> {100 * new.scales[st].model_error:.3f} %" for st in stages))
-    return new, _map_result(mode, run.space, run.space.box(), mp.n_evaluations)
+    run.log("at the MAP: " + "; ".join(
+        f"{st} model error {100 * new.scales[st].model_error:.3f} %, model form {100 * new.scales[st].model_form_sd:.3f} "
+        f"% per direction (noise {100 * new.scales[st].noise_sd:.3f} %): s {100 * lik.scales[st].sd:.3f} -> "
+        f"{100 * new.scales[st].sd:.3f} %" for st in stages))
+    n_evaluations = mp.n_evaluations
+    step = np.linalg.lstsq(mode.jacobian, -mode.residual, rcond=None)[0]
+    shift = float(np.linalg.norm(mode.jacobian @ step))             # in sd of the Laplace approximation
+    if shift > REWEIGHT_SHIFT_SD:
+        box = space.box()
+        fun = ResidualFunction(problem, stages, tuple(new.scales[st].sd for st in stages),
+                               SpacePoint(space, problem.model))
+        mode = find_mode(fun, [mp.x], box[:, 0], box[:, 1], 1e-4 * (box[:, 1] - box[:, 0]), run.pool,
+                         max_iterations=max(5, run.settings.map_max_evaluations // (3 * (len(mp.x) + 1))),
+                         cost_tolerance=FRUGAL_TOLERANCE, central=False, known=(mp.x, mode.residual, mode.jacobian))
+        run.steps.add_runs(len(stages) * mode.n_evaluations)
+        n_evaluations += mode.n_evaluations
+        run.log(f"the stages' weights moved (x {ratios.max() / ratios.min():.3f}; a step of {shift:.2f} sd): "
+                f"the MAP searched again ({mode.n_evaluations} evaluations)")
+    return new, _map_result(mode, space, space.box(), n_evaluations)
+
+
+def _walker_covariance(mp, adj) -> np.ndarray:
+    """Where the walkers start: the Laplace covariance at the MAP, widened as the curvature
+    adjustment widens the likelihood (the tests' disagreement may make it many times wider)."""
+    return mp.covariance if adj is None else adj.covariance(mp.covariance)
 
 
 def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
@@ -230,14 +270,19 @@ def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
     s = run.settings
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
-        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, mp.covariance, s.direct_walkers,
-                                 run.seeds[1])
+        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, _walker_covariance(mp, adj),
+                                 s.direct_walkers, run.seeds[1], scale=1.0)
         sampler = run_emcee(logp, x_init, s.direct_walkers, s.direct_steps, run.seeds[2], vectorize=False,
                             pool=_ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
                             desc="MCMC on the model")
-        run.steps.add_runs(len(run.problem.stages) * s.direct_walkers * s.direct_steps)
-    blobs = sampler.get_blobs(discard=s.direct_burn)          # (steps, walkers, stages)
-    return _Chain(sampler, s.direct_burn, 1,
+
+        def extend(n):
+            sampler.run_mcmc(None, n, progress=run.progress, progress_kwargs={"desc": "MCMC on the model (more)"})
+        burn, thin, conv = run_to_convergence(sampler, extend, run.space.report, s.direct_walkers, s.direct_burn, 1,
+                                              s.direct_steps, s.direct_max_steps, run.log)
+        run.steps.add_runs(len(run.problem.stages) * s.direct_walkers * sampler.iteration)
+    blobs = sampler.get_blobs(discard=burn, thin=thin)          # (steps, walkers, stages)
+    return _Chain(sampler, burn, thin, diagnostics={"convergence": conv},
                   log_likelihood={st: blobs[..., i] for i, st in enumerate(run.problem.stages)})
 
 
@@ -262,7 +307,11 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
         design = {"X": whitening.to_x(U), "z": Y, "whitening": whitening}
         with run.steps("mcmc"):
             logp_u = WhitenedLogPosterior(gps, space, ubox, whitening, adj)
-            u_init = initial_walkers(logp_u, np.zeros(d), np.eye(d), s.n_walkers, run.seeds[1])
+            # the walkers over the (adjusted) Laplace posterior's whole width: from a ball of 0.3 sd
+            # the ensemble took longer than a 3000-step chain to spread (R-hat 1.012-1.020)
+            L_inv = np.linalg.inv(whitening.L)
+            u_init = initial_walkers(logp_u, whitening.to_u(mp.x)[0], L_inv @ _walker_covariance(mp, adj) @ L_inv.T,
+                                     s.n_walkers, run.seeds[1], scale=1.0)
             sampler = run_emcee(logp_u, u_init, s.n_walkers, s.n_steps, run.seeds[2], vectorize=True,
                                 progress=run.progress, desc="MCMC on the surrogate")
         u_draws = sampler.get_chain(discard=s.burn, flat=True)
@@ -277,15 +326,19 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
                 f"(attempt {attempt + 2} of {s.box_attempts})")
         whitening = Whitening.from_covariance(x_draws.mean(axis=0),
                                               capped_covariance(9.0 * np.cov(x_draws.T), space, s.box_sd))
-    diag = {"box_cut_fraction": _box_cut_fraction(logp_u.gp_points(sampler.get_chain(discard=s.burn, flat=True)),
+    with run.steps("mcmc"):
+        burn, thin, conv = run_to_convergence(
+            sampler, lambda n: sampler.extend(logp_u, n, run.progress, "MCMC on the surrogate (more)"),
+            lambda U: space.report(whitening.to_x(U)), s.n_walkers, s.burn, s.thin, s.n_steps, s.max_steps, run.log)
+    diag = {"box_cut_fraction": _box_cut_fraction(logp_u.gp_points(sampler.get_chain(discard=burn, flat=True)),
                                                    s.box_sd, whitening, space),
-            "box_attempts": attempt + 1}
-    kept = sampler.get_chain(discard=s.burn, thin=s.thin)
+            "box_attempts": attempt + 1, "convergence": conv}
+    kept = sampler.get_chain(discard=burn, thin=thin)
     G = logp_u.gp_points(kept.reshape(-1, d))
     # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
     ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)})
           .reshape(kept.shape[:2]) for st, gp in gps.items()}
-    return _Chain(_XSampler(sampler, whitening), s.burn, s.thin, gps, design, diag, ll, logp_u)
+    return _Chain(_XSampler(sampler, whitening), burn, thin, gps, design, diag, ll, logp_u)
 
 
 def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> PosteriorResult:
@@ -300,16 +353,30 @@ def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> 
     lp = chain.sampler.get_log_prob(discard=chain.burn, thin=chain.thin)
     problem = run.problem
     names = {st: problem.tests[st].name for st in problem.stages}
-    observed = {names[st]: (problem.output(st, problem.reference_components(st)), problem.output_unit)
-                for st in problem.stages}
+    records = list(problem.tests.values()) + list(problem.validation.values())
+    observed = {t.name: (t.response, problem.response_unit) for t in records}
+    pointwise = None
+    if mp.mode is not None:
+        flat = draws.reshape(-1, draws.shape[-1])
+        pointwise = pointwise_log_likelihood(problem, lik, mp.mode, flat, adj)
+        diag["pointwise_linearisation_error"] = linearisation_check(pointwise, chain.log_likelihood, lik, problem)
+        pointwise = {names[st]: v.reshape(draws.shape[:2] + (-1,)) for st, v in pointwise.items()}
     idata = to_inference_data(draws, lp, space, {"source": str(problem.source), "direct": int(direct),
                                                  "model": type(problem.model).__name__,
                                                  "metric_set": problem.metrics},
-                              log_likelihood={names[st]: v for st, v in chain.log_likelihood.items()},
-                              observed=observed)
+                              log_likelihood=pointwise, observed=observed)
     summary = summarize(idata, space)
     diag["max_r_hat"] = max(v["r_hat"] for v in summary.values())
     diag["min_ess_bulk"] = min(v["ess_bulk"] for v in summary.values())
+    diag["min_ess_tail"] = min(v["ess_tail"] for v in summary.values())
+    conv = diag.get("convergence", {})
+    if conv and not conv["converged"]:
+        msg = (f"the chain did not converge within its cap of {conv['n_steps']} steps: R-hat up to "
+               f"{diag['max_r_hat']:.4f} (target < 1.01), ESS bulk {diag['min_ess_bulk']:.0f} and tail "
+               f"{diag['min_ess_tail']:.0f} (target >= 400); raise max_steps (or direct_max_steps), or look "
+               "for a posterior with several modes")
+        run.log("WARNING: " + msg)
+        warnings.warn(msg, RuntimeWarning)
     if diag.get("box_cut_fraction", 0.0) > 1e-2:
         warnings.warn(f"after {diag['box_attempts']} boxes the surrogate's box still cuts "
                       f"{100 * diag['box_cut_fraction']:.2f} % of the draws: the posterior is wider than the "
@@ -329,9 +396,15 @@ def _extras(run: _Run, res: PosteriorResult) -> None:
     if s.n_predictive:
         with run.steps("predictive"):
             res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds[4], run.progress)
-            run.steps.add_runs(len(stages) * s.n_predictive)
-        draws = {run.problem.tests[st].name: res.predictive["_draws"][st] for st in stages}
-        add_posterior_predictive(res.idata, draws, dict.fromkeys(draws, run.problem.output_unit))
+            run.steps.add_runs(prediction_runs(run.problem, s.n_predictive,
+                                               bool(res.predictive.get("parameters_by_test"))))
+        draws = res.predictive.get("_draws", {})
+        if draws:
+            add_posterior_predictive(res.idata, draws, dict.fromkeys(draws, run.problem.response_unit))
+        for test, cov in res.predictive.get("coverage", {}).items():
+            run.log(f"predictive bands, {test}: " + ", ".join(
+                f"{sensor} {100 * c['50']:.0f} % / {100 * c['90']:.0f} %" for sensor, c in cov.items())
+                + " of the samples inside the 50 % / 90 % bands")
     if s.n_global:
         with run.steps("sensitivity"):
             res.sensitivity = sobol_indices(run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds[6],

@@ -40,11 +40,16 @@ class PosteriorSettings:
     # chains, not worse draws): 128 x 3000 keeps it near 1.02
     n_walkers: int = 128
     n_steps: int = 3000         # on the surrogate; direct runs use direct_walkers x direct_steps
-    burn: int = 500
-    thin: int = 5               # kept draws: every thin-th step after burn-in
+    burn: int = 500             # at least; a third of the chain is discarded (mcmc.kept_slice)
+    thin: int = 5               # kept draws: every thin-th step after burn-in (at least; at most 8000 kept)
+    # the chain is extended by n_steps at a time until every reported variable has R-hat < 1.01 and
+    # bulk and tail ESS >= 400 (mcmc.run_to_convergence), up to max_steps (a warning says when not):
+    # on the surrogates a step costs no model run, on the direct path every walker's step does
+    max_steps: int = 15000
     direct_walkers: int = 64    # the direct path: every walker's step is a model run per test
     direct_steps: int = 3000
     direct_burn: int = 1000
+    direct_max_steps: int = 6000
     box_attempts: int = 3       # re-centred, wider boxes when the first cuts the posterior
     n_linear: int = 64          # design of the linear-only posterior (0: skip it)
     n_global: int = 0           # global design for the sensitivity indices (opt-in: 128 is a good size)
@@ -69,7 +74,7 @@ class PosteriorSettings:
             raise ValueError(f"stop_tolerance must be >= 0, got {self.stop_tolerance!r}")
         for name in ("n_replicates", "n_initial", "n_rounds", "batch", "n_walkers", "direct_walkers", "n_steps", "burn",
                      "thin",
-                     "direct_steps", "direct_burn", "box_attempts",
+                     "direct_steps", "direct_burn", "box_attempts", "max_steps", "direct_max_steps",
                      "n_linear", "n_global", "sobol_n", "n_predictive", "map_max_evaluations", "n_start"):
             v = getattr(self, name)
             if isinstance(v, bool) or int(v) != v or v < 0:
@@ -77,6 +82,8 @@ class PosteriorSettings:
         if min(self.n_walkers, self.direct_walkers) < 8 or self.n_steps <= self.burn or \
                 self.direct_steps <= self.direct_burn:
             raise ValueError("need n_walkers and direct_walkers >= 8, n_steps > burn and direct_steps > direct_burn")
+        if self.max_steps < self.n_steps or self.direct_max_steps < self.direct_steps:
+            raise ValueError("max_steps must be >= n_steps and direct_max_steps >= direct_steps")
         if self.thin < 1 or self.box_attempts < 1:
             raise ValueError("thin and box_attempts must be >= 1")
         if 0 < self.n_initial < 8:
@@ -103,7 +110,8 @@ class PosteriorSettings:
         (12 model-run replicates, a 40 + 2 x 16 design, short chains)."""
         base = dict(THOROUGH, n_replicates=12, n_initial=40, n_rounds=2, batch=16, n_walkers=24, n_steps=3000,
                     direct_walkers=24,
-                    burn=1000, thin=5, direct_steps=1000, direct_burn=400, n_linear=32, n_global=48,
+                    burn=1000, thin=5, direct_steps=1000, direct_burn=400, max_steps=12000, direct_max_steps=2000,
+                    n_linear=32, n_global=48,
                     sobol_n=256, n_predictive=8, map_max_evaluations=250)
         base.update(kw)
         return cls(**base)
@@ -111,5 +119,5 @@ class PosteriorSettings:
 
 #: the sizes of :meth:`PosteriorSettings.thorough` (``bayes-update sample --thorough``)
 THOROUGH = dict(model_replicates=None, n_initial=96, n_rounds=5, batch=32, stop_tolerance=0.0, n_walkers=32,
-                direct_walkers=32, n_steps=12000, burn=2000, thin=10, n_start=64, coarse_start=False,
+                direct_walkers=32, n_steps=12000, burn=2000, thin=10, max_steps=48000, n_start=64, coarse_start=False,
                 frugal_map=False, gp_mean="constant")

@@ -28,8 +28,19 @@ class StretchChain:
     (the methods the pipeline uses): ``get_chain``, ``get_log_prob``,
     ``acceptance_fraction``, ``get_autocorr_time``, ``get_last_sample``."""
 
-    def __init__(self, chain: np.ndarray, log_prob: np.ndarray, n_accepted: np.ndarray):
+    def __init__(self, chain: np.ndarray, log_prob: np.ndarray, n_accepted: np.ndarray, random=None):
         self.chain, self.log_prob, self.n_accepted = chain, log_prob, n_accepted
+        self.random = random            # the RandomState the run drew from (a continuation draws on from it)
+
+    def extend(self, log_prob, n_steps: int, progress: bool = False, desc: str = "MCMC") -> "StretchChain":
+        """``n_steps`` more steps from the last walkers, drawing on from the same
+        ``RandomState`` (the chain is then the one a longer run would have given,
+        but for one more evaluation of the last walkers' log probability)."""
+        more = stretch_sample(log_prob, self.chain[-1], n_steps, self.random, progress=progress, desc=desc)
+        self.chain = np.concatenate([self.chain, more.chain])
+        self.log_prob = np.concatenate([self.log_prob, more.log_prob])
+        self.n_accepted = self.n_accepted + more.n_accepted
+        return self
 
     @property
     def iteration(self) -> int:
@@ -97,7 +108,7 @@ def stretch_sample(log_prob, x_init, n_steps: int, random: np.random.RandomState
             X[moved], lp[moved] = q[accept], lp_new[accept]
             n_accepted[moved] += 1
         chain[t], lps[t] = X, lp
-    return StretchChain(chain, lps, n_accepted)
+    return StretchChain(chain, lps, n_accepted, random)
 
 
 def _checked(log_prob, X) -> np.ndarray:

@@ -31,6 +31,7 @@ from scipy.optimize import brentq, minimize
 import fe
 
 from bayes_update.core.logs import info
+from bayes_update.core.model import ModelSpecError
 from bayes_update.core.problem import Problem
 from bayes_update.data.dataset import Dataset
 from bayes_update.models.beam.validation import validate
@@ -147,7 +148,10 @@ class CalibrationResult:
 def _best(rows, key):
     ok = [r for r in rows if np.isfinite(r[key])]
     if not ok:
-        raise RuntimeError(f"every model run of this stage failed; first error: {rows[0].get('error')}")
+        raise ModelSpecError(f"every beam run of this grid failed (first: {rows[0].get('error')}): the grid lies "
+                             "where the beam cannot run (it buckles or diverges); check the data set's rig (its "
+                             "bending_stiffness_factor, or --bending-stiffness-factor) and the grids' ranges (a "
+                             "[calibrate] table of --config)")
     return min(ok, key=lambda r: r[key])
 
 

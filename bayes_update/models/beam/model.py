@@ -321,7 +321,7 @@ class Beam:
         if key is None:
             return None
         if key == "validation":
-            value = gap.get("validation")
+            value = gap.get("held_out_error_beyond_noise")
         else:
             value = diagnostics["by_order"].get(diagnostics.get("nonlinear_test"), {}).get(key)
         return key, SIGNATURE_MEANING[key], value

@@ -1,0 +1,71 @@
+"""Does a model predict the held-out tests better than another, beyond what their noise
+could do?  The score users and benchmarks use: the time-domain output error of the
+simulated response from the record's start, per sensor, on every test with role
+``validation``.
+
+Two models' responses m0 and m1 to a held-out record y = truth + noise (noise sd sigma
+per sensor): the gain ``D = sum (||y - m0||^2 - ||y - m1||^2) / sigma^2`` (over the
+tests and sensors) is ``||t - m0||^2 - ||t - m1||^2`` plus ``2 n . (m1 - m0) / sigma^2``,
+whose sd is ``2 ||m1 - m0|| / sigma`` (the noise is common to both errors, so only its
+projection on the models' difference counts).  The gain is significant when it
+exceeds :data:`SIGNIFICANT_SD` of that: an improvement no noise realisation of the
+record would give.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from surrogates.evaluation import evaluate_many
+
+__all__ = ["SIGNIFICANT_SD", "held_out_comparison", "held_out_runs"]
+
+#: a held-out gain counts beyond this many sd of its noise
+SIGNIFICANT_SD = 3.0
+
+
+@dataclass
+class _Responses:
+    """Picklable ``theta -> {validation test: compared response}`` (None where the model cannot run)."""
+
+    problem: object
+
+    def __call__(self, theta):
+        out = {}
+        for name, t in self.problem.validation.items():
+            try:
+                out[name] = self.problem.compared_response(self.problem.run(theta, t.force))
+            except self.problem.failures:
+                return None
+        return out
+
+
+def held_out_runs(problem, thetas: list, executor=None) -> list:
+    """Each theta's responses on the validation tests (one model run per test and theta)."""
+    if not problem.validation:
+        return [{} for _ in thetas]
+    return evaluate_many(_Responses(problem), list(thetas), executor, progress=False)
+
+
+def held_out_comparison(problem, before: dict | None, after: dict | None) -> dict | None:
+    """Compare two models' responses on the validation tests (:func:`held_out_runs`):
+    ``{"gain", "sd", "z", "improves", "tests": {test: {"before", "after"}}}`` with the
+    relative output errors per test (rms over its sensors, as
+    :meth:`~bayes_update.core.problem.Problem.prediction_errors`), or None without
+    validation tests or where a model could not run."""
+    if not problem.validation or before is None or after is None:
+        return None
+    gain, var, tests = 0.0, 0.0, {}
+    for name, t in problem.validation.items():
+        y = t.response.reshape(len(t.response), -1)
+        m0, m1 = before[name].reshape(y.shape), after[name].reshape(y.shape)
+        sigma = np.asarray(problem.test_noise(name), float).reshape(-1)
+        gain += float(np.sum((np.sum((y - m0) ** 2, axis=0) - np.sum((y - m1) ** 2, axis=0)) / sigma ** 2))
+        var += 4.0 * float(np.sum(np.sum((m1 - m0) ** 2, axis=0) / sigma ** 2))
+        rel = [np.linalg.norm(y - m, axis=0) / np.linalg.norm(y, axis=0) for m in (m0, m1)]
+        tests[name] = {"before": float(np.sqrt(np.mean(rel[0] ** 2))), "after": float(np.sqrt(np.mean(rel[1] ** 2)))}
+    sd = math.sqrt(var)
+    z = gain / sd if sd > 0 else 0.0
+    return {"gain": gain, "sd": sd, "z": z, "improves": bool(z > SIGNIFICANT_SD), "tests": tests}
