@@ -224,8 +224,9 @@ OWN_METHODS = ("periods", "zero_input", "quiet_band", "fit_residual")
 def _uncontaminated(dataset, out: dict) -> None:
     """Replace, on every test but the low-level ones, a sensor's own estimate that rose
     from the first ``linear`` test's own by more than :data:`CONTAMINATION` times the
-    force's own rise (1 where the force's noise is not known on both) with that test's,
-    carried, the reason leading the detail (the issue's "noise that is noise")."""
+    force's own rise with that test's, carried, the reason leading the detail (the
+    issue's "noise that is noise").  Where the force's own noise is not known on both
+    tests the rise cannot be judged and the test's own estimate is kept."""
     linear = [t.name for t in dataset.tests if t.role == "linear"]
     for name, _ in dataset.sensors:
         ref = next((s for s in linear if out[s][name].method in OWN_METHODS), None)
@@ -240,10 +241,13 @@ def _uncontaminated(dataset, out: dict) -> None:
                 out[t.name][name] = carried(base, ref, f"its quiet band ({est.sd:.3g}) reads coloured noise "
                                                        "as white, as on the low-level test; ")
                 continue
-            rise = 1.0
-            if force is not None and force_base is not None and force.known and force_base.known \
-                    and force.method in OWN_METHODS and force_base.method in OWN_METHODS:
-                rise = max(1.0, force.sd / force_base.sd)
+            if not (force is not None and force_base is not None and force.known and force_base.known
+                    and force.method in OWN_METHODS and force_base.method in OWN_METHODS):
+                # without the force's own rise, a sensor noise added in proportion to the level cannot
+                # be told from harmonics: the estimate stands on its source's own checks (a quiet
+                # band's whiteness: harmonics filling it change its level across it)
+                continue
+            rise = max(1.0, force.sd / force_base.sd)
             if est.sd <= CONTAMINATION * rise * base.sd:
                 continue
             forces = f" (the force's {rise:.3g}x)" if rise > 1 else ""
