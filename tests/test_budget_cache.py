@@ -136,3 +136,17 @@ def test_the_store_keys_runs_by_model_force_and_theta(tmp_path):
     assert [t for t, _ in store.points(model, [force, f2], 1024.0)] == [theta]
     assert store.points(model, [force, f2], 1024.0, exclude_source="sample") == []
     assert store_in(tmp_path, "x").root == tmp_path / "runs"
+
+
+def test_a_direct_chain_keeps_no_run(data, tmp_path):
+    """sample --direct: the chain's runs (10^4 and more of a cheap model) are not written to
+    the cache; the steps before it are."""
+    from bayes_update.core.posterior import PosteriorSettings, sample
+
+    settings = PosteriorSettings(direct_walkers=8, direct_steps=40, direct_burn=10, direct_max_steps=40,
+                                 n_linear=0, n_global=0, n_predictive=0)
+    res = sample(data, LoggingModel(tmp_path / "runs.log", tmp_path / "stop"), settings, workers=1, direct=True,
+                 cache_dir=tmp_path / "cache", progress=False, log=lambda *a: None)
+    made = RunStore(tmp_path / "cache" / "runs").made()
+    assert res.n_model_runs["mcmc"] >= 2 * 8 * 40
+    assert 0 < made <= res.n_model_runs["total"] - res.n_model_runs["mcmc"]

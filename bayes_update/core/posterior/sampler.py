@@ -279,7 +279,17 @@ def _walker_covariance(mp, adj) -> np.ndarray:
 
 
 def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
-    """4-5, direct path: emcee on the model itself."""
+    """4-5, direct path: emcee on the model itself.  Its runs are not kept in the run store:
+    a chain on the model makes 10^4-10^6 runs of a model cheap enough for it (a few ms), which
+    would fill the cache with responses that cost more to write and read than to make."""
+    store, run.problem.run_store = run.problem.run_store, None
+    try:
+        return _direct_emcee(run, lik, mp, adj)
+    finally:
+        run.problem.run_store = store
+
+
+def _direct_emcee(run: _Run, lik, mp, adj) -> _Chain:
     s = run.settings
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
