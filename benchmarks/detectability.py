@@ -33,6 +33,28 @@ def _run(data, log=None):
                             log=log or (lambda *a: None))
 
 
+def _write(limits, rows, wall_s):
+    """Write the table so far (after every row: a long run stopped early keeps what it measured)."""
+    out = {"machine": machine(), "limits": limits, "rows": rows, "wall_s": wall_s}
+    (HERE / "results" / "detectability.json").write_text(json.dumps(out, indent=1, default=float))
+    lines = ["# Detectability of the beam's candidate effects (benchmarks/detectability.py)", "",
+             f"{machine()}; {out['wall_s']:.0f} s.  Limits from the workflow on the default data set; each checked by "
+             "the workflow on the virtual rig with the effect hidden at a multiple of its limit.", "",
+             "| effect | detectable from | at | named | 2 ln B of it | held-out gain [sd] | as it should |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lim = r["limit_text"]
+        if "factor" not in r:
+            lines.append(f"| {r['effect']} | {lim} | - | - | - | - | - |")
+            continue
+        z = r["held_out_z"].get(r["effect"])
+        lines.append(f"| {r['effect']} | {lim} | {r['factor']:g}x | {', '.join(r['named']) or 'none'} | "
+                     f"{r['evidence'].get(r['effect'], float('nan')):.1f} | {'-' if z is None else format(z, '.1f')} | "
+                     f"{'yes' if r['ok'] else 'NO'} |")
+    (HERE / "results" / "detectability.md").write_text("\n".join(lines) + "\n")
+    return lines
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--effects", nargs="+", default=list(EFFECT_PARAMETERS))
@@ -42,44 +64,29 @@ def main(argv=None):
     default = load_default_dataset()
     base = _run(default)
     limits = {e: d["detectable_from"] for e, d in base.detectability.items()}
-    print("limits:", limits, flush=True)
+    texts = {e: d["text"] for e, d in base.detectability.items()}
+    print("limits:", texts, flush=True)
     rows = []
     for effect in a.effects:
         lim = limits.get(effect)
         if lim is None:
-            rows.append({"effect": effect, "limit": None})
+            rows.append({"effect": effect, "limit": None, "limit_text": texts[effect]})
             continue
         for factor in a.factors:
             si = [factor * lim[p[0]] * p[4] for p in EFFECT_PARAMETERS[effect]]
             data = make_dataset(rig=VirtualRig(effects=(_effect(effect, si),)))
             res = _run(data)
-            row = {"effect": effect, "limit": lim, "factor": factor, "named": list(res.named),
+            row = {"effect": effect, "limit": lim, "limit_text": texts[effect], "factor": factor, "named": list(res.named),
                    "expected": [effect] if factor > 1 else [],
                    "evidence": {c["name"]: c["two_ln_B"] for c in res.rounds[0]["candidates"]},
                    "held_out_z": {c["name"]: (c["held_out"] or {}).get("z") for c in res.rounds[0]["candidates"]},
                    "time_s": res.timing["total"]}
             row["ok"] = row["named"] == row["expected"]
             rows.append(row)
+            _write(limits, rows, time.perf_counter() - t0)
             print(f"{effect} at {factor}x the limit: named {row['named']} -> {'OK' if row['ok'] else 'NO'}",
                   flush=True)
-    out = {"machine": machine(), "limits": limits, "rows": rows, "wall_s": time.perf_counter() - t0}
-    (HERE / "results" / "detectability.json").write_text(json.dumps(out, indent=1, default=float))
-    lines = ["# Detectability of the beam's candidate effects (benchmarks/detectability.py)", "",
-             f"{machine()}; {out['wall_s']:.0f} s.  Limits from the workflow on the default data set; each checked by "
-             "the workflow on the virtual rig with the effect hidden at a multiple of its limit.", "",
-             "| effect | detectable from | at | named | 2 ln B of it | held-out gain [sd] | as it should |",
-             "|---|---|---|---|---|---|---|"]
-    for r in rows:
-        lim = ", ".join(f"{k} = {v:.3g}" for k, v in (r["limit"] or {}).items()) or "not even at its bound"
-        if "factor" not in r:
-            lines.append(f"| {r['effect']} | {lim} | - | - | - | - | - |")
-            continue
-        z = r["held_out_z"].get(r["effect"])
-        lines.append(f"| {r['effect']} | {lim} | {r['factor']:g}x | {', '.join(r['named']) or 'none'} | "
-                     f"{r['evidence'].get(r['effect'], float('nan')):.1f} | {'-' if z is None else format(z, '.1f')} | "
-                     f"{'yes' if r['ok'] else 'NO'} |")
-    (HERE / "results" / "detectability.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    print("\n".join(_write(limits, rows, time.perf_counter() - t0)))
 
 
 if __name__ == "__main__":

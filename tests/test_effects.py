@@ -187,16 +187,20 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
     assert [label for label, row in rows.items() if names_effect(row)] == ["inside"]
 
 
-def test_a_pair_is_named_only_inside_its_priors_and_beyond_its_partner_alone():
+def test_a_pair_is_named_only_inside_its_priors_and_beyond_each_member_alone():
     """The rule for an effect on a bound tried with a partner (a damper taking a bow's
-    share): the pair must be decisive against the partner alone, and both members
+    share): the pair must be decisive against each member alone, and both members
     inside their priors, away from their nulls."""
     from bayes_update.core.fits import DECISIVE, names_pair
 
     inside = {"excludes_null": True, "at_null": False, "at_bound": False}
     row = {"two_ln_B": 900.0, "members": {"damper": dict(inside), "bow": dict(inside)}}
-    assert names_pair(row, partner_alone=545.0)
-    assert not names_pair(row, partner_alone=900.0 - DECISIVE / 2)        # the damper adds nothing decisive
-    assert not names_pair({**row, "members": {"damper": {**inside, "at_bound": True}, "bow": inside}}, 545.0)
-    assert not names_pair({**row, "members": {"damper": inside, "bow": {**inside, "excludes_null": False}}}, 545.0)
-    assert not names_pair({**row, "two_ln_B": DECISIVE / 2}, partner_alone=-100.0)
+    assert names_pair(row, partner_alone=545.0, first_alone=600.0)
+    # a partner that is nothing alone (masked by the other's missing share) is named with it
+    assert names_pair(row, partner_alone=-7.0, first_alone=600.0)
+    assert not names_pair(row, partner_alone=900.0 - DECISIVE / 2, first_alone=600.0)  # the damper adds nothing decisive
+    assert not names_pair(row, partner_alone=-7.0, first_alone=900.0 - DECISIVE / 2)    # nor does the bow
+    assert not names_pair({**row, "members": {"damper": {**inside, "at_bound": True}, "bow": inside}}, 545.0, 600.0)
+    assert not names_pair({**row, "members": {"damper": inside, "bow": {**inside, "excludes_null": False}}},
+                          545.0, 600.0)
+    assert not names_pair({**row, "two_ln_B": DECISIVE / 2}, partner_alone=-100.0, first_alone=-100.0)

@@ -4,7 +4,7 @@ and the variance their projections carry, which a random-phase process has in
 closed form."""
 import numpy as np
 
-from bayes_update.core.model_form import THRESHOLD_SD, BAND_BINS, excess_gain, form_draws, periodogram
+from bayes_update.core.model_form import BAND_BINS, THRESHOLD_SD, excess_gain, form_draws, periodogram
 
 N = 4096
 
@@ -84,3 +84,4 @@ def test_excess_gain_is_between_zero_and_one():
     P = periodogram(rng.standard_normal((N, 3)))
     g = excess_gain(P, 0.5 * np.ones_like(P))
     assert g.shape == P.shape and np.all((g >= 0) & (g <= 1))
+

@@ -35,13 +35,16 @@ def test_the_posterior_table_resolves_a_narrow_hdi():
     from bayes_update.core.posterior import PosteriorResult
 
     summary = {"fn": {"mean": 25.000121, "sd": 0.000097, "hdi_3%": 24.999943, "hdi_97%": 25.000301,
-                      "r_hat": 1.0012, "ess_bulk": 812.0, "units": "Hz"},
+                      "r_hat": 1.0012, "ess_bulk": 812.0, "ess_tail": 701.0, "units": "Hz"},
                "k": {"mean": 1234.5, "sd": 210.0, "hdi_3%": 851.2, "hdi_97%": 1622.9, "r_hat": 1.003,
                      "ess_bulk": 640.0, "units": "N/mm"}}
-    table = PosteriorResult.summary_table(SimpleNamespace(summary=summary))
-    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:-1]] for ln in table.splitlines()[2:]}
+    # "k" has no tail ESS, as in a posterior.json written before it was kept
+    table = PosteriorResult.summary_table(SimpleNamespace(summary=summary, diagnostics={}))
+    rows = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:-1]] for ln in table.splitlines()[2:] if ln.startswith("|")}
     assert rows["fn [Hz]"][:3] == ["25.000121", "9.7e-05", "24.999943 - 25.000301"], rows
     assert rows["k [N/mm]"][:3] == ["1230", "210", "850 - 1620"], rows
+    assert rows["fn [Hz]"][4:] == ["812", "701"] and rows["k [N/mm]"][5] == "-", rows
+    assert table.splitlines()[-1].startswith("converged")
 
 
 def test_the_calibration_report_prints_the_digits_of_each_value():

@@ -321,6 +321,20 @@ def test_projector_recovers_exact_components_and_equals_fit(exact_case):
             assert np.linalg.norm(mine[n] - fit[n]) < 1e-8 * np.linalg.norm(fit[n])
 
 
+def test_span_map_is_the_projection_in_span_coordinates(exact_case):
+    """span_map(orders) @ y equals span(orders)^T (sum of those orders' components of
+    y), the projection's own path, on a record with an offset (the mean removed)."""
+    from volterra import VolterraProjector
+
+    u, _, comps, basis = exact_case
+    proj = VolterraProjector(u, basis)
+    y = comps[1] + comps[2] + comps[3] + 0.3 + 0.05 * np.random.default_rng(8).standard_normal(u.size)
+    for orders in ((1,), (2, 3), (1, 2, 3)):
+        c = proj.components(y)
+        direct = proj.span(orders).T @ sum(c[n] for n in orders)
+        assert np.allclose(proj.span_map(orders) @ y, direct, rtol=0, atol=1e-10 * np.linalg.norm(direct))
+
+
 def test_projector_rejects_bad_input(exact_case):
     from volterra import VolterraProjector
 

@@ -120,6 +120,18 @@ class VolterraProjector:
         U, s, _ = np.linalg.svd(self._Gs[:, cols], full_matrices=False)
         return U[:, s > 1e-10 * s[0]]
 
+    def span_map(self, orders) -> np.ndarray:
+        """B (p, N): the coordinates in :meth:`span` ``(orders)`` of the summed components
+        of ``orders`` of an output y are ``B @ y`` (the projection is linear in y; its
+        mean removed where h0 is fitted).  The exact covariance of those coordinates for
+        any covariance of y follows from it (``B C B^T``), where a sample of draws
+        would leave it rank-deficient."""
+        cols = np.concatenate([np.arange(self._blocks[n].start, self._blocks[n].stop) for n in orders])
+        solve = self._solve_s[cols]
+        if self.fit_h0:
+            solve = solve - solve.mean(axis=1, keepdims=True)
+        return (self.span(orders).T @ self._Gs[:, cols]) @ solve
+
     def model(self, y) -> VolterraModel:
         """The fitted :class:`VolterraModel` (without fit diagnostics)."""
         h0, theta_s = self._solve(y)

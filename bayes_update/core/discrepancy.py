@@ -25,10 +25,10 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    credited to an effect); a fit that still ends below the model without it
    is run again from there, and reported as failed if it does once more
    (:func:`~bayes_update.core.fits.failed_fit`, never as a Bayes factor);
-   Laplace log evidence and ``2 ln B`` of each at its own optimum under the
-   honest likelihood (the baseline's model-form error counted,
-   :func:`~bayes_update.core.likelihood.errors_at_mode`: no model's misfit beyond
-   the noise is taken for evidence); each fit's prediction of the held-out
+   Laplace log evidence and ``2 ln B`` of each at its own optimum, each model
+   under the noise and the model-form error its own mode leaves
+   (:mod:`bayes_update.core.comparison`: a misfit no candidate explains counts
+   for none of them); each fit's prediction of the held-out
    tests (:mod:`bayes_update.core.held_out`).  Named when ``2 ln B >``
    :data:`~bayes_update.core.effects.DECISIVE`, the Laplace interval (mode +- 2
    sd) of one of its parameters excludes the null, the fit is neither at its
@@ -36,9 +36,9 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    held-out tests are predicted better beyond their noise; then a next round
    looks for a second effect (``max_effects``).  When the strongest candidate
    is decisive but on a bound of its prior, it may be taking another effect's
-   share as well: it is fitted together with each other decisive candidate,
-   and a pair is named when it is decisive against the partner alone and both
-   members sit inside their priors, away from their nulls
+   share as well: it is fitted together with each other candidate, and a pair
+   is named when it is decisive against each member alone and both members
+   sit inside their priors, away from their nulls
    (:func:`~bayes_update.core.fits.names_pair`);
 3. **re-update**: the likelihood scales re-measured with the named effects in
    the model (its model-form error too), the extended mode and its Laplace posterior;
@@ -102,7 +102,7 @@ class DiscrepancySettings:
     @classmethod
     def quick(cls, **kw) -> "DiscrepancySettings":
         base = dict(n_replicates=8, max_iterations=30, extra_starts=False, reestimate_likelihood=False,
-                    cost_tolerance=0.01)
+                    cost_tolerance=0.01, detectability=False)
         base.update(kw)
         return cls(**base)
 
@@ -175,7 +175,7 @@ class _Workflow:
     def fit(self, added, lik, starts, iterations=None) -> Fit:
         space = ExtendedSpace(self.base, [p for e in added for p in self.effects[e]])
         f = fit_model(self.problem, space, added, lik, starts, self.settings, self.pool, iterations)
-        self.steps.add_runs(f.mode.n_evaluations * len(self.problem.stages))
+        self.steps.add_runs((f.mode.n_evaluations + 1) * len(self.problem.stages))     # + its score's run
         return f
 
     def baseline(self, start) -> tuple[Fit, object]:
@@ -262,16 +262,22 @@ class _Workflow:
 
     def pairs(self, current: Fit, best_base: Fit, first: dict, rows: list, fits: dict, lik) -> tuple[list, dict]:
         """``first`` (a decisive candidate on a bound of its prior) fitted together with
-        each other decisive candidate: an effect on a bound may be taking another's
-        share as well (a damper asked to carry a bow too).  The pair starts from the
-        partner's own fit with ``first`` near its null.  Returns (the pair rows, best
-        first, and their fits by (first, partner))."""
+        each other candidate whose own fit did not fail: an effect on a bound may be
+        taking another's share as well (a damper asked to carry a bow too).  The
+        partner need not be decisive alone: scored under the model-form error that
+        ``first``'s missing share leaves, a real second effect can look like nothing
+        (the bow of a beam that also has a damper: 2 ln B -7 alone, named in the
+        pair); the pair must then beat both members alone
+        (:func:`~bayes_update.core.fits.names_pair`).  The pair starts from the
+        partner's own fit with ``first`` near its null, and from ``first``'s fit with
+        the partner near its null.  Returns (the pair rows, and their fits by
+        (first, partner))."""
         e1, n = first["name"], len(current.mode.x)
         k1 = len(self.effects[e1])
         out, pair_fits = [], {}
         for row in rows:
             e2 = row["name"]
-            if e2 == e1 or row["two_ln_B"] is None or row["two_ln_B"] <= DECISIVE or row["at_null"]:
+            if e2 == e1 or row["two_ln_B"] is None:
                 continue
             k2 = len(self.effects[e2])
             trial = ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e1]) + list(self.effects[e2]))
@@ -281,6 +287,7 @@ class _Workflow:
                 self.settings.effect_start)]
             starts.append(np.concatenate([x2[:n], fits[e1].mode.x[n:], x2[n:]]))
             starts.append(np.concatenate([x2[:n], fits[e1].space.null_internal()[-k1:], x2[n:]]))   # = the partner's fit
+            starts += [np.concatenate([fits[e1].mode.x, v]) for v in _effect_starts(trial, k2, self.settings.effect_start)]
             f = pair_fits[(e1, e2)] = self.fit(current.names + [e1, e2], lik, starts)
             values = f.space.values(f.mode.x, f.covariance)
             members = {e: {"excludes_null": _excludes_null(f, k, end), "at_null": _at_null(f, k, end),
@@ -292,7 +299,7 @@ class _Workflow:
                         "partner_alone": row["two_ln_B"], "members": members,
                         "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"],
                         "held_out": held_out_comparison(self.problem, before, after)})
-            out[-1]["named"] = names_pair(out[-1], row["two_ln_B"])
+            out[-1]["named"] = names_pair(out[-1], row["two_ln_B"], first["two_ln_B"])
             flags = "; ".join(f"{e} " + ("at its null" if m["at_null"] else "on a bound" if m["at_bound"] else
                                          "inside its prior") for e, m in members.items())
             self.log(f"  {e1} + {e2}: 2 ln B = {out[-1]['two_ln_B']:.1f} ({e2} alone {row['two_ln_B']:.1f}); {flags}")
@@ -387,10 +394,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             with steps("detectability"):
                 detectable, n = detectability(problem, base, baseline, lik, {e: effects[e] for e in names}, pool)
                 steps.add_runs(n)
-            log("detectable from: " + "; ".join(
-                f"{e} " + (", ".join(f"{k} = {v:.3g}" for k, v in d["detectable_from"].items())
-                           if d["detectable_from"] else "not even at its prior's bound")
-                for e, d in detectable.items()))
+            log("detectable from: " + "; ".join(f"{e} {d['text']}" for e, d in detectable.items()))
         with steps("naming"):
             current, baseline, rounds, named = flow.name_effects(baseline, lik, names)
         with steps("re_update"):

@@ -226,9 +226,7 @@ def evidence_table(res) -> str:
         lines += ["What these tests would name (linearised about the baseline, "
                   "`bayes_update.core.detectability`):", "", "| candidate | detectable from |", "|---|---|"]
         for e, d in res.detectability.items():
-            lim = d["detectable_from"]
-            lines.append(f"| {e} | " + (", ".join(f"{k} = {v:.3g}" for k, v in lim.items()) if lim else
-                                        "not even at its prior's bound") + " |")
+            lines.append(f"| {e} | {d['text']} |")
         lines.append("")
     lines.append(f"Named: **{', '.join(res.named) or 'none'}** (rule: {NAMING_RULE})")
     lines.append(f"Verdict: {res.verdict}. {res.gap_sentence()}")
@@ -236,8 +234,8 @@ def evidence_table(res) -> str:
 
 
 #: the naming rule in words (the evidence table and discrepancy.json)
-NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum, under a likelihood "
-               "that counts the baseline's model-form error; the effect's mode more than 2 Laplace sd from its null "
+NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
+               "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
                "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
                "(validation) tests predicted better, by more than 3 sd of what their noise could give")
 
@@ -299,7 +297,7 @@ class NamingVerdict:
             held = (f"; the held-out tests' error is {100 * r['held_out_relative_error']:.3g} %, "
                     f"{100 * r['held_out_error_beyond_noise']:.3g} % beyond their noise"
                     + (f" ({times:.2g} times the noise's)" if times is not None else ""))
-        what = ("with " + " + ".join(self.named)) if self.named else "the baseline"
+        what = "with " + (" + ".join(self.named) if self.named else "the baseline alone")
         if r["closed"]:
             return f"The gap is closed {what}: misfit {ratios} what noise and model error allow{held}."
         return (f"A gap remains {what}: misfit {ratios} what noise and model error allow{held}: "

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
-from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode, laplace_log_evidence
+from bayes_update.core.comparison import score_model
+from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
@@ -48,7 +49,8 @@ class Fit:
 def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None,
               iterations: int | None = None) -> Fit:
     """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``
-    (``iterations``: per start, default ``settings.max_iterations``)."""
+    (``iterations``: per start, default ``settings.max_iterations``); the model run once more
+    per test at its mode for its own error covariance (:func:`~bayes_update.core.comparison.score_model`)."""
     stages = problem.stages
     fun = ResidualFunction(problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, problem.model))
     box = space.box()
@@ -56,8 +58,11 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     tol = settings.cost_tolerance
     mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor,
                      max_iterations=iterations or settings.max_iterations, cost_tolerance=tol, central=tol is None)
-    cov = mode.covariance(scale=hi - lo)
-    logz = laplace_log_evidence(mode, space.log_prior_density(mode.x), hi - lo)
+    # each model scored under its own error covariance: the noise and what its own mode leaves
+    # beyond it (bayes_update.core.comparison; one run per test)
+    scored = score_model(problem, lik, mode, space.to_parameters(mode.x), space.log_prior_density(mode.x), hi - lo,
+                         executor)
+    cov, logz = scored.covariance, scored.log_evidence
     r, n = mode.residual, len(mode.residual) // len(stages)
     metrics = {("e_lin" if st == "linear" else "e_nlin"):
                float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd) for i, st in enumerate(stages)}
@@ -129,24 +134,25 @@ def _improves_held_out(row: dict) -> bool:
 
 
 def names_effect(row: dict) -> bool:
-    """The naming rule for one candidate's evidence row: decisive evidence under the
-    honest likelihood (2 ln B > :data:`DECISIVE`, the model-form error of the baseline
-    counted), a parameter more than 2 sd from its null, the fit neither at its null
+    """The naming rule for one candidate's evidence row: decisive evidence
+    (2 ln B > :data:`DECISIVE`, each model under its own model-form error,
+    :mod:`bayes_update.core.comparison`), a parameter more than 2 sd from its null, the fit neither at its null
     nor on a bound of its prior nor failed, and the held-out tests predicted better
     beyond their noise (:mod:`bayes_update.core.held_out`)."""
     return bool(row["two_ln_B"] is not None and row["two_ln_B"] > DECISIVE and row["excludes_null"]
                 and not row["at_null"] and not row["at_bound"] and _improves_held_out(row))
 
 
-def names_pair(row: dict, partner_alone: float) -> bool:
+def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
     """The naming rule for two effects fitted together, tried when the strongest
     single candidate sat on a bound of its prior (``row["members"]``: each
     member's flags): decisive against the model without both, decisive against
-    the partner alone (``partner_alone``, its 2 ln B: the effect on the bound
-    must add what the partner cannot), each member more than 2 sd from its
+    each member alone (``partner_alone`` and ``first_alone``, their 2 ln B: each
+    must add what the other cannot), each member more than 2 sd from its
     null, neither at its null nor on a bound, and the held-out tests predicted
     better beyond their noise."""
     return bool(row["two_ln_B"] > DECISIVE and row["two_ln_B"] - partner_alone > DECISIVE
+                and row["two_ln_B"] - first_alone > DECISIVE
                 and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"]
                         for m in row["members"].values()) and _improves_held_out(row))
 

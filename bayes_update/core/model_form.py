@@ -77,3 +77,4 @@ def form_draws(residual, noise_spectrum, n_draws: int, rng, bins: int = BAND_BIN
     shape = (n_draws, A.shape[0]) + (1,) * (A.ndim - 1)
     draws = np.fft.irfft(A[None] * phase.reshape(shape), n, axis=1)
     return draws, excess
+

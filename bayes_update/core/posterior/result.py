@@ -80,8 +80,11 @@ class PosteriorResult:
             sd = v["sd"]          # the mean and the HDI to the decimal place of sd's second digit
             lines.append(f"| {var}{unit} | {format_value(v['mean'], sd)} | {format_sd(sd)} | "
                          f"{format_value(v['hdi_3%'], sd)} - {format_value(v['hdi_97%'], sd)} | "
-                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} | {v['ess_tail']:.0f} |")
-        ok = all(v["r_hat"] < RHAT_TARGET and min(v["ess_bulk"], v["ess_tail"]) >= MIN_ESS
+                         f"{v['r_hat']:.4f} | {v['ess_bulk']:.0f} | "
+                         + (f"{v['ess_tail']:.0f} |" if "ess_tail" in v else "- |"))
+        # a summary written before the tail ESS was kept (posterior.json of an older
+        # run) is judged on what it has, its missing column shown as '-'
+        ok = all(v["r_hat"] < RHAT_TARGET and min(v["ess_bulk"], v.get("ess_tail", np.inf)) >= MIN_ESS
                  for v in self.summary.values())
         steps = self.diagnostics.get("convergence", {}).get("n_steps")
         lines.append("")
