@@ -10,8 +10,9 @@ Two measurements, the machine noted:
   warm-started one (``warm_from``, no restart), each way, and the log marginal
   likelihoods reached (the same optimum: the same objective from the same starts);
 * **in a posterior**: the seconds spent in ``GPSurrogate.fit`` during ``sample`` of
-  the Duffing user model (tests/test_user_model.py, d = 3, default settings, one
-  worker), each way, beside the command's wall time.
+  the Duffing user model (tests/test_user_model.py, d = 3) and of the beam's ROM on
+  the embedded data set (d = 4), default settings, one worker, each way, beside the
+  command's wall time, runs and convergence.
 
 Writes ``benchmarks/results/gp_fit_time.md`` and ``.json``.
 """
@@ -54,11 +55,29 @@ def one_fit(n, d, fast):
             "warm_log_ml": float(warm.gp_.log_marginal_likelihood_value_)}
 
 
-def in_posterior(fast):
-    """Seconds in GPSurrogate.fit during a Duffing sample, and the sample's wall time."""
+def _duffing():
+    from test_user_model import TRUTH, Duffing, make_dataset
+
+    free = ("fn", "zeta", "k3")
+    return make_dataset(seed=11), Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
+
+
+def _rom():
+    from bayes_update.models.beam.model import beam_model
+    from bayes_update.models.beam.virtual_rig import load_default_dataset
+
+    data = load_default_dataset()
+    return data, beam_model(data, kind="rom")
+
+
+CASES = {"duffing": ("Duffing, tests/test_user_model.py, d = 3", _duffing),
+         "beam_rom": ("the beam's ROM on the embedded data set, d = 4", _rom)}
+
+
+def in_posterior(fast, case="duffing"):
+    """Seconds in GPSurrogate.fit during a sample of ``case``, and the sample's wall time."""
     from bayes_update.core.posterior import PosteriorSettings, sample
     from bayes_update.core.posterior import design
-    from test_user_model import TRUTH, Duffing, make_dataset
 
     spent = [0.0, 0]
     real_fit, real_factory = GPSurrogate.fit, design._gp_factory
@@ -78,9 +97,7 @@ def in_posterior(fast):
 
     GPSurrogate.fit, design._gp_factory = timed_fit, factory
     try:
-        data = make_dataset(seed=11)
-        free = ("fn", "zeta", "k3")
-        model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
+        data, model = CASES[case][1]()
         t = time.perf_counter()
         res = sample(data, model, PosteriorSettings(seed=0), workers=1, progress=False, log=lambda *a: None)
         wall = time.perf_counter() - t
@@ -105,12 +122,22 @@ def main():
                 row.update({f"{k}_{'fast' if fast else 'sklearn'}": v for k, v in r.items()})
             out["one_fit"].append(row)
             print(row, flush=True)
-    for fast in (False, True):
-        out["posterior"]["fast" if fast else "sklearn"] = in_posterior(fast)
-        print(out["posterior"], flush=True)
+    for case in CASES:
+        out["posterior"][case] = {}
+        for fast in (False, True):
+            out["posterior"][case]["fast" if fast else "sklearn"] = in_posterior(fast, case)
+            print(out["posterior"], flush=True)
     res_dir = ROOT / "benchmarks" / "results"
     (res_dir / "gp_fit_time.json").write_text(json.dumps(out, indent=1) + "\n")
-    md = ["# GP fits: scikit-learn's optimiser against surrogates.gp_fit", "", f"Machine: {out['machine']}; load average {out['load_average_1min']:.1f} at the start "
+    md = report(out)
+    (res_dir / "gp_fit_time.md").write_text(md)
+    print(md)
+
+
+def report(out) -> str:
+    """The markdown of a run's numbers (``out``, as written to gp_fit_time.json)."""
+    md = ["# GP fits: scikit-learn's optimiser against surrogates.gp_fit", "",
+          f"Machine: {out['machine']}; load average {out['load_average_1min']:.1f} at the start "
           "(a shared machine: the seconds are upper bounds).", "",
           "| n | d | cold fit [s] sklearn | fast | warm fit [s] sklearn | fast | log ML sklearn | fast |",
           "|---:|---:|---:|---:|---:|---:|---:|---:|"]
@@ -118,17 +145,18 @@ def main():
         md.append(f"| {r['n']} | {r['d']} | {r['cold_s_sklearn']:.3f} | {r['cold_s_fast']:.3f} | "
                   f"{r['warm_s_sklearn']:.3f} | {r['warm_s_fast']:.3f} | {r['cold_log_ml_sklearn']:.3f} | "
                   f"{r['cold_log_ml_fast']:.3f} |")
-    p = out["posterior"]
-    md += ["", "In a posterior (Duffing, d = 3, default settings, one worker):", "",
-           "| GP fits by | fits | seconds in fits | sample wall [s] | model runs | max R-hat | min bulk ESS |",
-           "|---|---:|---:|---:|---:|---:|---:|"]
-    for k in ("sklearn", "fast"):
-        md.append(f"| {k} | {p[k]['n_fits']} | {p[k]['fit_s']:.2f} | {p[k]['wall_s']:.1f} | {p[k]['runs']} | "
-                  f"{p[k]['max_r_hat']:.4f} | {p[k]['min_ess_bulk']:.0f} |")
-    md += ["", "Posterior means: " + "; ".join(f"{k}: " + ", ".join(f"{n} {v:.6g}" for n, v in p[k]['means'].items())
-                                               for k in ("sklearn", "fast")), ""]
-    (res_dir / "gp_fit_time.md").write_text("\n".join(md))
-    print("\n".join(md))
+    md += ["", "In a posterior (default settings, one worker):", "",
+           "| case | GP fits by | fits | seconds in fits | sample wall [s] | model runs | max R-hat | min bulk ESS |",
+           "|---|---|---:|---:|---:|---:|---:|---:|"]
+    for case, p in out["posterior"].items():
+        for k in ("sklearn", "fast"):
+            md.append(f"| {CASES[case][0]} | {k} | {p[k]['n_fits']} | {p[k]['fit_s']:.2f} | {p[k]['wall_s']:.1f} | "
+                      f"{p[k]['runs']} | {p[k]['max_r_hat']:.4f} | {p[k]['min_ess_bulk']:.0f} |")
+    md.append("")
+    for case, p in out["posterior"].items():
+        md += [f"Posterior means ({case}): " + "; ".join(
+            f"{k}: " + ", ".join(f"{n} {v:.6g}" for n, v in p[k]['means'].items()) for k in ("sklearn", "fast")), ""]
+    return "\n".join(md)
 
 
 if __name__ == "__main__":

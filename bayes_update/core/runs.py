@@ -12,7 +12,10 @@ The key of a run is what decides the model's response and nothing else:
 
 * the model: its ``describe()`` (else its class and a hash of its pickled state:
   its constants), the hash of the source file that defines its class (a model file
-  edited since gets new runs) and this package's version;
+  edited since gets new runs; for this package's own models, the beam, the hash of
+  all their code and of the fe package) and this package's version.  The libraries a
+  model of your own calls (e.g. OpenSeesPy) are not in the key: after upgrading one,
+  use a new ``--cache`` folder, or ``--no-cache``;
 * the force the model is driven by (its bytes) and the sampling rate: the data
   set's recorded force, or a noise replicate's;
 * theta: every parameter's exact float64 value.
@@ -82,9 +85,36 @@ def model_key(model) -> str | None:
             source = _sha(Path(inspect.getsourcefile(type(model))).read_bytes())
         except (TypeError, OSError):
             source = "unknown"
+        if type(model).__module__.startswith("bayes_update.models."):
+            source += _own_code()
     except Exception:
         return None
     return _sha(f"{what}|{source}|{__version__}".encode())[:20]
+
+
+_OWN_CODE: list = []
+
+
+def _own_code() -> str:
+    """A hash of the code behind this package's own models (bayes_update/models and the fe
+    package they run): a checkout whose solver changed without a new version gets new runs,
+    not the old code's.  Computed once a process; fe is found, not imported (the core may
+    not import it)."""
+    if not _OWN_CODE:
+        import importlib.util
+
+        import bayes_update
+
+        roots = [Path(bayes_update.__file__).parent / "models"]
+        spec = importlib.util.find_spec("fe")
+        if spec is not None and spec.submodule_search_locations:
+            roots += [Path(p) for p in spec.submodule_search_locations]
+        h = hashlib.sha256()
+        for root in roots:
+            for path in sorted(root.rglob("*.py")):
+                h.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes())
+        _OWN_CODE.append(h.hexdigest())
+    return _OWN_CODE[0]
 
 
 def force_key(force, fs: float) -> str:
