@@ -77,8 +77,10 @@ def main(argv=None):
             "runs_made_twice": len(set(first) & set(second)),
             "runs_read_by_step": again.n_model_runs_reused, "wall_s": round(t_again, 1),
             "same_posterior": again.summary == ref.summary}
-        _, t_third = _sample(data, LoggingModel(log, stop), tmp / "cache", args.seed)
-        out["finished_rerun"] = {"runs_made": len(_runs(log)) - len(first) - len(second), "wall_s": round(t_third, 1)}
+        third, t_third = _sample(data, LoggingModel(log, stop), tmp / "cache", args.seed)
+        out["finished_rerun"] = {"runs_made": len(_runs(log)) - len(first) - len(second), "wall_s": round(t_third, 1),
+                                 "runs_read_by_step": third.n_model_runs_reused,
+                                 "same_posterior": third.summary == ref.summary}
 
         log2 = tmp / "cal.log"
         t = time.perf_counter()
@@ -104,7 +106,7 @@ def main(argv=None):
           f"| sample, empty cache | {u['runs_made']} | 0 | {u['wall_s']} |",
           f"| sample interrupted after {i['runs_before_interruption']} runs, rerun | {i['runs_made_by_rerun']} "
           f"(made twice: {i['runs_made_twice']}) | {sum(i['runs_read_by_step'].values())} | {i['wall_s']} |",
-          f"| the finished sample rerun | {f['runs_made']} | - | {f['wall_s']} |",
+          f"| the finished sample rerun | {f['runs_made']} | {sum(f['runs_read_by_step'].values())} | {f['wall_s']} |",
           f"| calibrate, empty cache | {c['calibrate_runs']} | 0 | {c['calibrate_wall_s']} |",
           f"| sample after calibrate | {c['sample_runs_made']} (alone: {c['sample_alone_runs_made']}) | "
           f"{sum(c['sample_runs_read_by_step'].values())} | {c['sample_wall_s']} |", "",
