@@ -150,3 +150,35 @@ def test_a_direct_chain_keeps_no_run(data, tmp_path):
     made = RunStore(tmp_path / "cache" / "runs").made()
     assert res.n_model_runs["mcmc"] >= 2 * 8 * 40
     assert 0 < made <= res.n_model_runs["total"] - res.n_model_runs["mcmc"]
+
+
+def test_calibrate_run_again_makes_no_run(data, tmp_path):
+    """A finished calibrate run again on the same cache reads every run (none made) and ends at
+    the same point; interrupted halfway, its rerun makes only the runs it had not finished."""
+    from bayes_update.core.calibrate import calibrate_model
+
+    log, stop = tmp_path / "runs.log", tmp_path / "stop"
+
+    def calibrate():
+        return calibrate_model(data, LoggingModel(log, stop), n_start=16, n_best=1, workers=1, progress=False,
+                               log=lambda *a: None, cache_dir=tmp_path / "cache")
+
+    first = calibrate()
+    made = _runs(log)
+    again = calibrate()
+    assert _runs(log) == made
+    assert again.theta == first.theta
+    # interrupted halfway on a fresh cache, then run again
+    log2, cache2 = tmp_path / "runs2.log", tmp_path / "cache2"
+    stop.write_text(str(len(made) // 2))
+    with pytest.raises(KeyboardInterrupt):
+        calibrate_model(data, LoggingModel(log2, stop), n_start=16, n_best=1, workers=1, progress=False,
+                        log=lambda *a: None, cache_dir=cache2)
+    before = _runs(log2)
+    stop.unlink()
+    resumed = calibrate_model(data, LoggingModel(log2, stop), n_start=16, n_best=1, workers=1, progress=False,
+                              log=lambda *a: None, cache_dir=cache2)
+    after = _runs(log2)[len(before):]
+    assert not set(before) & set(after)
+    assert sorted(before + after) == sorted(made)
+    assert resumed.theta == first.theta
