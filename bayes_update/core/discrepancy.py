@@ -322,8 +322,9 @@ class _Workflow:
             if best is not None and names_effect(best):
                 pick, picked = [best["name"]], fits[best["name"]]
             elif (best is not None and best["two_ln_B"] is not None and best["two_ln_B"] > DECISIVE
-                  and best["excludes_null"] and not best["at_null"] and len(named) + 2 <= self.settings.max_effects):
-                # decisive but not named (on a bound, or the held-out tests predicted worse): it may be
+                  and not best["at_null"] and len(named) + 2 <= self.settings.max_effects):
+                # decisive but not named (on a bound, its interval reaching its null under the form error
+                # the other effect's missing share leaves, or the held-out tests predicted worse): it may be
                 # taking another effect's share as well
                 pair_rows, pair_fits = self.pairs(current, best_base, best, rows, fits, lik)
                 rounds[-1]["pairs"] = pair_rows
