@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from functools import partial
 
 import numpy as np
 from scipy.stats import norm
@@ -70,6 +71,13 @@ class GPSurrogate:
         one (``summary`` then prints it as it is).
     optimize : False keeps the kernel's hyperparameters as given (no fit of
         them), e.g. to reproduce a known posterior.
+    max_iterations : at most this many L-BFGS-B iterations per optimisation (None:
+        scikit-learn's default, 15000); a fit warm-started from the last round's
+        hyperparameters needs few.
+    fast : optimise the default kernel's hyperparameters with :mod:`surrogates.gp_fit`
+        (the same objective, optimiser and starts as scikit-learn's, so the same optimum;
+        its gradient in numpy, one BLAS thread), then condition scikit-learn's regressor
+        on them.
     prior_mean : None (a constant mean), or a picklable ``m(X) -> (n,)`` in the
         transformed units, X in input units: the GP models ``t(y) - m(X)`` and
         predicts ``m(X)`` plus its mean (e.g. a Gauss-Newton model of a misfit,
@@ -90,7 +98,8 @@ class GPSurrogate:
     def __init__(self, bounds=None, *, transform: str = "log", names=None, nu: float = 2.5,
                  length_scale_bounds=(1e-2, 1e2), noise_level: float = 1e-6,
                  noise_level_bounds=(1e-10, 1e-1), n_restarts_optimizer: int = 4, seed=0,
-                 kernel=None, optimize: bool = True, prior_mean=None):
+                 kernel=None, optimize: bool = True, prior_mean=None, max_iterations: int | None = None,
+                 fast: bool = False):
         if transform not in TRANSFORMS:
             raise ValueError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
         if nu not in (0.5, 1.5, 2.5, np.inf):
@@ -110,6 +119,10 @@ class GPSurrogate:
         self.seed = seed
         self.kernel = kernel
         self.optimize = bool(optimize)
+        if max_iterations is not None and (int(max_iterations) != max_iterations or max_iterations < 1):
+            raise ValueError(f"max_iterations must be None or a positive integer, got {max_iterations!r}")
+        self.max_iterations = max_iterations
+        self.fast = bool(fast)
         if prior_mean is not None and not callable(prior_mean):
             raise TypeError(f"prior_mean must be None or a callable m(X), got {type(prior_mean).__name__}")
         self.prior_mean = prior_mean
@@ -176,6 +189,11 @@ class GPSurrogate:
         warm.kernel, warm.n_restarts_optimizer = previous.gp_.kernel_, 0
         return warm
 
+    def _optimizer(self):
+        if getattr(self, "max_iterations", None) is None:
+            return "fmin_l_bfgs_b"
+        return partial(_lbfgs, max_iterations=int(self.max_iterations))
+
     def fit(self, X, y) -> "GPSurrogate":
         """Fit to points ``X`` (n, d) in input units and values ``y`` (n,).
 
@@ -204,13 +222,25 @@ class GPSurrogate:
             raise ValueError(f"{len(self.names)} names for {d} inputs")
         z = self._forward(y) - self._mean(X)
         kernel = self.kernel if self.kernel is not None else self._default_kernel(d)
-        self.gp_ = GaussianProcessRegressor(
-            kernel=kernel, normalize_y=True, optimizer="fmin_l_bfgs_b" if self.optimize else None,
-            n_restarts_optimizer=self.n_restarts_optimizer, random_state=self.seed)
         lo, hi = self.bounds_[:, 0], self.bounds_[:, 1]
+        optimize = self.optimize
+        if optimize and getattr(self, "fast", False) and _default_form(kernel):
+            from .gp_fit import fit_matern52
+
+            std = float(np.std(z)) or 1.0
+            theta, _ = fit_matern52((X - lo) / (hi - lo), (z - np.mean(z)) / std, kernel.theta, kernel.bounds,
+                                    self.n_restarts_optimizer, self.seed, getattr(self, "max_iterations", None))
+            kernel, optimize = kernel.clone_with_theta(theta), False
+        self.gp_ = GaussianProcessRegressor(
+            kernel=kernel, normalize_y=True, optimizer=self._optimizer() if optimize else None,
+            n_restarts_optimizer=self.n_restarts_optimizer, random_state=self.seed)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ConvergenceWarning)
             self.gp_.fit((X - lo) / (hi - lo), z)
+            if optimize is not self.optimize and hasattr(self.gp_.kernel_, "_check_bounds_params"):
+                # the fast fit optimised outside scikit-learn: its notes of a hyperparameter at a
+                # bound, which summary() reports, from the same check
+                self.gp_.kernel_._check_bounds_params()
         # the optimizer's warnings are routine here (an inert input puts its
         # length scale at the upper bound, a noise-free model the noise at the
         # lower one, a restart from a poor start stops early): keep them for
@@ -401,6 +431,24 @@ class GPSurrogate:
         if param.endswith("constant_value"):
             return f"signal variance at its {side} bound"
         return msg
+
+
+def _default_form(kernel) -> bool:
+    """Whether ``kernel`` is ``C * Matern(nu=2.5) + White`` (what :mod:`surrogates.gp_fit` fits)."""
+    from sklearn.gaussian_process.kernels import Product, Sum
+
+    return (isinstance(kernel, Sum) and isinstance(kernel.k2, WhiteKernel) and isinstance(kernel.k1, Product)
+            and isinstance(kernel.k1.k1, ConstantKernel) and type(kernel.k1.k2) is Matern
+            and kernel.k1.k2.nu == 2.5)
+
+
+def _lbfgs(obj_func, initial_theta, bounds, max_iterations: int):
+    """scikit-learn's L-BFGS-B optimiser with an iteration cap (its own has 15000)."""
+    from scipy.optimize import minimize
+
+    res = minimize(obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds,
+                   options={"maxiter": max_iterations})
+    return res.x, res.fun
 
 
 def validation_metrics(y_true, y_pred, low, high) -> dict:

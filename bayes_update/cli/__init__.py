@@ -59,8 +59,8 @@ def main(argv=None) -> int:
         return 130
 
 
-# commands whose model runs are kept in OUT/cache, so that a rerun resumes
-_RESUMABLE = ("sample", "reproduce")
+# commands whose model runs are kept (the run cache, or OUT/cache for reproduce), so that a rerun resumes
+_RESUMABLE = ("sample", "calibrate", "reproduce")
 
 
 def _run_staged(args) -> int:
@@ -81,6 +81,13 @@ def _resume_hint(args) -> str:
     if out is None:
         return "nothing was written"
     if args.command in _RESUMABLE and not getattr(args, "no_cache", False):
-        return (f"nothing in {out} was changed except {out / 'cache'}, which keeps the model runs "
-                "finished so far: rerun the same command to resume")
+        if args.command == "reproduce":
+            return (f"nothing in {out} was changed except {out / 'cache'}, which keeps the model runs "
+                    "finished so far: rerun the same command to resume")
+        from bayes_update.cli.options import run_cache
+
+        # the beam's calibrate is the paper's grids, which keep no runs
+        if args.command == "sample" or getattr(args, "model", None) not in beam_cli.BEAM_MODELS:
+            return (f"nothing in {out} was changed; the model runs finished so far are kept in {run_cache(args)}: "
+                    "rerun the same command to resume")
     return f"nothing in {out} was changed; rerun the same command to start again"

@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 
 from bayes_update.cli import beam as beam_cli
-from bayes_update.cli.options import (add_common, add_data_out, add_metrics, add_model, add_posterior_options,
-                                      add_scheduler, read_config, settings_from)
+from bayes_update.cli.options import (add_cache, add_common, add_data_out, add_metrics, add_model,
+                                      add_posterior_options, add_scheduler, read_config, run_cache, settings_from)
 from bayes_update.data.folder import read_dataset
 
 __all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_inspect", "cmd_sample"]
@@ -35,6 +35,7 @@ def add_commands(sub) -> None:
     add_model(p)
     add_metrics(p)
     beam_cli.add_model_options(p)
+    add_cache(p)
     add_common(p)
     add_scheduler(p)
     p.set_defaults(func=cmd_calibrate)
@@ -53,8 +54,7 @@ def add_commands(sub) -> None:
     p.add_argument("--thorough", action="store_true",
                    help="the former sizes, some 1200-1400 model runs instead of 230-300 "
                         "(PosteriorSettings.thorough: a reference for the default's)")
-    p.add_argument("--no-cache", action="store_true",
-                   help="do not keep model runs in OUT/cache (by default an interrupted run resumes)")
+    add_cache(p)
     add_model(p)
     add_metrics(p)
     add_posterior_options(p)
@@ -276,7 +276,7 @@ def cmd_calibrate(args) -> int:
 
         with _executor(args) as pool:
             cal = calibrate_model(data, model, metrics=args.metrics or "full", space=space, workers=workers,
-                                  executor=pool, **options)
+                                  executor=pool, cache_dir=run_cache(args), **options)
         write_calibration(cal, args.out, sensors=data.sensors)
         print(format_calibration(cal))
     print(f"wrote {args.final_out}")
@@ -306,7 +306,7 @@ def cmd_sample(args) -> int:
     _first_look(data, args.out)
     with _executor(args) as pool:
         res = sample(data, model, settings, workers=workers, direct=args.direct, space=space, executor=pool,
-                     cache_dir=None if args.no_cache else args.cache_dir, metrics=args.metrics)
+                     cache_dir=run_cache(args), metrics=args.metrics)
     if truth is not None and args.model not in beam_cli.BEAM_MODELS:
         # the data set's own block: drawn only where it names the model's parameters in their units
         from bayes_update.reports.posterior import truth_in_model_units
@@ -318,7 +318,7 @@ def cmd_sample(args) -> int:
     write_posterior(res, args.out, truth=truth)
     print(res.summary_table())
     print(f"{res.n_model_runs['total']} model runs ({sum(res.n_model_runs_reused.values())} of them found in "
-          f"{args.cache_dir}), {res.timing['total']:.0f} s; wrote {args.final_out}")
+          f"{run_cache(args) or 'no cache'}), {res.timing['total']:.0f} s; wrote {args.final_out}")
     return 0
 
 

@@ -17,6 +17,26 @@ def add_data_out(p: argparse.ArgumentParser, out_required: bool = True) -> None:
     p.add_argument("--out", type=Path, required=out_required, help="output folder")
 
 
+def add_cache(p: argparse.ArgumentParser) -> None:
+    """--cache DIR and --no-cache: where the command keeps its model runs (every command
+    given the same folder shares them: bayes_update.core.runs)."""
+    p.add_argument("--cache", type=Path, default=None, metavar="DIR",
+                   help="folder of the run cache (default: $BAYES_UPDATE_CACHE, else ~/.cache/bayes-update): "
+                        "every model run is kept there as it ends, so that the same command run again, "
+                        "interrupted or not, makes none of them again, and sample after calibrate on the "
+                        "same data and model starts from calibrate's runs")
+    p.add_argument("--no-cache", action="store_true", help="keep no model run on disk (none is reused)")
+
+
+def run_cache(args):
+    """The run cache folder of a command's options (:func:`add_cache`), or None."""
+    if getattr(args, "no_cache", False):
+        return None
+    from bayes_update.core.runs import default_root
+
+    return args.cache if getattr(args, "cache", None) is not None else default_root()
+
+
 def add_common(p: argparse.ArgumentParser, seed: bool = True) -> None:
     """--workers, --seed, --config and the log options."""
     p.add_argument("--workers", type=int, default=None,

@@ -195,7 +195,8 @@ def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, c
     return [X[i] for i in order], len(X)
 
 
-def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effects: bool = False) -> Problem:
+def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effects: bool = False,
+                store=None) -> Problem:
     """The one builder of a :class:`Problem` for ``model`` on ``dataset``.
 
     First the check before any long step (:func:`bayes_update.core.preflight.preflight`:
@@ -211,13 +212,17 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effe
     effects : the discrepancy workflow's problem: the model's candidate
         effects checked, kept as ``problem.effects``, and every one passed at
         its null (:class:`~bayes_update.core.effects.WithNulls`).
+    store : a :class:`~bayes_update.core.runs.RunStore` the problem's runs are kept in
+        and found in (the check's and the screen's already), or None.
     """
-    checked = preflight(dataset, model, space, effects=effects)
+    # the discrepancy workflow's model is wrapped (its effects at their nulls): no store there
+    store = None if effects else store
+    checked = preflight(dataset, model, space, effects=effects, store=store)
     space = checked.space
     if effects:
         model = WithNulls(model, checked.nulls)
     problem = Problem(dataset, model, metrics=metrics)
-    problem.space, problem.n_screen_runs, problem.effects = space, 0, checked.effects
+    problem.space, problem.n_screen_runs, problem.effects, problem.run_store = space, 0, checked.effects, store
     if problem.metrics == "full":
         names, sens, runs = screen_linear(problem, space, executor)
         basis = problem.basis
@@ -226,7 +231,7 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effe
         if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
             basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
             problem = Problem(dataset, model, basis=basis, metrics=problem.metrics, noise=problem.noise)
-            problem.space, problem.effects = space, checked.effects
+            problem.space, problem.effects, problem.run_store = space, checked.effects, store
         problem.linear_parameters, problem.linear_sensitivity, problem.n_screen_runs = tuple(names), sens, runs
     return problem
 
@@ -237,14 +242,17 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
 
     The model's own ``start(dataset, executor, progress)`` when it offers one
     (the beam: the paper's grids; ``coarse``: a start for a search that goes on
-    from it, passed where the hook takes it), else this module's two-stage
+    from it, and ``store``, the problem's run store, each passed where the hook
+    takes it), else this module's two-stage
     calibration (Sobol' designs of ``n_points`` points, then least squares)."""
     hook = getattr(problem.model, "start", None)
     if callable(hook):
         log("start: the model's own start search" + (" (coarse)" if coarse else ""))
-        if coarse and "coarse" in inspect.signature(hook).parameters:
-            return hook(dataset, executor=executor, progress=progress, coarse=True)
-        return hook(dataset, executor=executor, progress=progress)
+        accepts = inspect.signature(hook).parameters
+        kw = {"coarse": True} if coarse and "coarse" in accepts else {}
+        if problem.run_store is not None and "store" in accepts:
+            kw["store"] = problem.run_store       # its runs kept and found like every other step's
+        return hook(dataset, executor=executor, progress=progress, **kw)
     log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
     names, runs = problem.linear_parameters, 0
     if names is None:
@@ -350,7 +358,7 @@ def check_settings(settings: dict, where: str = "calibrate") -> dict:
 def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SETTINGS["n_start"],
                     n_best: int = SETTINGS["n_best"], max_iterations: int = SETTINGS["max_iterations"],
                     seed: int = SETTINGS["seed"], space=None, executor=None, workers=None,
-                    progress: bool = True, log=info) -> Calibration:
+                    progress: bool = True, log=info, cache_dir=None) -> Calibration:
     """The two-stage calibration of the module docstring.
 
     Parameters
@@ -362,11 +370,17 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SET
     n_start, n_best : Sobol' points per stage and how many of the best start
         a least-squares search.
     space : the prior (default: the model's declared parameters).
+    cache_dir : folder whose ``runs`` keep every model run (:mod:`bayes_update.core.runs`): a
+        rerun makes none of them again, and ``sample`` given the same folder starts from this
+        calibration's best point.
     """
+    from bayes_update.core.runs import store_in
+
+    store = store_in(cache_dir, "calibrate") if cache_dir is not None else None
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
-        problem = problem_for(dataset, model, space, metrics=metrics, executor=pool)
+        problem = problem_for(dataset, model, space, metrics=metrics, executor=pool, store=store)
         space, runs = problem.space, 1 + problem.n_screen_runs
         if problem.linear_parameters is None:        # the paper's set: no J1 to adapt, screen here
             problem.linear_parameters, problem.linear_sensitivity, n = screen_linear(problem, space, pool)

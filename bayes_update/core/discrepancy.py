@@ -35,11 +35,11 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    null nor on a bound of its prior (both reported as such), and the
    held-out tests are predicted better beyond their noise; then a next round
    looks for a second effect (``max_effects``).  When the strongest candidate
-   is decisive but on a bound of its prior, it may be taking another effect's
-   share as well: it is fitted together with each other candidate, and a pair
-   is named when it is decisive against each member alone and both members
-   sit inside their priors, away from their nulls
-   (:func:`~bayes_update.core.fits.names_pair`);
+   is decisive but not named (on a bound of its prior, or predicting the
+   held-out tests worse), it may be taking another effect's share as well:
+   it is fitted together with each other candidate, and a pair is named when
+   it is decisive against each member alone and both members sit inside their
+   priors, away from their nulls (:func:`~bayes_update.core.fits.names_pair`);
 3. **re-update**: the likelihood scales re-measured with the named effects in
    the model (its model-form error too), the extended mode and its Laplace posterior;
 4. **the gap that remains**: e_lin and e_nlin over
@@ -261,7 +261,8 @@ class _Workflow:
         return held_out_runs(self.problem, [f.theta for f in fits], self.pool)
 
     def pairs(self, current: Fit, best_base: Fit, first: dict, rows: list, fits: dict, lik) -> tuple[list, dict]:
-        """``first`` (a decisive candidate on a bound of its prior) fitted together with
+        """``first`` (a decisive candidate not named: on a bound of its prior, or
+        predicting the held-out tests worse) fitted together with
         each other candidate whose own fit did not fail: an effect on a bound may be
         taking another's share as well (a damper asked to carry a bow too).  The
         partner need not be decisive alone: scored under the model-form error that
@@ -320,8 +321,11 @@ class _Workflow:
             pick, picked = [], None
             if best is not None and names_effect(best):
                 pick, picked = [best["name"]], fits[best["name"]]
-            elif (best is not None and best["at_bound"] and best["two_ln_B"] is not None
-                  and best["two_ln_B"] > DECISIVE and best["excludes_null"] and len(named) + 2 <= self.settings.max_effects):
+            elif (best is not None and best["two_ln_B"] is not None and best["two_ln_B"] > DECISIVE
+                  and not best["at_null"] and len(named) + 2 <= self.settings.max_effects):
+                # decisive but not named (on a bound, its interval reaching its null under the form error
+                # the other effect's missing share leaves, or the held-out tests predicted worse): it may be
+                # taking another effect's share as well
                 pair_rows, pair_fits = self.pairs(current, best_base, best, rows, fits, lik)
                 rounds[-1]["pairs"] = pair_rows
                 good = [r for r in pair_rows if r["named"]]

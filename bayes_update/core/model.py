@@ -430,7 +430,7 @@ def check_response(model, theta, y, n: int, n_sensors: int) -> np.ndarray:
 
 
 def check_run(model, space: ParameterSet, force: np.ndarray, fs: float, n_sensors: int = 1,
-              theta: Mapping | None = None) -> np.ndarray:
+              theta: Mapping | None = None, store=None) -> np.ndarray:
     """One run of ``model`` at ``theta`` (default: the middle of ``space``, the
     prior) on ``force`` at ``fs`` [Hz], its response checked
     (:func:`check_response`).  A :class:`ModelError` there is an error too: the
@@ -448,7 +448,10 @@ def check_run(model, space: ParameterSet, force: np.ndarray, fs: float, n_sensor
         raise run_error(model, theta, f"raised {type(exc).__name__}: {exc}",
                         "fix the model there (the check runs it at the middle of its prior on the linear "
                         "test's force before any long step)") from exc
-    return check_response(model, theta, y, len(force), n_sensors)
+    y = check_response(model, theta, y, len(force), n_sensors)
+    if store is not None:
+        store.put(model, force, fs, theta, response=y)
+    return y
 
 
 def check_model(model, force: np.ndarray, fs: float, n_sensors: int = 1, theta: Mapping | None = None,

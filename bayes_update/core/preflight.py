@@ -73,7 +73,7 @@ def _key(dataset, model, space, effects):
 
 
 def preflight(dataset, model, space: ParameterSet | None = None, *, effects: bool = False,
-              candidates=None) -> Checked:
+              candidates=None, store=None) -> Checked:
     """The checks of the module docstring, for ``model`` on ``dataset`` under the
     prior ``space`` (default: the model's declared parameters); ``effects``: the
     discrepancy workflow's (its candidate effects checked, and ``candidates``,
@@ -81,7 +81,8 @@ def preflight(dataset, model, space: ParameterSet | None = None, *, effects: boo
     :class:`~bayes_update.core.model.ModelSpecError` (a
     :class:`~bayes_update.core.model.ModelRunError` for the run),
     :class:`~bayes_update.data.dataset.DatasetError` or ``ValueError``, each
-    saying what to fix."""
+    saying what to fix.  ``store``: the run cache (:class:`~bayes_update.core.runs.RunStore`) the
+    check run is kept in and found in."""
     key = _key(dataset, model, space, effects)
     if key is not None and key in _PASSED:
         _PASSED.move_to_end(key)
@@ -93,8 +94,11 @@ def preflight(dataset, model, space: ParameterSet | None = None, *, effects: boo
     require_roles(dataset, STAGES)
     if callable(getattr(model, "check_dataset", None)):
         model.check_dataset(dataset)             # the model's own word on the data (the beam: its rig)
+    # the middle of the prior as the internal coordinates give it, to the bit: the point the linear
+    # screen runs first (calibrate.screen_linear), which then finds this run in the store
+    middle = prior.to_parameters(prior.to_internal(prior.center()))
     check_run(model, prior, check_force(model, dataset), dataset.sampling_rate_hz, len(dataset.sensors),
-              {**prior.center(), **checked.nulls})
+              {**middle, **checked.nulls}, store=store)
     if key is not None:
         _PASSED[key] = checked
         while len(_PASSED) > _KEEP:

@@ -107,6 +107,8 @@ class Problem:
     n_screen_runs: int = 0
     #: the candidate effects the builder checked, for the discrepancy workflow ({} otherwise)
     effects: dict | None = None
+    #: where model runs are kept and found (:class:`bayes_update.core.runs.RunStore`), or None
+    run_store = None
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None, noise=None):
         if not hasattr(model, "simulate"):
@@ -251,15 +253,27 @@ class Problem:
         sampled at the data's rate: ``model.simulate(theta, force, fs)``, (n,)
         for one sensor, (n, n_sensors) for several."""
         model = self.model if model is None else model
+        store = self.run_store
+        if store is not None:
+            kept = store.get(model, force, self.fs, params)
+            if isinstance(kept, Exception):
+                raise kept
+            if kept is not None:
+                return self._checked(model, params, kept, len(force))
         try:
             y = model.simulate(params, force, self.fs)
-        except self.failures:
+        except self.failures as exc:
+            if store is not None:
+                store.put(model, force, self.fs, params, error=str(exc))
             raise                     # this point cannot run: the caller gives it NaN metrics
         except Exception as exc:      # a bug of the model, not a region of its parameters
             raise run_error(model, params, f"raised {type(exc).__name__}: {exc}",
                             "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
                             "(that point then gets no likelihood and the run goes on)") from exc
-        return self._checked(model, params, y, len(force))
+        y = self._checked(model, params, y, len(force))
+        if store is not None:
+            store.put(model, force, self.fs, params, response=y)
+        return y
 
     def _checked(self, model, params, y, n: int) -> np.ndarray:
         """A model's response as (n,) or (n, n_sensors), or a :class:`~bayes_update.core.model.ModelRunError`

@@ -27,6 +27,8 @@ from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
                                                 WhitenedLogPosterior, _ExecutorPool)
 from bayes_update.core.problem import Problem
+from bayes_update.core.kept_start import kept_start
+from bayes_update.core.runs import StoreSteps, store_in
 from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
@@ -49,7 +51,10 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
     start : skip the start search and begin at this theta (each parameter in its unit).
     likelihood : use these scales instead of measuring them at the start
         (e.g. to compare a direct and a surrogate posterior under one likelihood).
-    cache_dir : folder of the netCDF evaluation cache (an interrupted run resumes).
+    cache_dir : folder whose ``runs`` keep every model run (:mod:`bayes_update.core.runs`): a rerun,
+        after an interruption or not, makes none of them again, and other commands given the
+        same folder share them (``calibrate``'s: its best point is this search's start).
+        None: no run is kept.
     metrics : the metric set, ``"paper"`` or ``"full"`` (:mod:`bayes_update.core.problem`;
         default: the model's ``default_metrics``, else ``full``).
     """
@@ -57,12 +62,13 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         raise ModelSpecError("no model given: pass a model of the contract (docs/models.md), e.g. "
                              "bayes_update.models.beam.beam_model(data)")
     settings = settings or PosteriorSettings()
-    steps = StepLog()
+    store = store_in(cache_dir, "sample") if cache_dir is not None else None
+    steps = StoreSteps(store) if store is not None else StepLog()
     own_pool = executor is None and (workers or 2) > 1
     pool = default_executor(workers) if own_pool else executor
     try:
         with steps("check_and_screen"):
-            problem = problem_for(dataset, model, space, metrics, executor=pool)
+            problem = problem_for(dataset, model, space, metrics, executor=pool, store=store)
             steps.add_runs(1 + problem.n_screen_runs)
         seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
         run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
@@ -77,6 +83,8 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
             pool.shutdown()
     steps.finish()
     res.timing, res.n_model_runs = steps.timing, steps.runs
+    for k, v in getattr(steps, "reused", {}).items():
+        res.n_model_runs_reused[k] = res.n_model_runs_reused.get(k, 0) + v
     log("sample: " + steps.line())
     return res
 
@@ -121,7 +129,12 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
     """1. start: the model's own start or the two-stage calibration (unless given)."""
     space = run.space
     with run.steps("start"):
-        if start is None:
+        kept = kept_start(run.problem) if start is None else None
+        if kept is not None:
+            # another command (calibrate) ran the model on these tests: its best point is the start
+            start, n_kept = kept
+            run.log(f"start: the best of {n_kept} points another command ran on these tests (the run cache)")
+        elif start is None:
             start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
                                   seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log,
                                   coarse=run.settings.coarse_start)
@@ -266,7 +279,17 @@ def _walker_covariance(mp, adj) -> np.ndarray:
 
 
 def _direct_chain(run: _Run, lik, mp, adj) -> _Chain:
-    """4-5, direct path: emcee on the model itself."""
+    """4-5, direct path: emcee on the model itself.  Its runs are not kept in the run store:
+    a chain on the model makes 10^4-10^6 runs of a model cheap enough for it (a few ms), which
+    would fill the cache with responses that cost more to write and read than to make."""
+    store, run.problem.run_store = run.problem.run_store, None
+    try:
+        return _direct_emcee(run, lik, mp, adj)
+    finally:
+        run.problem.run_store = store
+
+
+def _direct_emcee(run: _Run, lik, mp, adj) -> _Chain:
     s = run.settings
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
@@ -300,7 +323,7 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
             means = (gauss_newton_means(mp.mode, run.problem, stages, whitening)
                      if s.gp_mean == "gauss_newton" and mp.mode is not None else None)
             gps, U, Y, fit_time = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
-                                                    s, run.pool, run.cache_dir, stages, run.seeds[3] + attempt,
+                                                    s, run.pool, None, stages, run.seeds[3] + attempt,
                                                     run.progress, run.log, run.reused, means)
             run.steps.add_runs(len(stages) * int(np.sum(np.all(np.isfinite(Y), axis=1))))
         run.steps.timing["gp_fit"] += fit_time

@@ -157,7 +157,7 @@ def _best(rows, key):
 
 def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = None,
               executor: Executor | None = None, workers: int | None = None,
-              progress: bool = True, log=info) -> CalibrationResult:
+              progress: bool = True, log=info, store=None) -> CalibrationResult:
     """Run the two-stage updating on ``dataset`` (see the module docstring).
 
     model : the beam as a model of the contract
@@ -166,6 +166,8 @@ def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = No
     executor : any ``concurrent.futures.Executor`` for the grids; default a
         local process pool over ``workers`` processes (all cores); ``workers=1``
         runs serially.
+    store : the run cache (:class:`~bayes_update.core.runs.RunStore`) the grids' runs are
+        kept in and found in, or None.
     """
     settings = settings or CalibrationSettings()
     if not hasattr(model, "fe_model"):
@@ -175,6 +177,7 @@ def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = No
     model, rig = beam.fe_model, beam.rig
     t_start = time.perf_counter()
     problem = Problem(dataset, beam, metrics="paper")
+    problem.run_store = store
     if "nonlinear" not in problem.stages:
         raise ValueError(f"{problem.source}: the nonlinear stage needs a test with role 'nonlinear'")
     pole = problem.basis.pole(1)
@@ -295,15 +298,16 @@ def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = No
                              velocities=velocities, problem=problem)
 
 
-def coarse_start(dataset: Dataset, beam, executor=None, progress: bool = False) -> tuple[dict, int]:
+def coarse_start(dataset: Dataset, beam, executor=None, progress: bool = False, store=None) -> tuple[dict, int]:
     """(theta, model runs): a start for a search that goes on from it (the
     posterior's MAP with its starts along the (c, k_s) band): P_eff where the
     model's first mode has the Kautz pole's frequency (no model run), eta by
     the parabola through a scan of e_lin at the quick grid's c and k_s = 0 (six
     linear runs).  The low level pins eta and P_eff; c and k_s are left to the
-    search."""
+    search.  ``store``: the run cache its runs are kept in and found in, or None."""
     settings = CalibrationSettings.quick()
     problem = Problem(dataset, beam, metrics="paper")
+    problem.run_store = store
     model = beam.fe_model
     eta_mid = float(np.median(settings.eta_values))
     p0 = preload_for_frequency(model, problem.basis.pole(1).freq_hz, eta=eta_mid * MPA_S)

@@ -285,18 +285,20 @@ class Beam:
                     out.append(p)
         return out
 
-    def start(self, dataset, executor=None, progress: bool = False, coarse: bool = False) -> tuple[dict, int]:
+    def start(self, dataset, executor=None, progress: bool = False, coarse: bool = False,
+              store=None) -> tuple[dict, int]:
         """(theta, model runs): the paper's two-stage updating on coarse grids,
         the start of ``find_discrepancy`` for the beam; with ``coarse`` (the start
         of ``sample``, whose MAP search goes on from it) only eta and P_eff from
         the low level (:func:`~bayes_update.models.beam.calibrate.coarse_start`,
-        6 runs against about 280)."""
+        6 runs against about 280).  ``store``: the run cache
+        (:class:`~bayes_update.core.runs.RunStore`) its runs are kept in and found in."""
         from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, coarse_start
 
         if coarse:
-            return coarse_start(dataset, self, executor, progress)
+            return coarse_start(dataset, self, executor, progress, store=store)
         cal = calibrate(dataset, self, CalibrationSettings.quick(), executor=executor, progress=progress,
-                        log=lambda *a: None)
+                        log=lambda *a: None, store=store)
         return cal.final_theta, cal.setup["n_model_runs"]
 
     def diagnose(self, dataset, theta, basis=None) -> dict:
