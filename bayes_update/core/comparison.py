@@ -51,7 +51,6 @@ __all__ = ["Scored", "error_covariance", "evidence", "form_scale", "score_model"
 class Scored:
     log_evidence: float
     covariance: np.ndarray       # of the internal coordinates (the mode's Laplace, on this error model)
-    form_share: dict             # {stage: rms of the model-form error / rms of the compared output}
 
 
 @dataclass
@@ -75,27 +74,26 @@ def score_model(problem, likelihood, mode, theta, log_prior_density: float, widt
     docstring); one model run per test."""
     runs = evaluate_many(_Responses(problem), [(st, theta) for st in problem.stages], executor, batch_size=1,
                          progress=False)
-    a, J, S, share, row = {}, {}, {}, {}, 0
+    a, J, S, row = {}, {}, {}, 0
     for stage, y in zip(problem.stages, runs):
         sc = likelihood.scales[stage]
         n = problem.output(stage, problem.reference_components(stage)).size
         resid = None if y is None else problem.tests[stage].response - problem.compared_response(y)
-        S[stage], Q, share[stage] = error_covariance(problem, likelihood, stage, resid)
+        S[stage], Q = error_covariance(problem, likelihood, stage, resid)
         a[stage] = Q.T @ (np.asarray(mode.residual[row:row + n], float) * sc.sd)
         J[stage] = Q.T @ (np.asarray(mode.jacobian[row:row + n], float) * sc.sd)
         row += n
     log_z, cov = evidence(a, J, S, log_prior_density, widths)
-    return Scored(log_z, cov, share)
+    return Scored(log_z, cov)
 
 
 def error_covariance(problem, likelihood, stage: str, residual=None):
-    """(S, Q, form share): the error covariance of a stage's compared output in the
+    """(S, Q): the error covariance of a stage's compared output in the
     coordinates of its observation basis Q, from the noise replicates (their second
     moment, shrunk towards the isotropic one of the same trace; isotropic where there
     are none), the unabsorbed discretisation error per direction and, given a model's
     time-domain ``residual`` on the stage's test, its model-form variance per
-    coordinate (:func:`form_scale`; the form share is that error's rms relative to the
-    compared output's norm)."""
+    coordinate (:func:`form_scale`)."""
     from bayes_update.core.posterior.pointwise import observation_basis
 
     sc = likelihood.scales[stage]
@@ -114,14 +112,12 @@ def error_covariance(problem, likelihood, stage: str, residual=None):
         K = int(np.count_nonzero(w > 0))
         alpha = N / (K + N)
         S = (1 - alpha) * S_rep + (alpha * np.trace(S_rep) / N + unabsorbed ** 2 / N) * np.eye(N)
-    share = 0.0
     if residual is not None:
         r = np.asarray(residual, float).reshape(len(residual), -1)
         a = sum(M @ r[:, j] for j, M in enumerate(_coordinate_maps(problem, stage)))
         c = form_scale(S, a)
         S = S + c * np.eye(N)
-        share = math.sqrt(N * c)
-    return S, Q, share
+    return S, Q
 
 
 def form_scale(S_noise, a) -> float:

@@ -166,7 +166,7 @@ def _rung(problem, lik, space, stages, sizes, sd, base_cov, r0, Jb, Q, steps, m,
     # parameters cannot take up, and a form error that holds the effect's change too
     a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
     for i, (st, n) in enumerate(zip(stages, sizes)):
-        y0, (S0, Qo, _) = base_cov[st]
+        y0, (S0, Qo) = base_cov[st]
         sl = slice(row, row + n)
         row += n
         a_with[st] = Qo.T @ (r0[sl] * sd[i])
