@@ -42,7 +42,9 @@ def damper_records():
 
 @pytest.fixture(scope="module")
 def damper_posterior(damper_records):
-    return _sample(damper_records, kit.ShearFrame(), n_predictive=32)
+    # 64 draws: with 32 the band's own Monte-Carlo spread reaches the bar (floor1 on `middle`
+    # covers 94.3-95.3 % over seeds 0-3 with 32 draws, 94.2-94.6 % with 64)
+    return _sample(damper_records, kit.ShearFrame(), n_predictive=64)
 
 
 def _converged(res):
