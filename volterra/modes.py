@@ -65,8 +65,10 @@ MIN_COHERENCE = 0.5
 MAX_LSCF_ORDER = 40
 #: Default largest relative residual of the refined fit (certainty weighted, per sensor).
 MAX_RESIDUAL = 0.5
-#: starts tried from peaks of the residual, at most, and in a row without a mode
-MAX_TRIED, MAX_FAILED = 8, 2
+#: starts tried from peaks of the residual, at most, and in a row without a mode (four: a band
+#: read wider than the excitation, its coherent skirt below, puts its own residual peaks first;
+#: with two, a clear 23.8 Hz mode of a random record behind two such was never tried)
+MAX_TRIED, MAX_FAILED = 8, 4
 #: a cluster stable at fewer orders than 30 % of its window's, but at this many, is a weak candidate
 MIN_STABLE = 3
 #: the pseudo pole pairs beyond the band's edges: a factor PSEUDO_STEP outside, damping PSEUDO_ZETA
