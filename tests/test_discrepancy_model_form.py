@@ -20,7 +20,7 @@ import pytest
 
 import cantilever_kit
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
-from bayes_update.core.effects import DECISIVE
+from bayes_update.core.effects import DECISIVE, evidence_table
 
 
 def _run(k3):
@@ -50,6 +50,9 @@ def test_a_tip_spring_is_decisive_and_named_only_if_it_predicts_the_held_out_tes
     tests = row["held_out"]["tests"]
     assert tests["random_mid"]["after"] < tests["random_mid"]["before"], tests
     assert tests["sweep_mid"]["after"] > tests["sweep_mid"]["before"], tests
+    # the evidence table shows the user both tests, not only the summed gain that hides the sweep's rise
+    sweep = tests["sweep_mid"]
+    assert f"sweep_mid {100 * sweep['before']:.3g} -> {100 * sweep['after']:.3g} %" in evidence_table(res)
     assert list(res.named) == [], res.gap_sentence()
     gap = res.gap_remaining()
     assert gap["held_out_times_noise"] > 3, gap

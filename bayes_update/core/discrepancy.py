@@ -68,7 +68,7 @@ from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.adjustment import own_points
 from bayes_update.core.detectability import detectability
 from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, misfit_ratios
-from bayes_update.core.held_out import held_out_comparison, held_out_runs
+from bayes_update.core.held_out import describe, held_out_comparison, held_out_runs
 from bayes_update.core.likelihood import errors_at_mode, estimate_likelihood, likelihood_runs
 from bayes_update.core.fits import (Fit, _at_bound, _at_null, _best_extra_starts, _effect_starts, _excludes_null,
                                     _signature_check, failed_fit, fit_model, gap, names_effect, names_pair,
@@ -247,11 +247,10 @@ class _Workflow:
                          "held_out": held_out_comparison(self.problem, held[0], h)})
             flag = " (at its null value)" if rows[-1]["at_null"] else " (on a bound of its prior)" if rows[-1][
                 "at_bound"] else ""
-            z = rows[-1]["held_out"]["z"] if rows[-1]["held_out"] else None
             self.log(f"  {e}: " + ("FAILED FIT (ends below the model without it)" if failed else
                                    f"2 ln B = {two_ln_b:.1f}{flag}") + ", " + ", ".join(
                 f"{n} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for n, v in values.items())
-                + ("" if z is None else f"; held-out gain {z:.1f} sd"))
+                + ("" if rows[-1]["held_out"] is None else f"; held-out {describe(rows[-1]['held_out'])}"))
         rows.sort(key=lambda r: -np.inf if r["two_ln_B"] is None else -r["two_ln_B"])
         return best_base, rows, fits
 

@@ -20,6 +20,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from bayes_update.core.held_out import describe
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import Parameter, ParameterSet
 
@@ -199,18 +200,18 @@ def evidence_table(res) -> str:
         base = " + ".join(["baseline"] + rnd["base"])
         lines += [f"Round {i + 1}: candidates added to {base}", "",
                   "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null "
-                  "| held-out gain [sd of its noise] | note |",
+                  "| held-out error per test, before -> after (gain in sd of its noise) | note |",
                   "|---|---|---|---|---|---|---|"]
         for c in rnd["candidates"]:
             pars = ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in c["parameters"].items())
             held = c.get("held_out")
             lines.append(f"| {c['name']} | {_two_ln_b(c)} | {c['delta_log_likelihood']:.1f} | {pars} | "
-                         f"{'yes' if c['excludes_null'] else 'no'} | {'-' if held is None else format(held['z'], '.1f')}"
-                         f" | {_note(c)} |")
+                         f"{'yes' if c['excludes_null'] else 'no'} | {describe(held)} | {_note(c)} |")
         lines.append("")
         if rnd.get("pairs"):
             lines += ["The strongest candidate on a bound of its prior, fitted with each other decisive one:", "",
-                      "| pair | 2 ln B | partner alone | members (mode +- Laplace sd; where) | held-out gain [sd] | named |",
+                      "| pair | 2 ln B | partner alone | members (mode +- Laplace sd; where) | held-out error per test "
+                      "(gain in sd) | named |",
                       "|---|---|---|---|---|---|"]
             for c in rnd["pairs"]:
                 members = "; ".join(
@@ -219,7 +220,7 @@ def evidence_table(res) -> str:
                     for m in c["members"].values())
                 held = c.get("held_out")
                 lines.append(f"| {' + '.join(c['names'])} | {c['two_ln_B']:.1f} | {c['partner_alone']:.1f} | "
-                             f"{members} | {'-' if held is None else format(held['z'], '.1f')} | "
+                             f"{members} | {describe(held)} | "
                              f"{'yes' if c['named'] else 'no'} |")
             lines.append("")
     if getattr(res, "detectability", None):
