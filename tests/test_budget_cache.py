@@ -182,3 +182,33 @@ def test_calibrate_run_again_makes_no_run(data, tmp_path):
     assert not set(before) & set(after)
     assert sorted(before + after) == sorted(made)
     assert resumed.theta == first.theta
+
+
+def test_the_cache_command_shows_and_clears_the_kept_runs(tmp_path, capsys):
+    """``bayes-update cache`` counts the runs it keeps (against what was put), ``--clear
+    --older-than`` deletes only the old ones, ``--clear`` the rest, and a run cleared is
+    not found again."""
+    from test_user_model import Duffing
+
+    from bayes_update.cli import main
+    from bayes_update.core.runs import runs_usage
+
+    store = store_in(tmp_path, "sample")
+    model = Duffing(("fn", "zeta"), fixed={"k3": 4.2})
+    force = np.sin(np.arange(64) / 3.0)
+    thetas = [{"fn": 40.0 + i, "zeta": 0.02} for i in range(3)]
+    for theta in thetas:
+        store.put(model, force, 1024.0, theta, response=model.simulate(theta, force, 1024.0))
+    store.put(model, force, 1024.0, {"fn": 30.0, "zeta": 0.02}, error="diverges")
+    old = next(store.root.glob("*/*/*.npz"))
+    os.utime(old, (old.stat().st_atime - 3 * 86400, old.stat().st_mtime - 3 * 86400))
+    usage = runs_usage(tmp_path)
+    assert usage["runs"] == 4 and usage["models"] == 1 and usage["oldest_days"] > 2.9, usage
+    assert main(["cache", "--cache", str(tmp_path)]) == 0
+    assert "4 runs of 1 model(s)" in capsys.readouterr().out
+    assert main(["cache", "--cache", str(tmp_path), "--clear", "--older-than", "1"]) == 0
+    assert "deleted 1 runs" in capsys.readouterr().out and runs_usage(tmp_path)["runs"] == 3
+    assert main(["cache", "--cache", str(tmp_path), "--clear"]) == 0
+    assert runs_usage(tmp_path)["runs"] == 0 and not list(store.root.glob("*"))
+    assert all(store.get(model, force, 1024.0, theta) is None for theta in thetas)
+    assert main(["cache", "--cache", str(tmp_path), "--older-than", "1"]) == 2      # without --clear: an error

@@ -69,6 +69,8 @@ def _run_staged(args) -> int:
     of model runs is OUT/cache."""
     from bayes_update.reports.outputs import staged_output
 
+    if getattr(args, "out", None) is None:          # a command that writes no folder (cache)
+        return args.func(args)
     args.final_out = Path(args.out)
     args.cache_dir = args.final_out / "cache"
     with staged_output(args.final_out) as staging:

@@ -74,13 +74,25 @@ def add_commands(sub) -> None:
     add_common(p, seed=False)
     p.set_defaults(func=cmd_inspect)
 
+    p = sub.add_parser("cache", help="what the run cache holds; --clear to free it",
+                       description="The folder of kept model runs (--cache DIR, else $BAYES_UPDATE_CACHE, else "
+                                   "~/.cache/bayes-update), how many runs of how many models, and their size. "
+                                   "With --clear, delete them (all, or with --older-than DAYS those last written "
+                                   "before); a command run afterwards makes its runs again.")
+    p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="the cache folder (default: as above)")
+    p.add_argument("--clear", action="store_true", help="delete the kept runs")
+    p.add_argument("--older-than", type=float, default=None, metavar="DAYS",
+                   help="with --clear: only the runs last written more than DAYS days ago")
+    p.set_defaults(func=cmd_cache)
+
     p = sub.add_parser("discrepancy", help="find the effect the model misses, add it, show the gap shrink",
                        description="After the baseline update, each effect the model offers "
                                    "(candidate_effects(); the beam's: initial_imperfection, "
                                    "amplitude_dependent_damping, shaker_attachment, clamp_compliance) is "
                                    "fitted with its own parameters and ranked by Laplace evidence; one is "
                                    "named only when 2 ln B > 6, its parameter excludes 'no effect' and it "
-                                   "explains the gap; then re-update and the gap before and after. Writes "
+                                   "predicts the validation tests better; then re-update, and the gap that "
+                                   "remains, in numbers. Writes "
                                    "discrepancy.json, evidence.md and figures. Without --data: the beam's "
                                    "embedded default data set.")
     add_data_out(p)
@@ -342,6 +354,21 @@ def cmd_discrepancy(args) -> int:
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")
+    return 0
+
+
+def cmd_cache(args) -> int:
+    from bayes_update.core.runs import clear_runs, default_root, runs_usage
+
+    if args.older_than is not None and not args.clear:
+        raise ValueError("--older-than goes with --clear")
+    root = args.cache if args.cache is not None else default_root()
+    if args.clear:
+        n, freed = clear_runs(root, args.older_than)
+        print(f"deleted {n} runs ({freed / 1e6:.1f} MB) from {Path(root) / 'runs'}")
+    u = runs_usage(root)
+    age = "" if u["oldest_days"] is None else f", the oldest {u['oldest_days']:.1f} days old"
+    print(f"{u['folder']}: {u['runs']} runs of {u['models']} model(s), {u['bytes'] / 1e6:.1f} MB{age}")
     return 0
 
 

@@ -43,7 +43,7 @@ import numpy as np
 
 from bayes_update.core.steps import StepLog
 
-__all__ = ["RunStore", "StoreSteps", "default_root", "store_in"]
+__all__ = ["RunStore", "StoreSteps", "clear_runs", "default_root", "runs_usage", "store_in"]
 
 #: the journal of runs written: a byte each
 JOURNAL = "made.log"
@@ -65,6 +65,52 @@ def default_root() -> Path:
 def store_in(cache_dir, source: str) -> "RunStore":
     """The :class:`RunStore` of a cache folder (its ``runs`` folder)."""
     return RunStore(Path(cache_dir) / "runs", source)
+
+
+def _entries(cache_dir):
+    runs = Path(cache_dir) / "runs"
+    return [p for p in runs.glob("*/*/*") if p.suffix in (".npz", ".err")] if runs.is_dir() else []
+
+
+def runs_usage(cache_dir) -> dict:
+    """What the run cache of ``cache_dir`` holds: ``{"folder", "runs", "bytes", "models",
+    "oldest_days"}`` (``models``: the number of distinct model keys; ``oldest_days``: the
+    age of the oldest run [days], None when empty)."""
+    import time
+
+    entries = _entries(cache_dir)
+    stats = [p.stat() for p in entries]
+    return {"folder": str(Path(cache_dir) / "runs"), "runs": len(entries), "bytes": sum(s.st_size for s in stats),
+            "models": len({p.parent.parent.name for p in entries}),
+            "oldest_days": (time.time() - min(s.st_mtime for s in stats)) / 86400.0 if stats else None}
+
+
+def clear_runs(cache_dir, older_than_days: float | None = None) -> tuple[int, int]:
+    """Delete the kept runs of ``cache_dir`` (all, or those last written more than
+    ``older_than_days`` days ago) and the folders left empty; numba's compiled kernels,
+    beside them, are not touched.  Returns (runs deleted, bytes freed)."""
+    import time
+
+    if older_than_days is not None and not older_than_days >= 0:
+        raise ValueError(f"older_than_days must be >= 0, got {older_than_days!r}")
+    cut = None if older_than_days is None else time.time() - 86400.0 * older_than_days
+    n = freed = 0
+    for p in _entries(cache_dir):
+        try:
+            st = p.stat()
+            if cut is None or st.st_mtime < cut:
+                p.unlink()
+                n, freed = n + 1, freed + st.st_size
+        except OSError:
+            continue
+    runs = Path(cache_dir) / "runs"
+    for d in sorted(runs.glob("*/*"), reverse=True) + sorted(runs.glob("*")):
+        if d.is_dir() and not any(d.iterdir()):
+            d.rmdir()
+    if cut is None:
+        for name in (JOURNAL, FOUND):
+            (runs / name).unlink(missing_ok=True)
+    return n, freed
 
 
 def _sha(data: bytes) -> str:
