@@ -105,7 +105,7 @@ def _rig_rhs(t, s, knots, coef, w, k2, nu):
     u = ((coef[0, i] * d + coef[1, i]) * d + coef[2, i]) * d + coef[3, i]
     out = np.empty(4)
     out[0] = dx
-    out[1] = w * w * (GAIN * v - x - k2 * x * x - K3 * x ** 3) - 2 * ZETA * w * dx * (1.0 + nu * dx * dx)
+    out[1] = _accel(x, dx, v, w, ZETA, GAIN, k2, K3, nu)
     out[2] = (u - v) / TAU_IN
     out[3] = (x - y) / TAU_OUT
     return out

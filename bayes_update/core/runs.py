@@ -36,6 +36,7 @@ import inspect
 import json
 import os
 import pickle
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -76,8 +77,6 @@ def runs_usage(cache_dir) -> dict:
     """What the run cache of ``cache_dir`` holds: ``{"folder", "runs", "bytes", "models",
     "oldest_days"}`` (``models``: the number of distinct model keys; ``oldest_days``: the
     age of the oldest run [days], None when empty)."""
-    import time
-
     entries = _entries(cache_dir)
     stats = [p.stat() for p in entries]
     return {"folder": str(Path(cache_dir) / "runs"), "runs": len(entries), "bytes": sum(s.st_size for s in stats),
@@ -89,8 +88,6 @@ def clear_runs(cache_dir, older_than_days: float | None = None) -> tuple[int, in
     """Delete the kept runs of ``cache_dir`` (all, or those last written more than
     ``older_than_days`` days ago) and the folders left empty; numba's compiled kernels,
     beside them, are not touched.  Returns (runs deleted, bytes freed)."""
-    import time
-
     if older_than_days is not None and not older_than_days >= 0:
         raise ValueError(f"older_than_days must be >= 0, got {older_than_days!r}")
     cut = None if older_than_days is None else time.time() - 86400.0 * older_than_days
