@@ -9,7 +9,7 @@ import pytest
 from bayes_update import Parameter
 from bayes_update.core.checks import test_disagreement as disagreement
 from bayes_update.core.effects import DECISIVE
-from bayes_update.core.held_out import held_out_comparison
+from bayes_update.core.held_out import describe, held_out_comparison
 from test_user_discrepancy import Duffing, make_dataset
 
 
@@ -79,6 +79,11 @@ def test_the_held_out_gain_of_two_equal_models_is_noise_of_the_stated_sd():
     y = truth + sigma * rng.standard_normal(n)
     better = held_out_comparison(_Problem({"t": y}, sigma), {"t": m0}, {"t": truth + 0.005 * np.cos(np.arange(n))})
     assert better["improves"] and better["tests"]["t"]["after"] < better["tests"]["t"]["before"]
+    # a model that moves the prediction toward the truth by far less than the noise: z is large
+    # (the residual's projection on a direction), but no record could tell the two apart
+    tiny = held_out_comparison(_Problem({"t": y}, sigma), {"t": m0}, {"t": m0 + 1e-6 * (truth - m0)})
+    assert tiny["z"] > 3.0 and tiny["sd"] < 1.0 and not tiny["improves"], tiny
+    assert "the same prediction within the noise" in describe(tiny)
 
 
 def test_tests_disagree_only_where_a_prediction_would_show_it():

@@ -9,7 +9,11 @@ tests and sensors) is ``||t - m0||^2 - ||t - m1||^2`` plus ``2 n . (m1 - m0) / s
 whose sd is ``2 ||m1 - m0|| / sigma`` (the noise is common to both errors, so only its
 projection on the models' difference counts).  The gain is significant when it
 exceeds :data:`SIGNIFICANT_SD` of that: an improvement no noise realisation of the
-record would give.
+record would give.  Two models whose held-out responses differ by less than half a
+noise sd in all (``||m1 - m0|| / sigma < 1/2``, the gain's sd below one) make the same
+prediction as far as any record can tell: no improvement, whatever z says (where a
+model leaves a residual many times its noise, an effect at its null, 1e-10, moved the
+responses by 1e-6 of the noise and scored z = +2275).
 """
 from __future__ import annotations
 
@@ -68,7 +72,9 @@ def held_out_comparison(problem, before: dict | None, after: dict | None) -> dic
         tests[name] = {"before": float(np.sqrt(np.mean(rel[0] ** 2))), "after": float(np.sqrt(np.mean(rel[1] ** 2)))}
     sd = math.sqrt(var)
     z = gain / sd if sd > 0 else 0.0
-    return {"gain": gain, "sd": sd, "z": z, "improves": bool(z > SIGNIFICANT_SD), "tests": tests}
+    distinct = sd >= 1.0
+    return {"gain": gain, "sd": sd, "z": z, "distinct": distinct, "improves": bool(distinct and z > SIGNIFICANT_SD),
+            "tests": tests}
 
 
 def describe(comparison: dict | None) -> str:
@@ -79,4 +85,6 @@ def describe(comparison: dict | None) -> str:
     if comparison is None:
         return "-"
     tests = ", ".join(f"{t} {100 * v['before']:.3g} -> {100 * v['after']:.3g} %" for t, v in comparison["tests"].items())
+    if not comparison.get("distinct", True):
+        return f"{tests} (the same prediction within the noise)"
     return f"{tests} ({comparison['z']:+.1f} sd)"
