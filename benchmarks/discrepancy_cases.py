@@ -95,6 +95,12 @@ def judge(case, effects, res) -> dict:
                       for rnd in res.rounds for c in rnd.get("pairs", [])]}
 
 
+def evidence(res) -> list:
+    """The first round's candidates: name, 2 ln B and each held-out test's error before / after."""
+    return [{"name": c["name"], "two_ln_B": c["two_ln_B"], "held_out": (c["held_out"] or {}).get("tests")}
+            for c in res.rounds[0]["candidates"]]
+
+
 def judge_form(case, res) -> dict:
     """A model-form case: with the tip spring, tip_cubic the decisive candidate and named exactly
     when it predicts the held-out tests better (the naming rule: a two-mode model may carry a
@@ -121,8 +127,7 @@ def judge_form(case, res) -> dict:
             "success": success, "time_s": res.timing["total"], "gap_before": b, "gap_after": a,
             "gap_sentence": res.gap_sentence(),
             "detectable_from": {e: d["detectable_from"] for e, d in res.detectability.items()},
-            "evidence": [{**{k: c[k] for k in ("name", "two_ln_B")},
-                          "held_out": (c["held_out"] or {}).get("tests")} for c in res.rounds[0]["candidates"]],
+            "evidence": evidence(res),
             "pairs": []}
 
 
@@ -153,8 +158,7 @@ def run_circuit_case(case, settings):
             "shrink_validation": 1 - a["held_out_error_beyond_noise"] / b["held_out_error_beyond_noise"],
             "parameters": pars, "success": named_ok and better and all(p["inside"] for p in pars),
             "time_s": res.timing["total"], "gap_before": b, "gap_after": a, "gap_sentence": res.gap_sentence(),
-            "evidence": [{**{k: c[k] for k in ("name", "two_ln_B")}, "held_out": (c["held_out"] or {}).get("tests")}
-                         for c in res.rounds[0]["candidates"]], "pairs": []}
+            "evidence": evidence(res), "pairs": []}
 
 
 def run_form_case(case, settings):
