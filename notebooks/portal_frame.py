@@ -246,7 +246,7 @@ class PortalFrame:
             ops.equalDOF(tr, _BEAM + n, 1, 2)
 
         ops.geomTransf("PDelta", _TRANSF)
-        E = YOUNGS_MODULUS_PA
+        E = YOUNGS_MODULUS_PA * float(theta.get("e_scale", 1.0))    # a model that updates the modulus
         G = E / (2.0 * (1.0 + POISSON_RATIO))
         tag = 0
         for chain, sec in (([_LEFT + i for i in range(n + 1)], COLUMN_SECTION_M),
@@ -465,8 +465,8 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
         scaled = levels["high"] / levels["low"] * y_low
         share = {name: float(np.linalg.norm(y_high[:, j] - scaled[:, j]) / np.linalg.norm(y_high[:, j]))
                  for j, name in enumerate(names)}
-    units = {p.name: p.unit for p in PortalFrame.parameters}
-    units.update({p.name: p.unit for ps in PortalFrame().candidate_effects().values() for p in ps})
+    units = {p.name: p.unit for p in type(rig).parameters}
+    units.update({p.name: p.unit for ps in rig.candidate_effects().values() for p in ps})
     doc = {
         "name": "portal-frame-virtual-rig",
         "sampling_rate_hz": fs,

@@ -183,7 +183,9 @@ class RefinementResult:
         finite rows of (X, y).
     rounds : one dict per round, round 0 being the initial fit: ``round``,
         ``n_train`` (points fitted), ``n_failed`` (non-finite rows left out),
-        ``X_new``, ``y_new``, ``results`` (raw outputs of func), ``surrogate``.
+        ``X_new``, ``y_new``, ``y_pred`` (the previous surrogate's transformed mean
+        at ``X_new``, before they were run; not in round 0), ``results`` (raw
+        outputs of func), ``surrogate``.
     """
 
     X: np.ndarray
@@ -262,9 +264,13 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     min_distance, log_weight, power : as in :func:`propose_points`.
     parallel_fits : the outputs' surrogates fitted in ``executor``'s workers
         (they must be picklable; the fits are the same).
-    until : callable ``(surrogate) -> bool`` or None: asked before every round
-        (after the initial fit and after each round's); True ends the
-        refinement there (e.g. when what the surrogate is for no longer moves).
+    until : callable ``(surrogate, rounds) -> bool`` or None: asked before every
+        round (after the initial fit and after each round's) with the current
+        surrogate and the rounds so far (each round's ``y_pred``: what the
+        surrogate before it predicted, in its transformed space, at the points it
+        then ran: a held-out check of the surrogate the rule may read); True
+        ends the refinement there (e.g. when what the surrogate is for no longer
+        moves and predicted the last round's runs).
 
     Returns
     -------
@@ -285,7 +291,7 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     rounds = [{"round": 0, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X.copy(), "y_new": y.copy(),
                "results": None, "surrogate": sur}]
     for r in range(1, int(n_rounds) + 1):
-        if until is not None and until(sur):
+        if until is not None and until(sur, rounds):
             break
         rng = np.random.default_rng(seeds[r - 1])
         cand = candidates(sur, rng) if callable(candidates) else candidates
@@ -294,12 +300,14 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
                                min_distance=min_distance, log_weight=log_weight, power=power)
         results = evaluate(func, list(X_new), executor=executor, progress=progress)
         y_new = np.array([target(res) for res in results], dtype=float)
+        y_pred = np.column_stack([s.mean_transformed(X_new) for s in _as_list(sur)])
         if y_new.shape[1:] != y.shape[1:]:
             raise ValueError(f"target gave values of shape {y_new.shape[1:]}, y has {y.shape[1:]}")
         X, y = np.vstack([X, X_new]), np.concatenate([y, y_new])
         sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None, executor=fit_pool)
         rounds.append({"round": r, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X_new,
-                       "y_new": y_new, "results": results, "surrogate": sur})
+                       "y_new": y_new, "y_pred": y_pred if y.ndim == 2 else y_pred[:, 0], "results": results,
+                       "surrogate": sur})
     if warm_start and len(rounds) > 1:
         sur, _ = _fit(surrogate_factory, X, y, executor=fit_pool)
         rounds[-1]["surrogate"] = sur

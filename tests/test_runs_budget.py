@@ -97,13 +97,18 @@ def test_refine_stops_when_asked():
     y = np.array([f(x) for x in X])
     calls = []
 
-    def until(sur):
-        calls.append(1)
+    def until(sur, rounds):
+        calls.append(len(rounds))
         return len(calls) >= 2
 
     ref = surrogates.refine(f, lambda: surrogates.GPSurrogate(box, transform="none"), X, y,
                             lambda s: (lambda Z: np.ones(len(Z))), n_rounds=5, batch=3, until=until, progress=False)
-    assert len(ref.rounds) == 2 and len(ref.X) == 15
+    assert len(ref.rounds) == 2 and len(ref.X) == 15 and calls == [1, 2]
+    # each round holds what the surrogate before it predicted at its points: an independent check, f itself
+    last = ref.rounds[1]
+    before = ref.rounds[0]["surrogate"]
+    assert np.allclose(last["y_pred"], before.mean_transformed(last["X_new"]))
+    assert np.allclose(last["y_new"], [f(x) for x in last["X_new"]])
 
 
 def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
