@@ -251,8 +251,8 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     ref_model, error_source = None, "off (model_error=False)"
     if model_error:
         ref_model = refined if refined is not None else problem.refined_model()
-        error_source = (f"{type(ref_model).__name__} (refined)" if ref_model is not None else
-                        f"none: {type(problem.model).__name__} has no refined(), so the model error is taken as 0")
+        error_source = (f"{type(ref_model).__name__} (refined)" if refined is not None
+                        else problem.refinement_source())
     space = space if space is not None else problem.default_space()
     # every random draw first, stage by stage in a fixed order, then every model run of every
     # stage in one call to the executor (the workers never wait for a stage), then the sums

@@ -406,8 +406,25 @@ class Problem:
 
     def refined_model(self):
         """The finer model of the same physics for the model-error term: the
-        model's ``refined()``, or None (the term is then zero)."""
-        return self.model.refined() if hasattr(self.model, "refined") else None
+        model's ``refined()``, else the model at twice the sampling rate where it
+        runs there as a discretisation (:mod:`bayes_update.core.refinement`), else
+        None (the term is then zero); :meth:`refinement_source` says which."""
+        return self._refinement()[0]
+
+    def refinement_source(self) -> str:
+        """What the model error is measured against, or why it is zero (for the log)."""
+        return self._refinement()[1]
+
+    def _refinement(self):
+        if getattr(self, "_refined", None) is None:
+            if hasattr(self.model, "refined"):
+                self._refined = (self.model.refined(), f"{type(self.model).__name__}.refined()")
+            else:
+                from bayes_update.core.refinement import twice_the_rate
+
+                test = self.tests[self.stages[0]]
+                self._refined = twice_the_rate(self.model, self.default_space().center(), test.force, self.fs)
+        return self._refined
 
     def describe_model(self) -> dict:
         """What identifies the model in a cache key and a report: the model's own
