@@ -44,6 +44,7 @@ cannot be trusted raises :class:`PoleEstimationError`, saying what to check.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -168,6 +169,20 @@ def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max
     return modes, sig, pseudo + demoted
 
 
+def _one_blas_thread(func):
+    """``func`` with one BLAS thread: its fits' matrices are a few hundred rows of a few dozen
+    columns, where threads only contend (the four tests of the lab records' inspection took 58 s
+    with two OpenBLAS threads on 2 cores, 14 s with one; in two test workers at once, 175 s)."""
+    @functools.wraps(func)
+    def wrapper(*args, **kwargs):
+        from threadpoolctl import threadpool_limits
+
+        with threadpool_limits(1, user_api="blas"):
+            return func(*args, **kwargs)
+    return wrapper
+
+
+@_one_blas_thread
 def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, refine: bool = True,
                    period_samples: int | None = None, min_coherence: float = MIN_COHERENCE,
                    max_damping: float = DEFAULT_MAX_DAMPING, max_order: int = MAX_LSCF_ORDER,
