@@ -259,9 +259,11 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     if not cand:
         peak = peak_mode(f, lines.detect)
         cand = [] if peak is None or not inside(*peak, band, spacing) else [peak]
-    no_mode = (f"no mode stands out of the noise in ({lo:.4g}, {hi:.4g}) Hz (lines read: {lines.method}): "
-               "check that y is the response to u (channels, units, synchronisation), the noise level, "
-               "f_range, and offsets or slow drifts in u and y.")
+    no_mode = (f"no mode stands out of the noise in ({lo:.4g}, {hi:.4g}) Hz (lines read: {lines.method}, "
+               f"{spacing:.3g} Hz apart): check that y is the response to u (channels, units, synchronisation), "
+               "the noise level, f_range, offsets or slow drifts in u and y, and that the record is long enough: "
+               f"a mode whose half-power band (2 zeta f) is narrower than the lines' spacing ({spacing:.3g} Hz) "
+               "is not resolved (record more periods or a longer record).")
     corr = lines.correlated
     fixed = n_modes is not None
     modes, sig = select(d.take(fit_lines(f, cand, spacing)), cand, pseudo, fixed, min_significance, spacing, corr)
