@@ -69,7 +69,8 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     refinement rounds; all in u coordinates.  ``means``: a prior mean per stage
     (:func:`gauss_newton_means`), else constant means.  ``earlier``: (X, z) of
     runs already made (an earlier box's design, X in the model's internal
-    coordinates): those inside this box join its initial design."""
+    coordinates): those inside this box join its initial design.  Returns the GPs, the
+    design (u, z), the GP fits' time [s] and how many of its points were ``earlier``'s."""
     from threadpoolctl import threadpool_limits
 
     ss = np.random.SeedSequence(seed).spawn(3)
@@ -96,11 +97,13 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
         return [float(lik.to_z(st, r[Likelihood.key(st)])) for st in stages]
 
     Y0 = np.array([target(r) for r in res])
+    n_earlier = 0
     if earlier is not None:
         U_old = whitening.to_u(earlier[0])
         keep = (np.all(np.abs(U_old) <= box[:, 1], axis=1) & np.all(np.isfinite(earlier[1]), axis=1)
                 & np.isfinite(space.log_prior(earlier[0])))
         U0, Y0 = np.vstack([U0, U_old[keep]]), np.vstack([Y0, earlier[1][keep]])
+        n_earlier = int(keep.sum())
         log(f"the design starts with {int(keep.sum())} runs of the earlier box inside this one")
 
     def weight(surs):
@@ -150,7 +153,7 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
     for st, gp in gps.items():
         log(f"GP of z_{st}: {int(np.isfinite(ref.y[:, 0]).sum())} runs in {len(ref.rounds)} fits; "
             + gp.summary().splitlines()[0])
-    return gps, ref.X, ref.y, t_fit
+    return gps, ref.X, ref.y, t_fit, n_earlier
 
 
 def n_initial(settings, d: int) -> int:
