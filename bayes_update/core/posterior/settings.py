@@ -44,8 +44,9 @@ class PosteriorSettings:
     thin: int = 5               # kept draws: every thin-th step after burn-in (at least; at most 8000 kept)
     # the chain is extended by n_steps at a time until every reported variable has R-hat < 1.01 and
     # bulk and tail ESS >= 400 (mcmc.run_to_convergence), up to max_steps (a warning says when not):
-    # on the surrogates a step costs no model run, on the direct path every walker's step does
-    max_steps: int = 15000
+    # on the surrogates a step costs no model run, on the direct path every walker's step does; a
+    # curved ridge (benchmarks/ridge_frame.py --top-only) needed 21000 steps (R-hat 1.0155 at 15000)
+    max_steps: int = 30000
     direct_walkers: int = 64    # the direct path: every walker's step is a model run per test
     direct_steps: int = 3000
     direct_burn: int = 1000
