@@ -194,6 +194,19 @@ class RefinementResult:
     rounds: list = field(default_factory=list)
 
 
+def _n_positional(func) -> int:
+    """How many positional arguments ``func`` takes (a large number for ``*args``)."""
+    import inspect
+
+    try:
+        params = inspect.signature(func).parameters.values()
+    except (TypeError, ValueError):
+        return 1
+    if any(p.kind is p.VAR_POSITIONAL for p in params):
+        return 99
+    return sum(p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) for p in params)
+
+
 def _fit_one(job):
     """Fit one unfitted surrogate: ``job`` = (surrogate, X, y) (a worker's task)."""
     sur, X, y = job
@@ -264,7 +277,7 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
     min_distance, log_weight, power : as in :func:`propose_points`.
     parallel_fits : the outputs' surrogates fitted in ``executor``'s workers
         (they must be picklable; the fits are the same).
-    until : callable ``(surrogate, rounds) -> bool`` or None: asked before every
+    until : callable ``(surrogate, rounds) -> bool`` (or ``(surrogate) -> bool``) or None: asked before every
         round (after the initial fit and after each round's) with the current
         surrogate and the rounds so far (each round's ``y_pred``: what the
         surrogate before it predicted, in its transformed space, at the points it
@@ -285,13 +298,14 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
             raise ValueError(f"{name} must be a {'non-negative' if name == 'n_rounds' else 'positive'} "
                              f"integer, got {v!r}")
     target = target or float
+    takes_rounds = until is not None and _n_positional(until) >= 2     # (surrogate) alone: the older form
     seeds = np.random.SeedSequence(seed).spawn(int(n_rounds))
     fit_pool = executor if parallel_fits else None
     sur, n_ok = _fit(surrogate_factory, X, y, executor=fit_pool)
     rounds = [{"round": 0, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X.copy(), "y_new": y.copy(),
                "results": None, "surrogate": sur}]
     for r in range(1, int(n_rounds) + 1):
-        if until is not None and until(sur, rounds):
+        if until is not None and (until(sur, rounds) if takes_rounds else until(sur)):
             break
         rng = np.random.default_rng(seeds[r - 1])
         cand = candidates(sur, rng) if callable(candidates) else candidates

@@ -109,6 +109,12 @@ def test_refine_stops_when_asked():
     before = ref.rounds[0]["surrogate"]
     assert np.allclose(last["y_pred"], before.mean_transformed(last["X_new"]))
     assert np.allclose(last["y_new"], [f(x) for x in last["X_new"]])
+    # an ``until`` of the surrogate alone (the older form) is asked the same way
+    alone = []
+    ref = surrogates.refine(f, lambda: surrogates.GPSurrogate(box, transform="none"), X, y,
+                            lambda s: (lambda Z: np.ones(len(Z))), n_rounds=5, batch=3,
+                            until=lambda sur: alone.append(sur) or len(alone) >= 3, progress=False)
+    assert len(ref.rounds) == 3 and len(alone) == 3
 
 
 def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
