@@ -73,7 +73,8 @@ def test_a_model_of_the_samples_is_not_refined_by_another_rate():
         def simulate(self, theta, force, fs):
             return signal.lfilter([0.2, 0.1], [1.0, -1.6, 0.8], force)
 
-    refined, why = twice_the_rate(FixedFilter(), {}, _force(), FS_HZ)
+    with pytest.warns(RuntimeWarning, match="give it a refined"):
+        refined, why = twice_the_rate(FixedFilter(), {}, _force(), FS_HZ)
     assert refined is None and "a model of the samples" in why and "taken as 0" in why
 
 

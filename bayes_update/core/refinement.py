@@ -20,6 +20,8 @@ filter with fixed coefficients, is not refined by it).  A model opts out by a
 """
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 from scipy import signal
 
@@ -70,8 +72,14 @@ def twice_the_rate(model, theta, force, fs: float) -> tuple[AtTwiceTheRate | Non
     scale = np.linalg.norm(coarse)
     change = np.linalg.norm(fine - coarse) / scale if scale > 0 else 0.0
     if change > MAX_PROBE_CHANGE:
+        # either a model of the samples (then nothing is wrong) or a continuous model far from
+        # converged at this rate (then its posterior is too narrow): only the user can tell
+        warnings.warn(f"{name} has no refined(), and at twice the sampling rate its response changes by "
+                      f"{100 * change:.3g} %: if it models a continuous structure it is far from converged at "
+                      "this rate and its posterior will be too narrow; give it a refined() (a finer model of the "
+                      "same physics)", RuntimeWarning, stacklevel=2)
         return None, (f"none: {name} has no refined(), and at twice the sampling rate its response changes by "
-                      f"{100 * change:.3g} % (a model of the samples, not of a continuous structure); the model "
-                      "error is taken as 0")
+                      f"{100 * change:.3g} % (a model of the samples, or far from converged: a warning says "
+                      "so); the model error is taken as 0")
     return refined, (f"{name} at twice the sampling rate (it has no refined(); the probe moved its response by "
                      f"{100 * change:.3g} %)")
