@@ -213,11 +213,10 @@ class _Stability:
             return float("nan")
         from scipy import stats
 
-        ran = np.atleast_2d(rounds[-1]["y_new"].T).T
-        predicted = np.atleast_2d(rounds[-1]["y_pred"].T).T
-        ll_ran, ll_pred = self.log_likelihood(ran), self.log_likelihood(predicted)
-        runs = [np.atleast_2d(r["y_new"].T).T for r in rounds]
-        best = max(float(np.max(v[np.isfinite(v)], initial=-np.inf)) for v in map(self.log_likelihood, runs))
+        # z per stage, (runs, stages): the design's rounds
+        ll_ran, ll_pred = self.log_likelihood(rounds[-1]["y_new"]), self.log_likelihood(rounds[-1]["y_pred"])
+        ll_all = self.log_likelihood(np.vstack([r["y_new"] for r in rounds]))
+        best = float(np.max(ll_all[np.isfinite(ll_all)], initial=-np.inf))
         inside = np.isfinite(ll_ran) & (np.maximum(ll_ran, ll_pred) >= best - 0.5 * stats.chi2.ppf(MASS_LEVEL, self.d))
         return float(np.max(np.abs(ll_ran - ll_pred)[inside], initial=0.0))
 

@@ -323,10 +323,10 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
         with run.steps("design_and_gp"):
             means = (gauss_newton_means(mp.mode, run.problem, stages, whitening)
                      if s.gp_mean == "gauss_newton" and mp.mode is not None else None)
-            gps, U, Y, fit_time, n_earlier = _build_surrogates(WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening,
-                                                    s, run.pool, None, stages, run.seeds[3] + attempt,
-                                                    run.progress, run.log, run.reused, means,
-                                                    None if design is None else (design["X"], design["z"]))
+            earlier = None if design is None else (design["X"], design["z"])
+            gps, U, Y, fit_time, n_earlier = _build_surrogates(
+                WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening, s, run.pool, None, stages,
+                run.seeds[3] + attempt, run.progress, run.log, run.reused, means, earlier)
             # the earlier box's points were run (and counted) there
             run.steps.add_runs(len(stages) * (int(np.sum(np.all(np.isfinite(Y), axis=1))) - n_earlier))
         run.steps.timing["gp_fit"] += fit_time
