@@ -10,12 +10,13 @@ one more per parameter):
 
 * the evidence the workflow would find on records holding the effect at m,
   scored as it scores it (:mod:`bayes_update.core.comparison`: each model under
-  the noise and the model-form error its own mode leaves): the model with the
-  effect leaves there what the baseline leaves on its own records; the model
-  without it leaves that plus the part of the effect's change no change of the
-  baseline's parameters takes up, and its form error holds the effect's time
-  response too; ``2 ln B(m)`` is twice the difference of their Laplace log
-  evidences (the effect's Jacobian in the first);
+  the noise and the model-form error its own residual leaves), each model at its
+  linearised least-squares optimum: the model with the effect takes up the
+  effect's change and whatever of the baseline's own residual the span of its
+  parameters and the effect's holds; the model without it leaves the baseline's
+  residual plus the part of the effect's change no change of the baseline's
+  parameters takes up; ``2 ln B(m)`` is twice the difference of their Laplace
+  log evidences (the effect's Jacobian in the first);
 * the held-out gain: the validation tests' response change, with the baseline's
   parameters moved as the fit would move them (their Gauss-Newton step on the
   estimation tests' change), in units of the records' noise: the gain's z is
@@ -37,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bayes_update.core.comparison import error_covariance, evidence
+from bayes_update.core.comparison import error_covariance, evidence, form_scale
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
 from bayes_update.core.held_out import SIGNIFICANT_SD
 from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, SpacePoint
@@ -56,7 +57,7 @@ MIN_MAGNITUDE = 1e-7
 @dataclass
 class _Point:
     """Picklable: at internal point x of ``space``, the estimation tests' scaled residual
-    and time responses and the validation tests' responses (None where the model cannot run)."""
+    and the validation tests' responses (None where the model cannot run)."""
 
     fun: ResidualFunction
     space: ExtendedSpace
@@ -67,13 +68,11 @@ class _Point:
         if np.any(r == FAILED_RESIDUAL):
             return None
         try:
-            y = {st: problem.compared_response(problem.run(theta, problem.tests[st].force, model=problem.model))
-                 for st in self.fun.stages}
             v = {n: problem.compared_response(problem.run(theta, t.force, model=problem.model))
                  for n, t in problem.validation.items()}
         except problem.failures:
             return None
-        return r, v, y
+        return r, v
 
 
 def _far(p) -> float:
@@ -96,6 +95,9 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
     base_prior, base_widths = base_space.log_prior_density(x0), base_space.widths()
     sizes = [problem.output(st, problem.reference_components(st)).size for st in problem.stages]
     sd = [lik.scales[st].sd for st in problem.stages]
+    # each test's noise covariance (and its observation basis); each model's form error comes
+    # from what it leaves (bayes_update.core.comparison)
+    noise = [error_covariance(problem, lik, st) for st in problem.stages]
     for name, params in effects.items():
         space = ExtendedSpace(base, list(params))
         fun = ResidualFunction(problem, problem.stages, tuple(sd), SpacePoint(space, problem.model))
@@ -104,13 +106,11 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
         null = np.array([p.null for p in params])
         box = space.box()[n0:]
         h = 1e-3 * (box[:, 1] - box[:, 0])
-        base_cov = None
 
         def rungs(magnitudes):
-            """The ladder's (m, 2 ln B, held-out z) at ``magnitudes`` (the baseline
-            itself run first on the first call: its error covariance)."""
-            nonlocal base_cov, runs
-            points, shifts = [np.concatenate([x0, space.null_internal()])], []
+            """The ladder's (m, 2 ln B, held-out z) at ``magnitudes``."""
+            nonlocal runs
+            points, shifts = [], []
             for m in magnitudes:
                 xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
                 points.append(np.concatenate([x0, xe]))
@@ -119,29 +119,14 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
                     points.append(points[-1 - i].copy())
                     points[-1][n0 + i] += step
                     shifts.append(step)
-            if base_cov is not None:
-                points = points[1:]
             done = evaluate_many(_Point(fun, space), points, executor, progress=False)
             runs += len(points) * (len(problem.stages) + len(problem.validation))
-            if base_cov is None:
-                if done[0] is None:
-                    return None
-                # the baseline on its own records: its error covariance (noise and its own form error)
-                base_cov = {st: (done[0][2][st], error_covariance(problem, lik, st,
-                                                                 problem.tests[st].response - done[0][2][st]))
-                            for st in problem.stages}
-                done = done[1:]
-            at = points[-len(done):]
-            return [_rung(problem, lik, space, fun.stages, sizes, sd, base_cov, r0, Jb, Q, steps,
-                          m, at[j * (k + 1)], done[j * (k + 1)], done[1 + j * (k + 1):(j + 1) * (k + 1)],
-                          shifts[j * k:(j + 1) * k], base_prior, base_widths)
+            return [_rung(problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, points[j * (k + 1)],
+                          done[j * (k + 1)], done[1 + j * (k + 1):(j + 1) * (k + 1)], shifts[j * k:(j + 1) * k],
+                          base_prior, base_widths)
                     for j, m in enumerate(magnitudes)]
 
         ladder = rungs(LADDER)
-        if ladder is None:
-            out[name] = {"ladder": [], "detectable_from": None, "magnitude": None,
-                         "text": "not known: the model cannot run at the baseline"}
-            continue
         # named already at the first rung: the limit lies below it; go down until it is not
         # (a limit at the first rung would only be an upper bound)
         while (_named(*ladder[0][1:]) and ladder[0][0] / RUNG > MIN_MAGNITUDE):
@@ -151,8 +136,8 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
     return out, runs
 
 
-def _rung(problem, lik, space, stages, sizes, sd, base_cov, r0, Jb, Q, steps, m, x_at, at, cols, shifts,
-          base_prior, base_widths) -> tuple:
+def _rung(problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, x_at, at, cols, shifts, base_prior,
+          base_widths) -> tuple:
     """One ladder point: (m, 2 ln B, held-out z) from the runs at the effect's magnitude
     ``m`` (internal point ``x_at``, its runs ``at``) and its Jacobian's steps (``cols``,
     ``shifts``)."""
@@ -161,20 +146,27 @@ def _rung(problem, lik, space, stages, sizes, sd, base_cov, r0, Jb, Q, steps, m,
     dr = at[0] - r0
     perp = dr - Q @ (Q.T @ dr)
     Je = np.column_stack([(c[0] - at[0]) / shifts[i] for i, c in enumerate(cols)])
-    # on records holding the effect at m: the model with it leaves what the baseline leaves on
-    # its own records; the model without it leaves that plus what of the effect's change its
-    # parameters cannot take up, and a form error that holds the effect's change too
+    # on records holding the effect at m, each model at its least-squares optimum (linearised): the
+    # model with it takes up the effect's change and, with the baseline's parameters and its own,
+    # whatever of the baseline's residual their span holds (an effect can also fit part of the
+    # baseline's own misfit); the model without it leaves the baseline's residual plus what of the
+    # effect's change its parameters cannot take up.  Each is scored under the noise and the
+    # form error its own residual leaves (both counted alike: a form error from the change
+    # before the refit, or a with-model charged the baseline's whole residual, made the limits
+    # 2-7x off, either way).
+    Qe = _span(np.column_stack([Jb, Je]))
+    r_with, r_wo = r0 - Qe @ (Qe.T @ r0), r0 - perp          # r = (ref - out): the data moved by dout
     a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
-    for i, (st, n) in enumerate(zip(stages, sizes)):
-        y0, (S0, Qo) = base_cov[st]
+    for st, n, s, (S_noise, Qo) in zip(problem.stages, sizes, sd, noise):
         sl = slice(row, row + n)
         row += n
-        a_with[st] = Qo.T @ (r0[sl] * sd[i])
-        J_with[st] = Qo.T @ (np.column_stack([Jb[sl], Je[sl]]) * sd[i])
-        S_with[st] = S0
-        a_wo[st] = Qo.T @ ((r0[sl] - perp[sl]) * sd[i])          # r = (ref - out): the data moved by dout
-        J_wo[st] = Qo.T @ (Jb[sl] * sd[i])
-        S_wo[st] = error_covariance(problem, lik, st, problem.tests[st].response - y0 + (at[2][st] - y0))[0]
+        eye = np.eye(len(S_noise))
+        a_with[st] = Qo.T @ (r_with[sl] * s)
+        J_with[st] = Qo.T @ (np.column_stack([Jb[sl], Je[sl]]) * s)
+        S_with[st] = S_noise + form_scale(S_noise, a_with[st]) * eye
+        a_wo[st] = Qo.T @ (r_wo[sl] * s)
+        J_wo[st] = Qo.T @ (Jb[sl] * s)
+        S_wo[st] = S_noise + form_scale(S_noise, a_wo[st]) * eye
     z_with = evidence(a_with, J_with, S_with, space.log_prior_density(x_at), space.widths())[0]
     z_wo = evidence(a_wo, J_wo, S_wo, base_prior, base_widths)[0]
     two_ln_b = 2.0 * (z_with - z_wo) if np.isfinite(z_with) and np.isfinite(z_wo) else None
