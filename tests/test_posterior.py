@@ -497,7 +497,11 @@ def cli_sample(tmp_path_factory):
     from bayes_update.cli import main
 
     out = tmp_path_factory.mktemp("cli_sample") / "post"
-    assert main(["sample", "--model", "rom", "--quick", "--out", str(out), "--workers", "2", "--no-cache"]) == 0
+    # the predictive runs are opt-in (--quick changes sizes, not steps): asked for, for predictive.png
+    config = out.parent / "sample.toml"
+    config.write_text("[sample]\nn_predictive = 8\n")
+    assert main(["sample", "--model", "rom", "--quick", "--config", str(config), "--out", str(out), "--workers", "2",
+                 "--no-cache"]) == 0
     return out
 
 

@@ -107,15 +107,23 @@ class PosteriorSettings:
 
     @classmethod
     def quick(cls, **kw) -> "PosteriorSettings":
-        """Small sizes of the thorough pipeline for tests and a first look on a cheap model
-        (12 model-run replicates, a 40 + 2 x 16 design, short chains)."""
-        base = dict(THOROUGH, n_replicates=12, n_initial=40, n_rounds=2, batch=16, n_walkers=24, n_steps=3000,
-                    direct_walkers=24,
-                    burn=1000, thin=5, direct_steps=1000, direct_burn=400, max_steps=12000, direct_max_steps=2000,
-                    n_linear=32, n_global=48,
-                    sobol_n=256, n_predictive=8, map_max_evaluations=250)
-        base.update(kw)
+        """The default pipeline at small sizes, for tests and a first look on a cheap model:
+        the same steps (the coarse start, the frugal MAP, the Gauss-Newton GP mean, the
+        design's stopping rule, model-run replicates corrected by an LTI estimate) with
+        fewer noise replicates (24, 8 of them model runs), a smaller linear-only design,
+        fewer walkers and steps.  The opt-in steps (global sensitivity, predictive runs)
+        stay off, as in the defaults."""
+        base = dict(QUICK_SIZES, **kw)
+        # a longer chain asked for keeps room to extend it (the caps follow unless given)
+        base["max_steps"] = kw.get("max_steps", max(base["max_steps"], base["n_steps"]))
+        base["direct_max_steps"] = kw.get("direct_max_steps", max(base["direct_max_steps"], base["direct_steps"]))
         return cls(**base)
+
+
+#: the sizes :meth:`PosteriorSettings.quick` changes (``--quick``): sizes only, no step on or off
+QUICK_SIZES = dict(n_replicates=24, model_replicates=8, n_linear=32, n_walkers=32, n_steps=2000, burn=500, max_steps=8000,
+                   direct_walkers=24, direct_steps=1000, direct_burn=400, direct_max_steps=2000, sobol_n=256,
+                   map_max_evaluations=250)
 
 
 #: the sizes of :meth:`PosteriorSettings.thorough` (``bayes-update sample --thorough``)
