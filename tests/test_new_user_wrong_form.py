@@ -14,6 +14,8 @@ Every constant is this file's own.
 """
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pytest
 from numba import njit
@@ -92,11 +94,16 @@ def test_calibrate_says_the_linear_model_misses_the_hysteretic_test(hysteretic_d
 
 
 def test_sample_stops_after_its_start_with_a_message(hysteretic_data):
+    # the full start (every parameter fitted, coarse_start off): the check runs right after it,
+    # before any MAP; the message gives each test's miss against what noise allows, and the remedy
     with pytest.raises(ModelFitError, match="strong") as info:
-        bu.sample(hysteretic_data, Spring(), bu.PosteriorSettings.quick(), workers=1, progress=False,
-                  log=lambda *a: None)
-    print(f"\n[wrong form] sample: {info.value}")
-    assert "discrepancy" in str(info.value) or "model" in str(info.value)
+        bu.sample(hysteretic_data, Spring(), bu.PosteriorSettings.quick(coarse_start=False), workers=1,
+                  progress=False, log=lambda *a: None)
+    msg = str(info.value)
+    print(f"\n[wrong form] sample: {msg}")
+    for test in ("weak", "strong"):
+        assert re.search(rf"test {test} by \d+ % of its rms \(noise allows [\d.]+ %\)", msg), msg
+    assert "bayes-update discrepancy" in msg and "MAP" not in msg, msg
 
 
 def test_with_a_coarse_start_sample_stops_after_its_map(hysteretic_data):

@@ -66,10 +66,12 @@ def test_modes_and_their_level_dependence_on_lab_records(lab_set):
     freqs = lab.lab_modes()[0]
     # every mode of the chain, from the several-modes finder (volterra.estimate_modes)
     assert out["modes_from"] == "random_low.csv" and len(out["modes"]) == len(freqs)
+    # measured: frequencies within 6.1e-5, damping ratios within 0.04 % (tolerances 3x and 25x:
+    # the damping's at 1 %, what a finder of another record reaches, test_find_modes_is_one_small_function)
     got = np.array([m["freq_hz"] for m in out["modes"]])
-    assert np.allclose(got, np.sort(freqs), rtol=0.01), got
+    assert np.allclose(got, np.sort(freqs), rtol=2e-4), got
     for m in out["modes"]:
-        assert m["damping_ratio"] == pytest.approx(lab.LAB_DAMPING_RATIO, rel=0.15)
+        assert m["damping_ratio"] == pytest.approx(lab.LAB_DAMPING_RATIO, rel=0.01)
     assert len(out["level_dependence"]) == len(freqs)
     dep = out["level_dependence"][0]
     assert "random_low.csv" in dep["freq_hz"]
@@ -127,9 +129,16 @@ def test_the_default_data_set(default_set):
 
 
 def test_find_modes_is_one_small_function():
+    """One call per sensor finds the chain's three modes: measured within 7.3e-5 in frequency
+    and 1 % in damping on every sensor (tolerances 2.7x and 3x that)."""
     rec = lab.random_tests()[0]
-    modes = find_modes(rec.force, rec.response[:, 0], rec.fs)
-    assert isinstance(modes, list) and all(len(m) == 2 for m in modes)
+    freqs = np.sort(lab.lab_modes()[0])
+    for j in range(rec.response.shape[1]):
+        modes = find_modes(rec.force, rec.response[:, j], rec.fs)
+        assert len(modes) == 3, (j, modes)
+        f, z = np.array(modes).T
+        assert np.allclose(f, freqs, rtol=2e-4), (j, modes)
+        assert np.allclose(z, lab.LAB_DAMPING_RATIO, rtol=0.03), (j, modes)
     quiet = np.random.default_rng(1).standard_normal(rec.force.size)
     with pytest.raises(ValueError):
         find_modes(quiet, np.random.default_rng(2).standard_normal(rec.force.size), rec.fs)
