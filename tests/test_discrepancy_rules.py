@@ -86,6 +86,25 @@ def test_the_held_out_gain_of_two_equal_models_is_noise_of_the_stated_sd():
     assert "the same prediction within the noise" in describe(tiny)
 
 
+def test_one_test_predicted_worse_is_not_hidden_by_another_predicted_better():
+    """Two held-out tests: the new model is much nearer the truth on one and farther from it
+    (by many noise sd) on the other; the summed gain is large, but the held-out tests are not
+    predicted better."""
+    rng = np.random.default_rng(3)
+    n, sigma = 3000, 0.05
+    truth = np.sin(np.linspace(0, 60, n))
+    off = np.cos(np.linspace(0, 17, n))
+    y = {t: truth + sigma * rng.standard_normal(n) for t in ("random", "sweep")}
+    before = {"random": truth + 0.3 * off, "sweep": truth + 0.05 * off}
+    after = {"random": truth + 0.01 * off, "sweep": truth + 0.08 * off}
+    c = held_out_comparison(_Problem(y, sigma), before, after)
+    assert c["z"] > 30 and c["tests"]["sweep"]["z"] < -3 and c["tests"]["random"]["z"] > 3, c
+    assert not c["improves"], c
+    # the same gain on the first test with the second one unchanged is an improvement
+    after["sweep"] = before["sweep"]
+    assert held_out_comparison(_Problem(y, sigma), before, after)["improves"]
+
+
 def test_tests_disagree_only_where_a_prediction_would_show_it():
     """Two tests of n rows each (noise units), one parameter, their own estimates 10 combined sd
     apart: the difference moves a test's output by 10 sqrt(2 / n) noise sd (rms over its rows), so

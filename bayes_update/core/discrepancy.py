@@ -33,7 +33,7 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    :data:`~bayes_update.core.effects.DECISIVE`, the Laplace interval (mode +- 2
    sd) of one of its parameters excludes the null, the fit is neither at its
    null nor on a bound of its prior (both reported as such), and the
-   held-out tests are predicted better beyond their noise; then a next round
+   held-out tests are predicted better beyond their noise, none of them worse; then a next round
    looks for a second effect (``max_effects``).  When the strongest candidate
    is decisive but not named (on a bound of its prior, or predicting the
    held-out tests worse), it may be taking another effect's share as well:

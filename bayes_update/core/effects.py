@@ -238,7 +238,8 @@ def evidence_table(res) -> str:
 NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
                "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
                "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
-               "(validation) tests predicted better, by more than 3 sd of what their noise could give")
+               "(validation) tests predicted better, by more than 3 sd of what their noise could give, and none of them "
+               "worse by more than 3 sd of its own")
 
 
 def _two_ln_b(row) -> str:
@@ -255,7 +256,9 @@ def _note(row) -> str:
         return "on a bound of its prior"
     held = row.get("held_out")
     if row["two_ln_B"] > DECISIVE and held is not None and not held["improves"]:
-        return "decisive, but the held-out tests are not predicted better"
+        worse = [t for t, v in held["tests"].items() if v.get("z", 0.0) <= -3.0]
+        return ("decisive, but the held-out tests are not predicted better" if not worse else
+                f"decisive, but it predicts {', '.join(worse)} worse")
     return ""
 
 
