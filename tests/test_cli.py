@@ -61,6 +61,9 @@ def test_simulate_reports_bad_input(tmp_path, capsys):
     assert "buckling" in capsys.readouterr().err
     assert main(["simulate", "--data", str(tmp_path / "missing"), "--out", str(tmp_path / "o")]) == 2
     assert "not a folder" in capsys.readouterr().err
+    # a value in another unit (eta in Pa s, the option in MPa s) is named, not simulated
+    assert main(["simulate", "--out", str(tmp_path / "o"), "--eta", "3e6"]) == 2
+    assert "MPa s" in capsys.readouterr().err and not (tmp_path / "o").exists()
 
 
 def test_reader_rejects_non_uniform_time(tmp_path):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -130,9 +131,32 @@ def _require_beam_sensor(data: Dataset) -> None:
                           "calibrate --model file.py:NAME`")
 
 
+def check_parameters(values: dict) -> list[str]:
+    """The beam's parameters as given on the command line (paper units), against its
+    prior (the model checks their signs): a ValueError for a value more than 100 prior
+    widths above it (a unit slip: eta given in Pa s where the option is MPa s is 1e6 times too large);
+    the returned warnings name the values outside the prior but near it (simulated
+    as asked: a user may look outside it on purpose)."""
+    from bayes_update.models.beam.model import PRIOR, UNITS
+
+    warnings = []
+    for name, value in values.items():
+        lo, hi = PRIOR[name]
+        opt = f"--{name.replace('_', '-')} {value:g}"
+        if value > hi + 100 * (hi - lo):
+            raise ValueError(f"{opt}: {value / hi:.3g} times the prior's upper bound {hi:g} {UNITS[name]}; the option "
+                             f"is in {UNITS[name]} (the paper's unit): is the value in another unit?")
+        if not lo <= value <= hi:
+            warnings.append(f"{opt} is outside the prior ({lo:g} .. {hi:g} {UNITS[name]}): simulated as asked")
+    return warnings
+
+
 def cmd_simulate(args) -> int:
     from bayes_update.models.beam.forward import simulate_dataset
     from bayes_update.reports.plots import plot_test
+
+    for warning in check_parameters({"eta": args.eta, "c": args.c, "F": args.F, "k_s": args.k_s}):
+        print(f"bayes-update: {warning}", file=sys.stderr)
 
     data = read_dataset(args.data) if args.data else default_dataset()
     _require_beam_sensor(data)

@@ -423,7 +423,9 @@ class Problem:
                 from bayes_update.core.refinement import twice_the_rate
 
                 test = self.tests[self.stages[0]]
-                self._refined = twice_the_rate(self.model, self.default_space().center(), test.force, self.fs)
+                # probed inside the prior in use (a run outside a prior the user narrowed can fail)
+                space = getattr(self, "space", None) or self.default_space()
+                self._refined = twice_the_rate(self.model, space.center(), test.force, self.fs)
         return self._refined
 
     def describe_model(self) -> dict:
