@@ -54,6 +54,9 @@ def test_a_tip_spring_is_decisive_and_named_only_if_it_predicts_the_held_out_tes
     sweep = tests["sweep_mid"]
     assert f"sweep_mid {100 * sweep['before']:.3g} -> {100 * sweep['after']:.3g} %" in evidence_table(res)
     assert list(res.named) == [], res.gap_sentence()
+    # whatever the summed gain (with the front end's whole-record lines it was +559 sd), the
+    # sweep predicted worse keeps it unnamed, and the table says why
+    assert tests["sweep_mid"]["z"] < -3 and "decisive, but it predicts sweep_mid worse" in evidence_table(res)
     gap = res.gap_remaining()
     assert gap["held_out_times_noise"] > 3, gap
     assert f"{100 * gap['held_out_relative_error']:.3g} %" in res.gap_sentence(), res.gap_sentence()
