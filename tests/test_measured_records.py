@@ -45,7 +45,16 @@ SEEDS = (101, 102, 103)
 QUADRATIC_DAMPER = 30.0                          # c2 [N s^2/m^2] of the records the model lacks
 DAMPING_APART = (0.02, 0.025)                    # modal damping of the low- and high-level tests apart
 N_STARTS = 4                                     # of the direct fit
-RATIO = 1.1                                      # calibrate's held-out error / the direct fit's
+# calibrate's (or the posterior mean's) held-out error / the direct fit's, at most: about twice the
+# excess over 1 measured (the model's physics 1.011, the posterior mean 1.008-1.009, the coarser
+# model 1.022; the damper the model lacks, a model-form case, 1.064)
+RATIO = 1.025
+RATIO_COARSE = 1.05
+RATIO_WRONG_FORM = 1.1
+# the calibrated values' error about the generator's, at most (measured 0.01-0.47 %) and in the
+# Laplace sd calibrate reports (measured 0.4-1.8; the fit's white-noise Gauss-Newton sd was
+# 9-20x below the estimates' scatter over eight noise seeds: 20-150 of them)
+PARAMETER_TOL, PARAMETER_SD = 0.01, 3.0
 
 
 # ------------------------------------------------------------------ the user's model
@@ -246,8 +255,10 @@ def test_calibrate_predicts_held_out_data_like_a_direct_fit(exact):
     records, data, cal, out = exact
     assert out["ratio"] <= RATIO, out
     assert cal.prediction_errors["ms_mid"] == pytest.approx(out["calibrate"], rel=1e-6)
+    assert cal.sd_method == "laplace"
     for name, value in TRUTH.items():
-        assert cal.theta[name] == pytest.approx(value, rel=0.02), name
+        assert cal.theta[name] == pytest.approx(value, rel=PARAMETER_TOL), name
+        assert abs(cal.theta[name] - value) < PARAMETER_SD * cal.sd[name], (name, cal.theta[name], cal.sd[name])
     # the model is the records' physics: no warning, and the tests agree
     assert cal.fit_warnings == [] and cal.disagreement == []
 
@@ -277,7 +288,7 @@ def test_a_coarser_model_still_predicts_like_a_direct_fit(exact):
     print(f"\n[4 substeps] held-out error: calibrate {e_cal:.5f}, direct {e_oe:.5f} (ratio {e_cal / e_oe:.4f}), "
           f"truth {held_out_error(model, TRUTH, records[2]):.5f}; runs {cal.n_model_runs} / {oe_runs}; "
           f"warnings {cal.fit_warnings}")
-    assert e_cal <= RATIO * e_oe
+    assert e_cal <= RATIO_COARSE * e_oe
     assert cal.disagreement == []
 
 
@@ -285,7 +296,7 @@ def test_damping_that_grows_with_amplitude_pulls_the_tests_apart(damper):
     records, data, cal, out = damper
     # the model lacks the damper: the tests pull the damping apart, and the weights (the measured
     # noise of each test) decide where calibrate puts it
-    assert out["ratio"] <= RATIO, out
+    assert out["ratio"] <= RATIO_WRONG_FORM, out
     assert [d["parameter"] for d in cal.disagreement] == ["zeta"], cal.disagreement
     assert cal.disagreement[0]["tests"] == ["ms_low", "ms_high"]
     assert any(w.startswith("the tests disagree on zeta: ms_low and ms_high") for w in cal.fit_warnings)

@@ -63,15 +63,23 @@ def test_the_calibration_report_prints_the_digits_of_each_value():
 
 
 def test_calibrate_measures_the_sd_it_prints():
-    """The calibration's sd of a linear oscillator is the Gauss-Newton one: the value's
-    digits follow it (here k to 1e-4 kN/m, the data's 1 % noise over 2048 samples)."""
+    """The calibration's sd is the posterior's Laplace sd at the calibrated point (the noise
+    replicates with the force's noise and the model error: never below the fit's white-noise
+    Gauss-Newton sd, which ``uncertainty=False`` gives, footnoted as not an interval), and the
+    value's digits follow it."""
     from new_user_kit import Spring, make_dataset
 
     from bayes_update import calibrate
     from bayes_update.reports.calibration import format_calibration
 
-    cal = calibrate(make_dataset(), Spring(), workers=1, n_start=8, progress=False)
-    assert set(cal.sd) == {"fn", "zeta", "k"} and all(0 < v < 0.01 * cal.theta[n] for n, v in cal.sd.items())
-    assert cal.calibration_json()["sd_gauss_newton"] == cal.sd
+    data = make_dataset()
+    cal = calibrate(data, Spring(), workers=1, n_start=8, progress=False)
+    fit_only = calibrate(data, Spring(), workers=1, n_start=8, progress=False, uncertainty=False)
+    assert (cal.sd_method, fit_only.sd_method) == ("laplace", "gauss-newton")
+    assert cal.theta == fit_only.theta and cal.n_model_runs > fit_only.n_model_runs
+    assert set(cal.sd) == {"fn", "zeta", "k"} and all(cal.sd[n] >= fit_only.sd[n] > 0 for n in cal.sd), (
+        cal.sd, fit_only.sd)
+    assert cal.calibration_json()["sd"] == cal.sd and cal.calibration_json()["sd_method"] == "laplace"
     line = next(ln for ln in format_calibration(cal).splitlines() if ln.split()[0] == "k")
     assert line.split()[2] == format_value(cal.theta["k"], cal.sd["k"])
+    assert "GN sd*" in format_calibration(fit_only) and "not an interval" in format_calibration(fit_only)

@@ -15,17 +15,27 @@ __all__ = ["fit_figure", "format_calibration", "write_calibration"]
 
 
 def format_calibration(cal: Calibration) -> str:
-    """A plain-text table of the calibrated values (with the digits their Gauss-Newton
-    sd resolves, :mod:`bayes_update.core.numbers`), the metrics and the prediction errors."""
+    """A plain-text table of the calibrated values (with the digits their sd resolves,
+    :mod:`bayes_update.core.numbers`), the metrics and the prediction errors.  The sd
+    column is the posterior's Laplace sd (``sd``), or, where that was off or failed,
+    the fit's white-noise Gauss-Newton sd (``GN sd*``, footnoted: not an interval)."""
+    laplace = cal.sd_method == "laplace"
+    sd_label = "sd" if laplace else "GN sd*"
     lines = [f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, "
              f"{cal.n_model_runs} model runs",
              f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
-             f"{'parameter':>12} {'stage 1':>14} {'final':>14} {'GN sd':>10}  unit"]
+             f"{'parameter':>12} {'stage 1':>14} {'final':>14} {sd_label:>10}  unit"]
     for name, value in cal.theta.items():
-        # the digits the final value's (Gauss-Newton) sd resolves, in both columns
+        # the digits the final value's sd resolves, in both columns
         sd = (cal.sd or {}).get(name, math.nan)
         lines.append(f"{name:>12} {format_value(cal.stage1[name], sd):>14} {format_value(value, sd):>14} "
                      f"{format_sd(sd):>10}  {cal.units[name]}")
+    if laplace:
+        lines.append("sd: the posterior's Laplace approximation at its mode (noise replicates with the force's "
+                     "noise, model error, the tests' disagreement); `bayes-update sample` for the posterior itself")
+    else:
+        lines.append("GN sd*: the fit's Gauss-Newton sd under white noise of the measured level and no model "
+                     "error: the digits' scale, not an interval (it can be 10-100x too small)")
     lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
     for test, err in cal.prediction_errors.items():
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
