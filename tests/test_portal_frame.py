@@ -30,12 +30,24 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ops = pytest.importorskip("openseespy.opensees", reason="openseespy cannot be imported: the OpenSees example "
-                                                        "model needs it")
 from scipy import linalg  # noqa: E402
 
+from reference import require_reference  # noqa: E402
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "notebooks"))
-import portal_frame as pf  # noqa: E402
+try:
+    import openseespy.opensees as ops
+    import portal_frame as pf
+except Exception as exc:    # ImportError, or the library's own load error (a missing liblapack)
+    ops = pf = None
+    IMPORT_ERROR = f"{type(exc).__name__}: {exc}"
+else:
+    IMPORT_ERROR = None
+
+# a missing openseespy fails these tests (tests/reference.py), as it fails notebook 06
+_requires_opensees = require_reference(
+    IMPORT_ERROR, "openseespy (the OpenSees example model's library)",
+    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3")
 
 import bayes_update as bu  # noqa: E402
 
@@ -417,7 +429,7 @@ def test_virtual_rig_writes_a_seeded_data_folder(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("seed, truth", [
-    (11, pf.RIG_TRUTH),
+    (11, None),                                                 # the rig's own truth, pf.RIG_TRUTH
     (12, {"k_j": 0.8, "k3": 90.0, "zeta": 0.015, "m_top": 1.3}),
 ])
 def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
@@ -426,6 +438,7 @@ def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
     finer frame, noise on every channel, offsets) without a hidden effect: every
     parameter's 90 % interval covers the rig's truth.  The runs are printed (the
     issue's bar is 250; measured 269 and 373, see docs/models.md)."""
+    truth = truth or pf.RIG_TRUTH
     data_dir = tmp_path / "rig"
     pf.make_dataset(data_dir, seed=seed, truth=truth, fs=512.0, period=512, band_hz=(2.0, 40.0),
                     levels={"low": 0.25, "medium": 2.0, "high": 4.0}, rig=pf.PortalFrame(4, 12, 4001),
