@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import os
 import signal
+from contextlib import contextmanager
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
 
 from tqdm.auto import tqdm
 
-__all__ = ["default_executor", "evaluate_many"]
+__all__ = ["default_executor", "evaluate_many", "executor_for"]
 
 
 def _init_worker() -> None:
@@ -43,6 +44,21 @@ def default_executor(max_workers: int | None = None) -> ProcessPoolExecutor:
     if n < 1:
         raise ValueError(f"max_workers must be positive, got {max_workers}")
     return _ProcessPool(max_workers=n, initializer=_init_worker)
+
+
+@contextmanager
+def executor_for(executor: Executor | None = None, workers: int | None = None):
+    """``executor`` when one is given, else a :func:`default_executor` of ``workers`` (all
+    cores by default) owned by the ``with`` block and shut down when it ends, else None
+    (``workers=1``: every run in this process)."""
+    if executor is not None or (workers or 2) <= 1:
+        yield executor
+        return
+    pool = default_executor(workers)
+    try:
+        yield pool
+    finally:
+        pool.shutdown()
 
 
 def _run_batch(func, batch):

@@ -574,3 +574,21 @@ def test_a_prior_mean_is_what_the_gp_falls_back_on_away_from_its_points():
     np.testing.assert_allclose(again.mean_transformed(Xt), with_mean.mean_transformed(Xt), rtol=0, atol=1e-6)
     with pytest.raises(TypeError):
         GPSurrogate(box, prior_mean=3.0)
+
+
+def test_executor_for_owns_only_the_pool_it_makes():
+    from concurrent.futures import ThreadPoolExecutor
+
+    from surrogates.evaluation import executor_for
+
+    given = ThreadPoolExecutor(1)
+    with executor_for(given, workers=4) as pool:
+        assert pool is given
+    assert given.submit(abs, -1).result() == 1          # the caller's pool is left running
+    given.shutdown()
+    with executor_for(None, workers=1) as pool:
+        assert pool is None                             # one worker: every run in this process
+    with executor_for(None, workers=2) as pool:
+        assert pool.submit(abs, -2).result() == 2
+    with pytest.raises(RuntimeError):                   # its own pool is shut down when the block ends
+        pool.submit(abs, -3)

@@ -52,7 +52,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import qmc
 
-from surrogates.evaluation import default_executor, evaluate_many
+from surrogates.evaluation import evaluate_many, executor_for
 from bayes_update.core.logs import info
 import volterra
 
@@ -394,9 +394,7 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SET
     from bayes_update.core.runs import store_in
 
     store = store_in(cache_dir, "calibrate") if cache_dir is not None else None
-    own_pool = executor is None and (workers or 2) > 1
-    pool = default_executor(workers) if own_pool else executor
-    try:
+    with executor_for(executor, workers) as pool:
         problem = problem_for(dataset, model, space, metrics=metrics, executor=pool, store=store)
         space, runs = problem.space, 1 + problem.n_screen_runs
         if problem.linear_parameters is None:        # the paper's set: no J1 to adapt, screen here
@@ -414,9 +412,6 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SET
         runs += found.n_model_runs + len(problem.stages) + len(errors)
         laplace = _laplace(dataset, problem, theta, pool, log) if uncertainty else None
         runs += laplace["n_model_runs"] if laplace else 0
-    finally:
-        if own_pool:
-            pool.shutdown()
     for d in found.unidentified["nonlinear"]:
         log("WARNING: the data do not identify the direction " + ", ".join(
             f"{k} {v:+.2f}" for k, v in d["direction"].items()) + f" (prior-range units; sd "

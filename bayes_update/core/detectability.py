@@ -42,6 +42,7 @@ from bayes_update.core.comparison import error_covariance, evidence, form_scale
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
 from bayes_update.core.held_out import SIGNIFICANT_SD
 from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, SpacePoint
+from bayes_update.core.span import derivative_points
 from surrogates.evaluation import evaluate_many
 
 __all__ = ["LADDER", "detectability", "limit_text"]
@@ -196,15 +197,13 @@ def _base_steps(problem, fit, base, executor) -> dict:
         return {"runs": 0}
     space = ExtendedSpace(base)
     fun = ResidualFunction(problem, (), (), SpacePoint(space, problem.model))
-    x0 = np.asarray(fit.mode.x, float)
-    box = space.box()
-    h = 1e-4 * (box[:, 1] - box[:, 0])
-    pts = [x0] + [x0 + np.eye(len(x0))[i] * h[i] for i in range(len(x0))]
+    x0, _, steps, points = derivative_points(space, space.to_parameters(np.asarray(fit.mode.x, float)))
+    pts = [x0] + points
     done = evaluate_many(_Point(fun, space), pts, executor, progress=False)
     if any(d is None for d in done):
         return {"runs": len(pts) * len(problem.validation)}
     v0 = done[0][1]
-    Jv = {n: np.stack([(d[1][n] - v0[n]) / h[i] for i, d in enumerate(done[1:])], axis=-1) for n in v0}
+    Jv = {n: np.stack([(d[1][n] - v0[n]) / steps[i] for i, d in enumerate(done[1:])], axis=-1) for n in v0}
     return {"runs": len(pts) * len(problem.validation), "v0": v0, "Jv": Jv,
             "gn": np.linalg.pinv(np.asarray(fit.mode.jacobian, float))}
 

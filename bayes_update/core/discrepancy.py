@@ -77,7 +77,7 @@ from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.preflight import preflight
 from bayes_update.core.problem import Problem
 from bayes_update.core.steps import StepLog
-from surrogates.evaluation import default_executor
+from surrogates.evaluation import executor_for
 
 __all__ = ["DiscrepancyResult", "DiscrepancySettings", "Fit", "find_discrepancy"]
 
@@ -372,9 +372,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
         checked = preflight(dataset, model, space, effects=True, candidates=candidates)
     base, effects = checked.space, checked.effects
     names = list(effects) if candidates is None else list(candidates)
-    own_pool = executor is None and (workers or 2) > 1
-    pool = default_executor(workers) if own_pool else executor
-    try:
+    with executor_for(executor, workers) as pool:
         with steps("check_and_screen"):
             problem = problem_for(dataset, model, space, metrics, executor=pool, effects=True)
             steps.add_runs(1 + problem.n_screen_runs)
@@ -420,9 +418,6 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             d1 = flow.diagnose(final.theta) if named else d0
             steps.add_runs(len(dataset.tests) * ((d0 is not None) + (d0 is not None and bool(named))))
             signature = _signature_check(problem.model, named, d0, d1, gap_before, gap_after)
-    finally:
-        if own_pool:
-            pool.shutdown()
     steps.finish()
     log("discrepancy: " + steps.line())
     res = DiscrepancyResult(named=named, rounds=rounds, baseline=baseline, final=final, likelihood=lik,

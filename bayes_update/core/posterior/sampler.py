@@ -32,7 +32,7 @@ from bayes_update.core.runs import StoreSteps, store_in
 from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
-from surrogates.evaluation import default_executor
+from surrogates.evaluation import executor_for
 
 def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *,
            executor: Executor | None = None, workers: int | None = None, direct: bool = False,
@@ -64,9 +64,7 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
     settings = settings or PosteriorSettings()
     store = store_in(cache_dir, "sample") if cache_dir is not None else None
     steps = StoreSteps(store) if store is not None else StepLog()
-    own_pool = executor is None and (workers or 2) > 1
-    pool = default_executor(workers) if own_pool else executor
-    try:
+    with executor_for(executor, workers) as pool:
         with steps("check_and_screen"):
             problem = problem_for(dataset, model, space, metrics, executor=pool, store=store)
             steps.add_runs(1 + problem.n_screen_runs)
@@ -78,9 +76,6 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         chain = _direct_chain(run, lik, mp, adj) if direct else _surrogate_chain(run, lik, mp, adj)
         res = _result(run, chain, lik, mp, box, adj, start_info, direct)
         _extras(run, res)
-    finally:
-        if own_pool:
-            pool.shutdown()
     steps.finish()
     res.timing, res.n_model_runs = steps.timing, steps.runs
     for k, v in getattr(steps, "reused", {}).items():

@@ -35,7 +35,7 @@ from bayes_update.core.model import ModelSpecError
 from bayes_update.core.problem import Problem
 from bayes_update.data.dataset import Dataset
 from bayes_update.models.beam.validation import validate
-from surrogates.evaluation import default_executor, evaluate_many
+from surrogates.evaluation import evaluate_many, executor_for
 
 
 @dataclass(frozen=True)
@@ -188,11 +188,9 @@ def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = No
     log(f"Kautz pole from {problem.tests['linear'].name}: {pole.freq_hz:.3f} Hz, zeta = "
         f"{pole.damping_ratio:.4f}; model first mode there at P_eff = {p0:.2f} N; "
         f"grid P_eff {p_grid[0]:.2f}..{p_grid[-1]:.2f} N")
-    own_pool = executor is None and (workers or 2) > 1
-    pool = default_executor(workers) if own_pool else executor
     n_runs = 0
     timing = {}
-    try:
+    with executor_for(executor, workers) as pool:
         # ---------------------------------------------------------------- linear stage
         # eta first, at the frequency-matched preload (e_lin is sharp in eta, so a
         # grid at a wrong eta would report misfits that are only damping)
@@ -233,9 +231,6 @@ def calibrate(dataset: Dataset, model, settings: CalibrationSettings | None = No
                   for c in settings.c_values]
         best_nl = _best(nonlinear_grid, "e_lin_nlin")
         timing["nonlinear_grid"] = time.perf_counter() - t0
-    finally:
-        if own_pool:
-            pool.shutdown()
 
     # ------------------------------------------------------------------ refinement
     t0 = time.perf_counter()

@@ -12,7 +12,7 @@ from bayes_update.core.posterior.design import _cache, _gp_factory
 from bayes_update.core.posterior.laplace import local_box
 from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, SurrogateLogPosterior
-from surrogates.evaluation import default_executor, evaluate_many
+from surrogates.evaluation import evaluate_many, executor_for
 
 
 def add_linear_only(post, workers=None, cache_dir=None, progress: bool = True, log=info) -> dict:
@@ -23,12 +23,8 @@ def add_linear_only(post, workers=None, cache_dir=None, progress: bool = True, l
     import time
 
     t0 = time.perf_counter()
-    pool = default_executor(workers) if (workers or 2) > 1 else None
-    try:
+    with executor_for(None, workers) as pool:
         lo = linear_only_posterior(post, pool, post.seeds[5], cache_dir, progress, log, post.n_model_runs_reused)
-    finally:
-        if pool is not None:
-            pool.shutdown()
     post.extras["linear_only"] = lo
     post.n_model_runs["linear_only"] = lo["n_model_runs"]
     post.n_model_runs["total"] += lo["n_model_runs"]
