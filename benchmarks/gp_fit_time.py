@@ -80,7 +80,7 @@ def in_posterior(fast, case="duffing"):
     from bayes_update.core.posterior import design
 
     spent = [0.0, 0]
-    real_fit, real_factory = GPSurrogate.fit, design._gp_factory
+    real_fit, real_factory = GPSurrogate.fit, design.design_gp
 
     def timed_fit(self, X, y):
         t = time.perf_counter()
@@ -95,14 +95,14 @@ def in_posterior(fast, case="duffing"):
         sur.fast = fast
         return sur
 
-    GPSurrogate.fit, design._gp_factory = timed_fit, factory
+    GPSurrogate.fit, design.design_gp = timed_fit, factory
     try:
         data, model = CASES[case][1]()
         t = time.perf_counter()
         res = sample(data, model, PosteriorSettings(seed=0), workers=1, progress=False, log=lambda *a: None)
         wall = time.perf_counter() - t
     finally:
-        GPSurrogate.fit, design._gp_factory = real_fit, real_factory
+        GPSurrogate.fit, design.design_gp = real_fit, real_factory
     conv = res.diagnostics["convergence"]
     return {"fit_s": spent[0], "n_fits": spent[1], "wall_s": wall, "runs": res.n_model_runs["total"],
             "max_r_hat": conv["max_r_hat"], "min_ess_bulk": conv["min_ess_bulk"],

@@ -15,7 +15,7 @@ from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.target import Evaluate
 from bayes_update.core.problem import Problem
 from bayes_update.models.beam.model import Beam
-from bayes_update.core.posterior.design import _cache
+from bayes_update.core.posterior.design import design_cache
 from bayes_update.models.beam.virtual_rig import DEFAULT_DATASET_DIR
 
 
@@ -24,7 +24,7 @@ def _cache_file(data_dir, cache_dir):
     beam = Beam(fe.ModalROM(rig=rig_of(data)))
     problem = Problem(data, beam)
     ev = Evaluate(problem, ParameterSet(beam.parameters, beam), problem.stages)
-    return _cache(cache_dir, ev, "design").file
+    return design_cache(cache_dir, ev, "design").file
 
 
 def test_changed_data_at_the_same_path_gets_a_new_cache(tmp_path):

@@ -543,7 +543,7 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
     from bayes_update.core.posterior.target import Whitening
-    from bayes_update.core.posterior.mcmc import _box_cut_fraction
+    from bayes_update.core.posterior.mcmc import fraction_outside_box
 
     space = beam_space(beam_model(data, "rom"))
     cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2
@@ -557,5 +557,5 @@ def test_whitening_round_trip_and_box_cut_fraction(data):
     # draws at the u box's edge count as cut only where the prior goes on beyond it
     U = np.zeros((4, 4))
     U[0, 0] = 3.9                                  # eta direction, inside the prior beyond: cut
-    assert _box_cut_fraction(U, 4.0, w, space) == pytest.approx(0.25)
-    assert _box_cut_fraction(np.zeros((4, 4)), 4.0, w, space) == 0.0
+    assert fraction_outside_box(U, 4.0, w, space) == pytest.approx(0.25)
+    assert fraction_outside_box(np.zeros((4, 4)), 4.0, w, space) == 0.0

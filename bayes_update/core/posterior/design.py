@@ -17,7 +17,7 @@ from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, WhitenedEvaluate, Whitening, WhitenedLogPosterior
 
 
-def _gp_factory(box, seed, names, prior_mean=None):
+def design_gp(box, seed, names, prior_mean=None):
     # fast: the hyperparameters by surrogates.gp_fit (scikit-learn's objective and optimiser, its
     # gradient in numpy), the fits of a design costing a fraction of scikit-learn's own
     return surrogates.GPSurrogate(box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed,
@@ -63,8 +63,8 @@ def gauss_newton_means(mode, problem, stages, whitening: Whitening) -> list:
     return [means[st] for st in stages]
 
 
-def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings, pool, cache_dir, stages, seed,
-                      progress, log, reused=None, means=None, earlier=None):
+def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settings, pool, cache_dir, stages, seed,
+                     progress, log, reused=None, means=None, earlier=None):
     """Design in the whitened box (inside the prior), GPs of z per stage,
     refinement rounds; all in u coordinates.  ``means``: a prior mean per stage
     (:func:`gauss_newton_means`), else constant means.  ``earlier``: (X, z) of
@@ -89,7 +89,7 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
                              "widen the prior where the MAP is on a bound (--prior NAME=LO:HI), or sample on the "
                              "model itself (--direct)")
     U0 = cand[inside][:n0]
-    cache = _cache(cache_dir, ev.evaluate, "design", whitening, reused)
+    cache = design_cache(cache_dir, ev.evaluate, "design", whitening, reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
     res = evaluate(ev, list(U0), executor=pool, progress=progress)
 
@@ -132,8 +132,8 @@ def _build_surrogates(ev: WhitenedEvaluate, lik, space, box, whitening, settings
 
     def factory():
         if means is None:
-            return _gp_factory(box, seed=0, names=space.coordinate_names)
-        return [_gp_factory(box, seed=0, names=space.coordinate_names, prior_mean=m) for m in means]
+            return design_gp(box, seed=0, names=space.coordinate_names)
+        return [design_gp(box, seed=0, names=space.coordinate_names, prior_mean=m) for m in means]
 
     with threadpool_limits(2):
         t = time.perf_counter()
@@ -266,7 +266,7 @@ class _Stability:
         return stable
 
 
-def _cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = None, reused: dict | None = None):
+def design_cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None = None, reused: dict | None = None):
     """The evaluation cache of ``name`` under ``cache_dir`` (None: no cache); ``reused``
     counts the model runs its entries on disk save, per name."""
     if cache_dir is None:

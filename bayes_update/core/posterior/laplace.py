@@ -65,7 +65,7 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         iterations = max(5, int(max_evaluations) // (len(starts) * (len(x0) + 1)))
         mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
                          known=known)
-        return _map_result(mode, space, box, mode.n_evaluations + len(grid))
+        return map_result(mode, space, box, mode.n_evaluations + len(grid))
     iterations = max(5, int(max_evaluations) // (3 * (len(x0) + 1)))
     grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) and len(stages) > 1 else []
     start, n_evaluations = x0, 0
@@ -90,10 +90,10 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
                           cost_tolerance=FRUGAL_TOLERANCE, central=False)
         n_evaluations += other.n_evaluations
         mode = other if other.cost < mode.cost else mode
-    return _map_result(mode, space, box, n_evaluations)
+    return map_result(mode, space, box, n_evaluations)
 
 
-def _map_result(mode, space, box, n_evaluations: int) -> MapResult:
+def map_result(mode, space, box, n_evaluations: int) -> MapResult:
     cov = mode.covariance(scale=box[:, 1] - box[:, 0])
     value = mode.cost - float(space.log_prior(mode.x)[0])
     return MapResult(x=mode.x, value=value, steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)),

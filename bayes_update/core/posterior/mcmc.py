@@ -191,7 +191,7 @@ def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
     return out
 
 
-class _XSampler:
+class XSampler:
     """A sampler run in u (emcee or its vectorised move), read in x (chains, log probabilities, tau)."""
 
     def __init__(self, sampler, whitening: Whitening):
@@ -213,7 +213,7 @@ class _XSampler:
                                               quiet=kw.get("quiet", True))
 
 
-def _box_cut_fraction(U, box_sd: float, whitening: Whitening, space: ParameterSet) -> float:
+def fraction_outside_box(U, box_sd: float, whitening: Whitening, space: ParameterSet) -> float:
     """Fraction of draws within 0.25 of the u box's edge where the prior goes
     on beyond it (pushing them 0.5 further out stays inside the prior): the
     box, not the prior, cut the posterior there."""
@@ -228,7 +228,7 @@ def _box_cut_fraction(U, box_sd: float, whitening: Whitening, space: ParameterSe
     return float(cut.mean())
 
 
-def _chain_diagnostics(sampler, burn: int, names) -> dict:
+def chain_diagnostics(sampler, burn: int, names) -> dict:
     chain = sampler.get_chain(discard=burn)
     # emcee's own check (a chain of 50 autocorrelation times, else a logged warning) is
     # stricter than an ensemble of 128 walkers needs for its means and quantiles: the

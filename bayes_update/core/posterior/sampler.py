@@ -5,6 +5,7 @@ import dataclasses
 import warnings
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -15,9 +16,9 @@ from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.posterior.design import _build_surrogates, gauss_newton_means
-from bayes_update.core.posterior.laplace import _map_result, capped_covariance, find_map, local_box
-from bayes_update.core.posterior.mcmc import (_box_cut_fraction, _chain_diagnostics, _XSampler,
+from bayes_update.core.posterior.design import build_surrogates, gauss_newton_means
+from bayes_update.core.posterior.laplace import map_result, capped_covariance, find_map, local_box
+from bayes_update.core.posterior.mcmc import (fraction_outside_box, chain_diagnostics, XSampler,
                                               add_posterior_predictive, initial_walkers, run_emcee,
                                               run_to_convergence, summarize, to_inference_data)
 from bayes_update.core.posterior.pointwise import linearisation_check, pointwise_log_likelihood
@@ -25,7 +26,7 @@ from bayes_update.core.posterior.predictive import posterior_predictive, predict
 from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.settings import PosteriorSettings
 from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
-                                                WhitenedLogPosterior, _ExecutorPool)
+                                                WhitenedLogPosterior, ExecutorPool)
 from bayes_update.core.problem import Problem
 from bayes_update.core.kept_start import kept_start
 from bayes_update.core.runs import StoreSteps, store_in
@@ -68,7 +69,7 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         with steps("check_and_screen"):
             problem = problem_for(dataset, model, space, metrics, executor=pool, store=store)
             steps.add_runs(1 + problem.n_screen_runs)
-        seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
+        seeds = step_seeds(settings.seed)
         run = _Run(dataset, problem, problem.space, settings, pool, cache_dir, progress, log, steps, seeds)
         start, start_info = _start(run, start)
         lik = _likelihood(run, start, likelihood)
@@ -101,7 +102,7 @@ def laplace_at(dataset: Dataset, problem: Problem, theta: dict, settings: Poster
 
     # the fit's own point, never a coarse one: no fit check (calibrate reports its misfit itself)
     settings = dataclasses.replace(settings or PosteriorSettings.quick(), coarse_start=False)
-    seeds = [int(s.generate_state(1)[0]) for s in np.random.SeedSequence(settings.seed).spawn(8)]
+    seeds = step_seeds(settings.seed)
     steps = StepLog()
     run = _Run(dataset, problem, problem.space, settings, executor, None, False, log, steps, seeds)
     problem.space.check(theta, "theta")
@@ -110,6 +111,24 @@ def laplace_at(dataset: Dataset, problem: Problem, theta: dict, settings: Poster
     cov = adj.covariance(mp.covariance) if adj is not None else mp.covariance
     return {"mode": problem.space.to_parameters(mp.x), "sd": parameter_sd(problem.space, mp.x, cov),
             "covariance": cov, "n_model_runs": sum(steps.runs.values()), "runs": dict(steps.runs)}
+
+
+class StepSeeds(NamedTuple):
+    """One seed per step of :func:`sample`, spawned from ``settings.seed`` in this order
+    (a step's draws do not move when another step draws more or fewer numbers)."""
+
+    likelihood: int      # the noise replicates and the model-form draws
+    walkers: int         # the walkers' initial positions
+    chain: int           # emcee's moves
+    design: int          # the surrogates' design (plus the attempt, on a re-centred box)
+    predictive: int      # the posterior-predictive draws
+    linear_only: int     # the beam's linear-only posterior
+    sobol: int           # the global sensitivity indices
+    start: int           # the start search's designs
+
+
+def step_seeds(seed) -> StepSeeds:
+    return StepSeeds(*(int(s.generate_state(1)[0]) for s in np.random.SeedSequence(seed).spawn(len(StepSeeds._fields))))
 
 
 # ------------------------------------------------------------------ the steps
@@ -128,7 +147,7 @@ class _Run:
     progress: bool
     log: object
     steps: StepLog
-    seeds: list
+    seeds: "StepSeeds"
     reused: dict = field(default_factory=dict)     # model runs found in the cache, per design
     warnings: list = field(default_factory=list)   # fit warnings at the start (bayes_update.core.checks)
 
@@ -159,7 +178,7 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
             run.log(f"start: the best of {n_kept} points another command ran on these tests (the run cache)")
         elif start is None:
             start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
-                                  seed=run.seeds[7], executor=run.pool, progress=run.progress, log=run.log,
+                                  seed=run.seeds.start, executor=run.pool, progress=run.progress, log=run.log,
                                   coarse=run.settings.coarse_start)
             run.steps.add_runs(n)
         else:
@@ -196,7 +215,7 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
     with run.steps("likelihood_scales"):
         if likelihood is None:
             lik = estimate_likelihood(run.problem, start, model_error=s.model_error, n_replicates=s.n_replicates,
-                                      seed=run.seeds[0], space=run.space, model_replicates=s.model_replicates,
+                                      seed=run.seeds.likelihood, space=run.space, model_replicates=s.model_replicates,
                                       executor=run.pool)
             run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error,
                                                model_replicates=s.model_replicates))
@@ -264,7 +283,7 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     n = [problem.output(st, problem.reference_components(st)).size for st in stages]
     own = own_points(mp.mode.jacobian, mp.mode.residual, n, mp.x, space.box())
     new = errors_at_mode(problem, lik, space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian,
-                         executor=run.pool, seed=run.seeds[0],
+                         executor=run.pool, seed=run.seeds.likelihood,
                          own_points={st: space.to_parameters(x) for st, x in zip(stages, own)})
     if new is lik:
         return lik, mp
@@ -292,7 +311,7 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
         n_evaluations += mode.n_evaluations
         run.log(f"the stages' weights moved (x {ratios.max() / ratios.min():.3f}; a step of {shift:.2f} sd): "
                 f"the MAP searched again ({mode.n_evaluations} evaluations)")
-    return new, _map_result(mode, space, space.box(), n_evaluations)
+    return new, map_result(mode, space, space.box(), n_evaluations)
 
 
 def _walker_covariance(mp, adj) -> np.ndarray:
@@ -317,9 +336,9 @@ def _direct_emcee(run: _Run, lik, mp, adj) -> _Chain:
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
         x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, _walker_covariance(mp, adj),
-                                 s.direct_walkers, run.seeds[1], scale=1.0)
-        sampler = run_emcee(logp, x_init, s.direct_walkers, s.direct_steps, run.seeds[2], vectorize=False,
-                            pool=_ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
+                                 s.direct_walkers, run.seeds.walkers, scale=1.0)
+        sampler = run_emcee(logp, x_init, s.direct_walkers, s.direct_steps, run.seeds.chain, vectorize=False,
+                            pool=ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
                             desc="MCMC on the model")
 
         def extend(n):
@@ -347,9 +366,10 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
             means = (gauss_newton_means(mp.mode, run.problem, stages, whitening)
                      if s.gp_mean == "gauss_newton" and mp.mode is not None else None)
             earlier = None if design is None else (design["X"], design["z"])
-            gps, U, Y, fit_time, n_earlier = _build_surrogates(
-                WhitenedEvaluate(ev, whitening), lik, space, ubox, whitening, s, run.pool, None, stages,
-                run.seeds[3] + attempt, run.progress, run.log, run.reused, means, earlier)
+            gps, U, Y, fit_time, n_earlier = build_surrogates(
+                WhitenedEvaluate(ev, whitening), lik, space=space, box=ubox, whitening=whitening, settings=s,
+                pool=run.pool, cache_dir=None, stages=stages, seed=run.seeds.design + attempt, progress=run.progress,
+                log=run.log, reused=run.reused, means=means, earlier=earlier)
             # the earlier box's points were run (and counted) there
             run.steps.add_runs(len(stages) * (int(np.sum(np.all(np.isfinite(Y), axis=1))) - n_earlier))
         run.steps.timing["gp_fit"] += fit_time
@@ -360,11 +380,11 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
             # the ensemble took longer than a 3000-step chain to spread (R-hat 1.012-1.020)
             L_inv = np.linalg.inv(whitening.L)
             u_init = initial_walkers(logp_u, whitening.to_u(mp.x)[0], L_inv @ _walker_covariance(mp, adj) @ L_inv.T,
-                                     s.n_walkers, run.seeds[1], scale=1.0)
-            sampler = run_emcee(logp_u, u_init, s.n_walkers, s.n_steps, run.seeds[2], vectorize=True,
+                                     s.n_walkers, run.seeds.walkers, scale=1.0)
+            sampler = run_emcee(logp_u, u_init, s.n_walkers, s.n_steps, run.seeds.chain, vectorize=True,
                                 progress=run.progress, desc="MCMC on the surrogate")
         u_draws = sampler.get_chain(discard=s.burn, flat=True)
-        cut = _box_cut_fraction(logp_u.gp_points(u_draws), s.box_sd, whitening, space)
+        cut = fraction_outside_box(logp_u.gp_points(u_draws), s.box_sd, whitening, space)
         if cut <= 0.01 or attempt == s.box_attempts - 1:
             break
         # the Laplace box cut the posterior (a non-Gaussian posterior, or a MAP short of the
@@ -379,7 +399,7 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
         burn, thin, conv = run_to_convergence(
             sampler, lambda n: sampler.extend(logp_u, n, run.progress, "MCMC on the surrogate (more)"),
             lambda U: space.report(whitening.to_x(U)), s.n_walkers, s.burn, s.thin, s.n_steps, s.max_steps, run.log)
-    diag = {"box_cut_fraction": _box_cut_fraction(logp_u.gp_points(sampler.get_chain(discard=burn, flat=True)),
+    diag = {"box_cut_fraction": fraction_outside_box(logp_u.gp_points(sampler.get_chain(discard=burn, flat=True)),
                                                    s.box_sd, whitening, space),
             "box_attempts": attempt + 1, "convergence": conv}
     kept = sampler.get_chain(discard=burn, thin=thin)
@@ -387,13 +407,13 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
     # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
     ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)})
           .reshape(kept.shape[:2]) for st, gp in gps.items()}
-    return _Chain(_XSampler(sampler, whitening), burn, thin, gps, design, diag, ll, logp_u)
+    return _Chain(XSampler(sampler, whitening), burn, thin, gps, design, diag, ll, logp_u)
 
 
 def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> PosteriorResult:
     """The chain's diagnostics, ArviZ data and summary."""
     space = run.space
-    diag = _chain_diagnostics(chain.sampler, chain.burn, space.coordinate_names)
+    diag = chain_diagnostics(chain.sampler, chain.burn, space.coordinate_names)
     diag.update(chain.diagnostics)
     diag["thin"] = chain.thin
     diag["curvature_adjustment"] = adj.to_dict() if adj is not None else None
@@ -444,7 +464,7 @@ def _extras(run: _Run, res: PosteriorResult) -> None:
     s, stages = run.settings, run.problem.stages
     if s.n_predictive:
         with run.steps("predictive"):
-            res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds[4], run.progress)
+            res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds.predictive, run.progress)
             run.steps.add_runs(prediction_runs(run.problem, s.n_predictive,
                                                bool(res.predictive.get("parameters_by_test"))))
         draws = res.predictive.get("_draws", {})
@@ -456,6 +476,6 @@ def _extras(run: _Run, res: PosteriorResult) -> None:
                 + " of the samples inside the 50 % / 90 % bands")
     if s.n_global:
         with run.steps("sensitivity"):
-            res.sensitivity = sobol_indices(run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds[6],
+            res.sensitivity = sobol_indices(run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds.sobol,
                                             run.progress)
             run.steps.add_runs(len(stages) * s.n_global)

@@ -49,7 +49,7 @@ class DirectLogPosterior:
         return lp + float(np.sum(per_stage)), per_stage
 
 
-class _ExecutorPool:
+class ExecutorPool:
     """The ``map`` emcee wants, on a concurrent.futures executor."""
 
     def __init__(self, executor, chunks_per_worker: int = 1):

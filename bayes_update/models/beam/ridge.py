@@ -8,7 +8,7 @@ import numpy as np
 
 import surrogates
 from bayes_update.core.logs import info
-from bayes_update.core.posterior.design import _cache, _gp_factory
+from bayes_update.core.posterior.design import design_cache, design_gp
 from bayes_update.core.posterior.laplace import local_box
 from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
 from bayes_update.core.posterior.target import Evaluate, SurrogateLogPosterior
@@ -24,7 +24,7 @@ def add_linear_only(post, workers=None, cache_dir=None, progress: bool = True, l
 
     t0 = time.perf_counter()
     with executor_for(None, workers) as pool:
-        lo = linear_only_posterior(post, pool, post.seeds[5], cache_dir, progress, log, post.n_model_runs_reused)
+        lo = linear_only_posterior(post, pool, post.seeds.linear_only, cache_dir, progress, log, post.n_model_runs_reused)
     post.extras["linear_only"] = lo
     post.n_model_runs["linear_only"] = lo["n_model_runs"]
     post.n_model_runs["total"] += lo["n_model_runs"]
@@ -48,7 +48,7 @@ def linear_only_posterior(res, pool, seed, cache_dir, progress, log, reused=None
                   min(res.map.x[i] + 3 * s.box_sd * sd[i], res.space.box()[i, 1])]
     ss = np.random.SeedSequence(seed).spawn(3)
     X = surrogates.design(box, s.n_linear, "sobol", seed=int(ss[0].generate_state(1)[0]))
-    cache = _cache(cache_dir, ev, "linear_only", reused=reused)
+    cache = design_cache(cache_dir, ev, "linear_only", reused=reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
     r = evaluate(ev, list(X), executor=pool, progress=progress)
     y = np.array([float(lik.to_z("linear", q["e_lin"])) for q in r])
@@ -56,7 +56,7 @@ def linear_only_posterior(res, pool, seed, cache_dir, progress, log, reused=None
     def weight(sur):
         return SurrogateLogPosterior({"linear": sur}, res.space, box)
 
-    ref = surrogates.refine(ev, lambda: _gp_factory(box, 0, res.space.coordinate_names), X, y, weight, 1, max(8, s.n_linear // 4), pool,
+    ref = surrogates.refine(ev, lambda: design_gp(box, 0, res.space.coordinate_names), X, y, weight, 1, max(8, s.n_linear // 4), pool,
                             seed=int(ss[1].generate_state(1)[0]), candidates=2048,
                             target=lambda q: float(lik.to_z("linear", q["e_lin"])), log_weight=True,
                             evaluate=evaluate, progress=progress)
