@@ -169,7 +169,7 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
     must not name it."""
     from types import SimpleNamespace
 
-    from bayes_update.core.fits import DECISIVE, _at_bound, _at_null, names_effect
+    from bayes_update.core.fits import DECISIVE, effect_at_bound, effect_at_null, names_effect
 
     def fit(x):   # one base coordinate, one effect coordinate on [0, 5] with null 0
         space = SimpleNamespace(box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]), n_base=1,
@@ -179,8 +179,8 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
     rows = {}
     for label, x in (("at null", 3e-32), ("on bound", 5.0), ("inside", 2.0)):
         f = fit(x)
-        rows[label] = {"two_ln_B": 10 * DECISIVE, "excludes_null": True, "at_null": _at_null(f, 1),
-                       "at_bound": _at_bound(f, 1)}
+        rows[label] = {"two_ln_B": 10 * DECISIVE, "excludes_null": True, "at_null": effect_at_null(f, 1),
+                       "at_bound": effect_at_bound(f, 1)}
     assert rows["at null"]["at_null"] and not rows["at null"]["at_bound"]
     assert rows["on bound"]["at_bound"] and not rows["on bound"]["at_null"]
     assert not rows["inside"]["at_null"] and not rows["inside"]["at_bound"]

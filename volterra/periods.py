@@ -217,7 +217,7 @@ def find_periods(u, period_samples: int | None = None):
     return min(divisors, key=lambda p: p.period)
 
 
-def _detrended(D: np.ndarray, degree: int) -> np.ndarray:
+def detrended_rows(D: np.ndarray, degree: int) -> np.ndarray:
     """Each row minus its least-squares polynomial of ``degree`` in the sample index."""
     if degree < 0:
         return D
@@ -239,7 +239,7 @@ def steady_periods(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE) -> tu
     x = x[:, None] if x.ndim == 1 else x
     N, P = layout.period, layout.n_periods
     Y = x[layout.start:layout.stop].T.reshape(x.shape[1], P, N)
-    E = np.sum([np.sum(_detrended(np.diff(Yc, axis=0), detrend) ** 2, axis=1)
+    E = np.sum([np.sum(detrended_rows(np.diff(Yc, axis=0), detrend) ** 2, axis=1)
                 / max(float(np.sum(Yc ** 2)), 1e-300) for Yc in Y], axis=0)   # (P - 1,): pair j = j, j + 1
     first, last = 1, P
     while last - first >= 3 and E[first] > TRANSIENT_RATIO * np.median(E[first + 1:last - 1]):

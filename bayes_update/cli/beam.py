@@ -16,7 +16,7 @@ import fe
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 from bayes_update.data import signals
-from bayes_update.data.dataset import Dataset, Record, SensorError, _is_single_velocity
+from bayes_update.data.dataset import Dataset, Record, SensorError, is_single_velocity
 from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.rig import rig_of
 
@@ -124,7 +124,7 @@ def default_dataset() -> Dataset:
 def _require_beam_sensor(data: Dataset) -> None:
     """Before any beam run: the data set's sensor is the beam's (one velocity sensor), else a
     :class:`SensorError` saying what ``simulate`` needs and what to run instead."""
-    if not _is_single_velocity(data.sensors):
+    if not is_single_velocity(data.sensors):
         raise SensorError(f"{data.source or data.name}: `simulate` runs the beam, whose one sensor measures "
                           f"velocity; this data set's sensors are {list(data.sensors)}: give it a data set of "
                           "the beam rig, or run a model of your own on these records with `bayes-update "

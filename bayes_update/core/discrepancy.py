@@ -70,8 +70,8 @@ from bayes_update.core.detectability import detectability
 from bayes_update.core.effects import DECISIVE, EXPLAINED_FACTOR, ExtendedSpace, NamingVerdict, misfit_ratios
 from bayes_update.core.held_out import describe, held_out_comparison, held_out_runs
 from bayes_update.core.likelihood import errors_at_mode, estimate_likelihood, likelihood_runs
-from bayes_update.core.fits import (Fit, _at_bound, _at_null, _best_extra_starts, _effect_starts, _excludes_null,
-                                    _signature_check, failed_fit, fit_model, gap, names_effect, names_pair,
+from bayes_update.core.fits import (Fit, effect_at_bound, effect_at_null, best_extra_starts, effect_starts, effect_excludes_null,
+                                    signature_changes, failed_fit, fit_model, gap, names_effect, names_pair,
                                     noise_floor)
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.preflight import preflight
@@ -186,7 +186,7 @@ class _Workflow:
         lik = self.likelihood(space0, self.base.to_parameters(x0), s.seed)
         starts = [x0]
         if s.extra_starts:
-            extra, n = _best_extra_starts(self.problem, space0, lik, x0, self.pool)
+            extra, n = best_extra_starts(self.problem, space0, lik, x0, self.pool)
             starts += extra
             self.steps.add_runs(n)
         fit = self.fit([], lik, starts)
@@ -216,7 +216,7 @@ class _Workflow:
             # the effect at its null is one of the starts: the model with the effect contains the
             # model without it, so its fit can end no worse than where the baseline is
             starts = [np.concatenate([current.mode.x, v])
-                      for v in _effect_starts(trial, k, self.settings.effect_start) + [trial.null_internal()[-k:]]]
+                      for v in effect_starts(trial, k, self.settings.effect_start) + [trial.null_internal()[-k:]]]
             f = fits[e] = self.fit(current.names + [e], lik, starts)
             if np.any(np.abs(f.mode.x[:n] - current.mode.x) > 1e-3 * width):
                 base_fits.append(self.fit(current.names, lik, [f.mode.x[:n]]))
@@ -241,8 +241,8 @@ class _Workflow:
             values = {p.name: values[p.name] for p in self.effects[e]}
             rows.append({"name": e, "two_ln_B": two_ln_b, "failed_fit": failed,
                          "delta_log_likelihood": float(best_base.mode.cost - f.mode.cost),
-                         "n_parameters": k, "parameters": values, "excludes_null": _excludes_null(f, k),
-                         "at_null": _at_null(f, k), "at_bound": _at_bound(f, k),
+                         "n_parameters": k, "parameters": values, "excludes_null": effect_excludes_null(f, k),
+                         "at_null": effect_at_null(f, k), "at_bound": effect_at_bound(f, k),
                          "e_lin": f.metrics["e_lin"], "e_nlin": f.metrics["e_nlin"],
                          "held_out": held_out_comparison(self.problem, held[0], h)})
             flag = " (at its null value)" if rows[-1]["at_null"] else " (on a bound of its prior)" if rows[-1][
@@ -282,16 +282,16 @@ class _Workflow:
             k2 = len(self.effects[e2])
             trial = ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e1]) + list(self.effects[e2]))
             x2 = fits[e2].mode.x
-            starts = [np.concatenate([x2[:n], v, x2[n:]]) for v in _effect_starts(
+            starts = [np.concatenate([x2[:n], v, x2[n:]]) for v in effect_starts(
                 ExtendedSpace(self.base, list(current.space.added) + list(self.effects[e1])), k1,
                 self.settings.effect_start)]
             starts.append(np.concatenate([x2[:n], fits[e1].mode.x[n:], x2[n:]]))
             starts.append(np.concatenate([x2[:n], fits[e1].space.null_internal()[-k1:], x2[n:]]))   # = the partner's fit
-            starts += [np.concatenate([fits[e1].mode.x, v]) for v in _effect_starts(trial, k2, self.settings.effect_start)]
+            starts += [np.concatenate([fits[e1].mode.x, v]) for v in effect_starts(trial, k2, self.settings.effect_start)]
             f = pair_fits[(e1, e2)] = self.fit(current.names + [e1, e2], lik, starts)
             values = f.space.values(f.mode.x, f.covariance)
-            members = {e: {"excludes_null": _excludes_null(f, k, end), "at_null": _at_null(f, k, end),
-                           "at_bound": _at_bound(f, k, end),
+            members = {e: {"excludes_null": effect_excludes_null(f, k, end), "at_null": effect_at_null(f, k, end),
+                           "at_bound": effect_at_bound(f, k, end),
                            "parameters": {p.name: values[p.name] for p in self.effects[e]}}
                        for e, k, end in ((e1, k1, n + k1), (e2, k2, None))}
             before, after = self.held_out([best_base, f])
@@ -417,7 +417,7 @@ def find_discrepancy(dataset, model, *, start=None, candidates=None, settings: D
             d0 = flow.diagnose(baseline.theta)
             d1 = flow.diagnose(final.theta) if named else d0
             steps.add_runs(len(dataset.tests) * ((d0 is not None) + (d0 is not None and bool(named))))
-            signature = _signature_check(problem.model, named, d0, d1, gap_before, gap_after)
+            signature = signature_changes(problem.model, named, d0, d1, gap_before, gap_after)
     steps.finish()
     log("discrepancy: " + steps.line())
     res = DiscrepancyResult(named=named, rounds=rounds, baseline=baseline, final=final, likelihood=lik,

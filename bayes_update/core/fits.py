@@ -69,7 +69,7 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     return Fit(list(names), space, mode, logz, cov, metrics)
 
 
-def _effect_starts(space: ExtendedSpace, k: int, fraction: float) -> list:
+def effect_starts(space: ExtendedSpace, k: int, fraction: float) -> list:
     """Starts of the last ``k`` coordinates: null +- ``fraction`` of the range
     towards each bound (where the range extends that way); the null itself
     when the range is a point."""
@@ -90,7 +90,7 @@ def _member(fit: Fit, k: int, end: int | None) -> tuple:
             np.sqrt(np.diag(fit.covariance))[s])
 
 
-def _excludes_null(fit: Fit, k: int, end: int | None = None) -> bool:
+def effect_excludes_null(fit: Fit, k: int, end: int | None = None) -> bool:
     x, null, _, sd = _member(fit, k, end)
     return bool(np.any(np.abs(x - null) > 2.0 * sd))
 
@@ -99,14 +99,14 @@ def _excludes_null(fit: Fit, k: int, end: int | None = None) -> bool:
 AT_VALUE = 1e-3
 
 
-def _at_null(fit: Fit, k: int, end: int | None = None) -> bool:
+def effect_at_null(fit: Fit, k: int, end: int | None = None) -> bool:
     """Every parameter of an added effect (default: the last) fitted at its null
     value: the data asked nothing of it."""
     x, null, box, _ = _member(fit, k, end)
     return bool(np.all(np.abs(x - null) <= AT_VALUE * (box[:, 1] - box[:, 0])))
 
 
-def _at_bound(fit: Fit, k: int, end: int | None = None) -> bool:
+def effect_at_bound(fit: Fit, k: int, end: int | None = None) -> bool:
     """A parameter of an added effect (default: the last) on a bound of its prior
     (other than its null): the fit wanted more than the prior allows, a sign of a
     wrong model, or of an effect taking another's share as well."""
@@ -157,7 +157,7 @@ def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
                         for m in row["members"].values()) and _improves_held_out(row))
 
 
-def _best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
+def best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
                        n_best: int = 2) -> tuple[list, int]:
     """(the ``n_best`` lowest-cost of the model's ``extra_starts(x0)``, model runs);
     none if it offers none."""
@@ -207,7 +207,7 @@ def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
     return out
 
 
-def _signature_check(model, named, d0, d1, gap0, gap1) -> dict:
+def signature_changes(model, named, d0, d1, gap0, gap1) -> dict:
     """For each named effect, the number its physics should move (the model's
     ``signature(effect, diagnostics, gap)``), before and after."""
     sig = getattr(model, "signature", None)

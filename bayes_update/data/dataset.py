@@ -63,13 +63,13 @@ from bayes_update.data.format import (  # noqa: F401  (the format's names, re-ex
     UnknownRoleError,
     UnknownResponseError,
     SensorError,
-    _where,
+    source_label,
     check_sensors,
     check_channels,
     check_time,
     check_period_samples,
     check_noise_sd,
-    _is_single_velocity)
+    is_single_velocity)
 
 
 @dataclass
@@ -137,7 +137,7 @@ class Record:
         self.noise_sd = check_noise_sd(self.noise_sd, self.channels, where)
 
     def _velocity_alias(self) -> None:
-        if not _is_single_velocity(self.sensors):
+        if not is_single_velocity(self.sensors):
             raise SensorError(
                 f"{self.source or self.file}: Record.velocity is the response of a single velocity "
                 f"sensor, but this record's sensors are {list(self.sensors)}; use Record.response "

@@ -115,7 +115,7 @@ import copy
 import json
 from pathlib import Path
 import numpy as np
-from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, NOISE_TEST_KEYS, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, _is_single_velocity, _where, check_noise_sd, check_period_samples, check_sensors, check_time
+from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, NOISE_TEST_KEYS, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, is_single_velocity, source_label, check_noise_sd, check_period_samples, check_sensors, check_time
 
 
 UFF_SUFFIXES = (".uff", ".unv")
@@ -179,7 +179,7 @@ def read_dataset(folder) -> Dataset:
         if not path.is_file():
             raise DatasetError(f"{path}: file listed in dataset.json does not exist")
         if path.suffix.lower() in UFF_SUFFIXES:
-            if not _is_single_velocity(sensors):
+            if not is_single_velocity(sensors):
                 raise SensorError(f"{path}: a UFF test file holds force and velocity records only, but "
                                   f"{meta_path} declares the sensors {list(sensors)}; write this test "
                                   "as a CSV file with one column per sensor")
@@ -207,7 +207,7 @@ def sensors_from_metadata(meta: dict, meta_path=None) -> tuple:
     """The sensors ``((name, kind), ...)`` a ``dataset.json`` declares (its ``response``
     and ``sensors`` keys; default one velocity sensor).  Raises
     :class:`UnknownResponseError` or :class:`SensorError` naming ``meta_path``."""
-    where = _where(meta_path)
+    where = source_label(meta_path)
     kinds = f"kinds are {RESPONSE_KINDS}"
     top = meta.get("response", DEFAULT_RESPONSE)
     if top not in RESPONSE_KINDS:

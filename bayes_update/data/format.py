@@ -40,8 +40,8 @@ __all__ = ["COLUMNS", "DEFAULT_RESPONSE", "DEFAULT_SENSORS", "DEFAULT_LEVEL", "D
            "LengthMismatchError", "MissingColumnError", "NOISE_TEST_KEYS", "NonFiniteError",
            "NonIncreasingTimeError", "NonUniformTimeError", "RESERVED_KEYS", "RESPONSE_KINDS",
            "RESPONSE_UNITS", "ROLES", "SamplingRateError", "SensorError", "TEST_KEYS", "TIME_TOLERANCE",
-           "TimeColumnError", "UNITS", "UnknownResponseError", "UnknownRoleError", "_is_single_velocity",
-           "_where", "check_channels", "check_noise_sd", "check_period_samples", "check_sensors", "check_time"]
+           "TimeColumnError", "UNITS", "UnknownResponseError", "UnknownRoleError", "is_single_velocity",
+           "source_label", "check_channels", "check_noise_sd", "check_period_samples", "check_sensors", "check_time"]
 
 
 ROLES = ("linear", "nonlinear", "validation")
@@ -136,7 +136,8 @@ class SensorError(DatasetError):
     is used on a data set whose response is not a single velocity."""
 
 
-def _where(source) -> str:
+def source_label(source) -> str:
+    """Where a record came from, for an error message (its path, or "<in-memory record>")."""
     return str(source) if source is not None else "<in-memory record>"
 
 
@@ -145,7 +146,7 @@ def check_sensors(sensors, source=None) -> tuple:
 
     Raises :class:`UnknownResponseError` or :class:`SensorError` naming ``source``.
     """
-    where = _where(source)
+    where = source_label(source)
     try:
         pairs = tuple((name, kind) for name, kind in sensors)
     except (TypeError, ValueError):
@@ -178,7 +179,7 @@ def check_channels(time, force, response, source=None, sensors=DEFAULT_SENSORS):
     :class:`DatasetError` naming ``source`` (a file name, or the record) on
     bad input.
     """
-    where = _where(source)
+    where = source_label(source)
     sensors = check_sensors(sensors, source)
     names = [n for n, _ in sensors]
     arrays = {}
@@ -220,7 +221,7 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
     :class:`SamplingRateError`.  ``line_offset``: file line of sample 0, for
     the messages (CSV: 2).
     """
-    where = _where(source)
+    where = source_label(source)
 
     def at(i):
         return f"line {i + line_offset}" if line_offset is not None else f"sample {i}"
@@ -259,7 +260,7 @@ def check_period_samples(period, n_samples: int | None = None, source=None):
     Returns it as an int (or None); raises :class:`DatasetError` naming ``source``."""
     if period is None:
         return None
-    where = _where(source)
+    where = source_label(source)
     if isinstance(period, bool) or not isinstance(period, (int, np.integer)):
         raise DatasetError(f"{where}: 'period_samples' must be an integer number of samples "
                            f"(the excitation's period), got {period!r}")
@@ -277,7 +278,7 @@ def check_noise_sd(noise_sd, channels, source=None, key: str = "noise_sd") -> di
     (``force`` and the sensors' names), sd a positive finite number in the channel's
     unit per sample.  Returns a new dict of floats; raises :class:`DatasetError`
     naming ``source`` and ``key``."""
-    where = _where(source)
+    where = source_label(source)
     if noise_sd is None:
         return {}
     if not isinstance(noise_sd, dict):
@@ -296,5 +297,6 @@ def check_noise_sd(noise_sd, channels, source=None, key: str = "noise_sd") -> di
     return out
 
 
-def _is_single_velocity(sensors) -> bool:
+def is_single_velocity(sensors) -> bool:
+    """One sensor, measuring velocity: the beam rig's (and the paper's) layout."""
     return len(sensors) == 1 and sensors[0][1] == "velocity"

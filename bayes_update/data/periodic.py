@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from volterra.periods import (DETREND_DEGREE, MAX_REPEAT_RATIO, MIN_PERIODS, PeriodLayout, _detrended,
+from volterra.periods import (DETREND_DEGREE, MAX_REPEAT_RATIO, MIN_PERIODS, PeriodLayout, detrended_rows,
                               find_periods, steady_periods)
 
 __all__ = ["PeriodLayout", "find_periods", "period_noise", "MIN_PERIODS", "MAX_REPEAT_RATIO"]
@@ -43,7 +43,7 @@ def period_noise(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE):
     if P < 2:
         return f"only {P} period(s) left after the transient"
     D = Y[first:last] - Y[first:last].mean(axis=0)
-    R = _detrended(D, detrend)
+    R = detrended_rows(D, detrend)
     dof = (P - 1) * (N - (detrend + 1))
     sd = float(np.sqrt(np.sum(R ** 2) / dof))
     a = layout.start + first * N

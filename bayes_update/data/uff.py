@@ -60,7 +60,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bayes_update.data.dataset import ROLES, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SamplingRateError, SensorError, UnknownRoleError, _is_single_velocity, check_time
+from bayes_update.data.dataset import ROLES, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SamplingRateError, SensorError, UnknownRoleError, is_single_velocity, check_time
 
 FORCE_TYPE = 13  # UFF specific data type: excitation force
 VELOCITY_TYPE = 11  # UFF specific data type: velocity
@@ -326,7 +326,7 @@ def write_uff(dataset: Dataset, path, binary: bool = False) -> Path:
     """
     pyuff = _pyuff()
     dataset.validate()
-    if not _is_single_velocity(dataset.sensors):
+    if not is_single_velocity(dataset.sensors):
         raise SensorError(f"{path}: UFF files hold force and velocity records only, but the data set "
                           f"{dataset.name!r} has the sensors {dataset.sensors}; write it as a folder "
                           "(write_dataset)")
