@@ -76,6 +76,13 @@ MIN_STABLE = 3
 PSEUDO_STEP, PSEUDO_ZETA = 1.05, 0.03
 
 
+#: lines x sensors up to which a random record's modes narrower than the LPM's window are
+#: fitted on the whole record's lines (Lines.whole_record): that fit's transient terms make
+#: it slow on long records (131 072 samples, 3 sensors: over 5 minutes where the LPM's lines
+#: take 77 s), whose modes are rarely that narrow in lines
+MAX_WHOLE_LINES = 16384
+
+
 @dataclass(frozen=True)
 class ModalEstimate:
     """Result of :func:`estimate_modes`.
@@ -140,6 +147,11 @@ def _records(u, y):
     if not all(np.any(r != 0) for r in us):
         raise ValueError("the input u is constant: no mode can be excited")
     return [r - r.mean() for r in us], out
+
+
+def _fit_data(lines, fs) -> lsfd.FitLines:
+    """The lines a modal fit runs on, weighted by their estimates' variance."""
+    return lsfd.FitLines(lines.f, lines.H, weights(lines.var, lines.H, lines.u_power), fs, lines.inv_u, lines.record)
 
 
 def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping):
@@ -216,7 +228,7 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
             "noise. Check that y is the response to u (channels, units, synchronisation), the noise level, "
             "and f_range.")
     f, H = lines.f, lines.H
-    d = lsfd.FitLines(f, H, weights(lines.var, H, lines.u_power), fs, lines.inv_u, lines.record)
+    d = _fit_data(lines, fs)
     Wd = weights(lines.detect_var, lines.detect, lines.u_power)
     orders = range(2, int(max_order) + 1, 2)
     clusters, outside, diagram = subband_clusters(f, lines.detect, Wd, band, orders, max_damping)
@@ -264,6 +276,12 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
                "the noise level, f_range, offsets or slow drifts in u and y, and that the record is long enough: "
                f"a mode whose half-power band (2 zeta f) is narrower than the lines' spacing ({spacing:.3g} Hz) "
                "is not resolved (record more periods or a longer record).")
+    if (lines.whole is not None and lines.H.size <= MAX_WHOLE_LINES
+            and any(2 * z * fr < lines.correlated * spacing for fr, z in cand)):
+        # a mode narrower than the LPM's window: fitted on the whole record's lines, its transient
+        # a term of the fit (Lines.whole_record); the diagram above stays the LPM's
+        lines = lines.whole_record()
+        H, d = lines.H, _fit_data(lines, fs)
     corr = lines.correlated
     fixed = n_modes is not None
     modes, sig = select(d.take(fit_lines(f, cand, spacing)), cand, pseudo, fixed, min_significance, spacing, corr)
