@@ -276,47 +276,60 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
                "the noise level, f_range, offsets or slow drifts in u and y, and that the record is long enough: "
                f"a mode whose half-power band (2 zeta f) is narrower than the lines' spacing ({spacing:.3g} Hz) "
                "is not resolved (record more periods or a longer record).")
+    fixed = n_modes is not None
+
+    def fit_on(lines, d, pseudo):
+        """(modes, significance, pseudo, the LSCF's modes, relative residual) on ``lines``."""
+        corr = lines.correlated
+        modes, sig = select(d.take(fit_lines(f, cand, spacing)), cand, pseudo, fixed, min_significance, spacing, corr)
+        lscf = list(modes)
+        resid = float("nan")
+        if refine and modes:
+            modes, sig, pseudo = _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping)
+            tried, failed = [], 0
+            while not fixed and len(tried) < MAX_TRIED and failed < MAX_FAILED:
+                # a mode the LSCF did not stabilise (weak beside strong ones) leaves a peak in the fit's
+                # residual; a start that does not become a mode is not tried again
+                start = residual_peak(d, modes, pseudo, band, spacing, min_significance, tried, corr)
+                if start is None:
+                    break
+                tried.append(start)
+                try:
+                    trial = _refined(d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr,
+                                     max_damping)
+                except PoleEstimationError:
+                    trial = ([],)
+                if len(trial[0]) > len(modes):
+                    modes, sig, pseudo = trial
+                    failed = 0
+                else:
+                    failed += 1
+        if not modes:
+            raise PoleEstimationError(no_mode)
+        if refine:
+            resid = relative_residual(d, modes, pseudo)
+            if not resid <= max_residual:
+                raise PoleEstimationError(
+                    f"the refined modal fit leaves {100 * resid:.3g} % of the response unexplained (more than "
+                    f"{100 * max_residual:.3g} %): y does not follow u linearly. Check that y is the response to u, "
+                    "the noise level, slow drifts of y, that the record is low-level (not strongly nonlinear), and "
+                    "that n_modes (if given) is not below the number of modes in the band.")
+        return modes, sig, pseudo, lscf, resid
+
+    fitted = None
     if (lines.whole is not None and lines.H.size <= MAX_WHOLE_LINES
             and any(2 * z * fr < lines.correlated * spacing for fr, z in cand)):
         # a mode narrower than the LPM's window: fitted on the whole record's lines, its transient
-        # a term of the fit (Lines.whole_record); the diagram above stays the LPM's
-        lines = lines.whole_record()
-        H, d = lines.H, _fit_data(lines, fs)
-    corr = lines.correlated
-    fixed = n_modes is not None
-    modes, sig = select(d.take(fit_lines(f, cand, spacing)), cand, pseudo, fixed, min_significance, spacing, corr)
-    lscf = list(modes)
-    resid = float("nan")
-    if refine and modes:
-        modes, sig, pseudo = _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping)
-        tried, failed = [], 0
-        while not fixed and len(tried) < MAX_TRIED and failed < MAX_FAILED:
-            # a mode the LSCF did not stabilise (weak beside strong ones) leaves a peak in the fit's
-            # residual; a start that does not become a mode is not tried again
-            start = residual_peak(d, modes, pseudo, band, spacing, min_significance, tried, corr)
-            if start is None:
-                break
-            tried.append(start)
-            try:
-                trial = _refined(d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr,
-                                 max_damping)
-            except PoleEstimationError:
-                trial = ([],)
-            if len(trial[0]) > len(modes):
-                modes, sig, pseudo = trial
-                failed = 0
-            else:
-                failed += 1
-    if not modes:
-        raise PoleEstimationError(no_mode)
-    if refine:
-        resid = relative_residual(d, modes, pseudo)
-        if not resid <= max_residual:
-            raise PoleEstimationError(
-                f"the refined modal fit leaves {100 * resid:.3g} % of the response unexplained (more than "
-                f"{100 * max_residual:.3g} %): y does not follow u linearly. Check that y is the response to u, "
-                "the noise level, slow drifts of y, that the record is low-level (not strongly nonlinear), and "
-                "that n_modes (if given) is not below the number of modes in the band.")
+        # a term of the fit (Lines.whole_record); the diagram above stays the LPM's.  Where no mode
+        # holds there (a two-period multisine at 1024 samples: its lines between the excited ones
+        # are noise), the LPM's lines as before
+        whole = lines.whole_record()
+        try:
+            fitted = fit_on(whole, _fit_data(whole, fs), pseudo)
+            lines, H, d = whole, whole.H, _fit_data(whole, fs)
+        except PoleEstimationError:
+            fitted = None
+    modes, sig, pseudo, lscf, resid = fitted or fit_on(lines, d, pseudo)
     parts, _, _ = lsfd.fit(d, modes, pseudo)
     shares = energies(H, lines.u_power, parts)
     order = np.argsort(-shares)
