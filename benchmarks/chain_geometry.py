@@ -93,7 +93,8 @@ def main(argv=None):
                 return f"{np.median(v):{fmt}} ({v.min():{fmt}}-{v.max():{fmt}})"
 
             lines.append(f"| {sel[0]['case']} | {g[0]} x {g[1]} ({g[2]}, {g[3]}) | {cell('wall_s', '.1f')} | "
-                         f"{cell('tau_steps', '.0f')} | {cell('r_hat', '.3f')} | {cell('shift_sd', '.3f')} | {cell('sd_log_ratio', '.3f')} | "
+                         f"{cell('tau_steps', '.0f')} | {cell('r_hat', '.3f')} | {cell('shift_sd', '.3f')} | "
+                         f"{cell('sd_log_ratio', '.3f')} | "
                          f"{cell('ks', '.3f')} |")
     out = ROOT / "benchmarks" / "results" / "chain_geometry.md"
     out.write_text("\n".join(lines) + "\n")

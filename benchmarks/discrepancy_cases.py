@@ -228,7 +228,8 @@ def main(argv=None):
         lines.append(f"| {r['seed']} | {r['case']} | {hid} | {', '.join(r['named']) or 'none'} | "
                      f"{r['evidence'][0]['two_ln_B']:.1f} ({r['evidence'][0]['name']}) | "
                      f"{100 * (b['e_lin'] + b['e_nlin']):.2f} % -> {100 * (a['e_lin'] + a['e_nlin']):.2f} % | "
-                     f"{100 * b['held_out_error_beyond_noise']:.2f} % -> {100 * a['held_out_error_beyond_noise']:.2f} % | {pars or '-'} | "
+                     f"{100 * b['held_out_error_beyond_noise']:.2f} % -> "
+                     f"{100 * a['held_out_error_beyond_noise']:.2f} % | {pars or '-'} | "
                      f"{r['time_s']:.0f} s | {'OK' if r['success'] else 'FAIL'} |")
     lines += ["", "What each case leaves (the workflow's own sentence):", ""]
     lines += [f"- {r['case']}: {r['gap_sentence']}" for r in rows if r.get("gap_sentence")]

@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import fe  # noqa: E402
-from bayes_update.data import signals
+from bayes_update.data import signals  # noqa: E402
 from bayes_update.data.dataset import Dataset, Record  # noqa: E402
 from bayes_update.core.parameters import ParameterSet  # noqa: E402
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402

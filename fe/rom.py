@@ -61,9 +61,9 @@ other effect raises ``ValueError`` naming it.
 Time integration
 ----------------
 Classical RK4 for (q, q'), the force read at the stage times from the
-band-limited (or linear) interpolation of :mod:`fe.excitation`, as in the full FE.  RK4 is stable to ``|omega dt| = 2.8`` on the imaginary
-axis: the substeps hold the highest retained mode of the *unloaded* beam
-(above any preloaded frequency) and its Kelvin-Voigt decay rate
+band-limited (or linear) interpolation of :mod:`fe.excitation`, as in the full FE.  RK4 is stable
+to ``|omega dt| = 2.8`` on the imaginary axis: the substeps hold the highest retained mode of the
+*unloaded* beam (above any preloaded frequency) and its Kelvin-Voigt decay rate
 beta omega^2 at omega dt <= 2 (one substep per 1/1024 s for 3 modes).  The
 top equation is stiff for small c (relaxation time (c + beta K_b) / (K_b +
 k_s): 3 ms at the paper's point, 20 us at c = 0, eta = 1 MPa s) and

@@ -10,8 +10,9 @@ BLAS thread (matrices of tens to a few hundred rows: more threads only contend, 
 so on a shared machine).  Measured (benchmarks/gp_fit_time.py): an evaluation 2-4 times
 cheaper for 48-112 points in 4 inputs, a cold fit 1.1-2.6 times faster for 24-192 points,
 and the GP fits of a whole posterior 11-17 times faster (a Duffing user model 3.8 -> 0.35 s,
-the beam's ROM 14.1 -> 0.85 s; the same hyperparameters, the same posterior).  The fitted values go back into scikit-learn's kernel, whose regressor is then
-conditioned on them without an optimisation, so that everything downstream (predictions,
+the beam's ROM 14.1 -> 0.85 s; the same hyperparameters, the same posterior).  The fitted
+values go back into scikit-learn's kernel, whose regressor is then conditioned on them
+without an optimisation, so that everything downstream (predictions,
 :mod:`surrogates.gp_mean`) is unchanged.
 
 The gradient, in log parameters: with ``K = C M(r) + s I``, r the length-scaled distance

@@ -43,7 +43,8 @@ def test_adjusted_covariance_is_the_estimators_sampling_covariance():
     cov_mc = np.cov(est.T)
     sd_a, sd_mc = np.sqrt(np.diag(cov_adjusted)), np.sqrt(np.diag(cov_mc))
     assert np.all(np.abs(sd_a / sd_mc - 1) < 0.03), (sd_a, sd_mc)
-    corr = lambda C: C / np.sqrt(np.outer(np.diag(C), np.diag(C)))
+    def corr(C):
+        return C / np.sqrt(np.outer(np.diag(C), np.diag(C)))
     assert np.max(np.abs(corr(cov_adjusted) - corr(cov_mc))) < 0.03
     # the unadjusted likelihood is off by much more than that along the noisy direction
     sd_0 = np.sqrt(np.diag(np.linalg.inv(H)))

@@ -91,7 +91,9 @@ def _check_explains(res):
 
 # every case -m slow (75-145 s each, the 15-minute budget), all four at full settings in
 # benchmarks/discrepancy_cases.py; the default run names the bow in notebooks/05_discrepancy.ipynb
-@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) for n in SINGLE])
+# the clamp's case is also a headline check (CI runs it after the suite)
+@pytest.mark.parametrize("name", [pytest.param(n, marks=[pytest.mark.slow] + [pytest.mark.headline] * (n == "clamp_compliance"))
+                                  for n in SINGLE])
 def test_a_hidden_effect_is_named_and_the_gap_shrinks(name):
     (effect,), data, res = run_case(name)
     assert res.named == [name] and res.verdict == "named", res.rounds[0]["candidates"]
@@ -160,7 +162,7 @@ def test_no_hidden_effect_names_none(name, tmp_path):
     assert (tmp_path / "gap_before_after.png").stat().st_size > 10_000
 
 
-@pytest.mark.slow   # 63-95 s: outside the default run (15-minute budget); benchmarks/discrepancy_cases.py runs it at full settings
+@pytest.mark.slow   # 63-95 s, outside the default run (15-minute budget); benchmarks/discrepancy_cases.py: full settings
 def test_combined_case_names_both_and_closes_the_gap():
     """docs/discrepancy.md (combined case, full settings): both named, e_lin + e_nlin
     16.13 -> 0.44 %, validation 4.20 -> 0.35 %, bow 0.146 / 0.146 +- 0.036 mm,

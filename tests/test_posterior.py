@@ -288,6 +288,7 @@ def _check_sbc(n_truths, band_50, band_90):
 
 
 @pytest.mark.slow   # 120-160 s: the 15-minute budget; benchmarks/sbc.py (200 truths) is the measurement
+@pytest.mark.headline
 def test_simulation_based_calibration_of_the_likelihood_on_the_rom():
     """SBC of the likelihood the pipeline builds (estimate_likelihood's noise
     scales from 96 replicates and the curvature adjustment), linearised at
@@ -461,6 +462,7 @@ def test_settings_are_validated():
 
 
 @pytest.mark.slow   # 360-430 s (the direct chain): benchmarks/posterior_comparison.py is the measurement
+@pytest.mark.headline
 def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior, data):
     """Reduced version of benchmarks/posterior_comparison.py at docs/posterior.md's
     thresholds, every parameter: the same start, likelihood (the surrogate

@@ -133,10 +133,11 @@ def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
 
 
 @pytest.mark.slow   # about 60 s; benchmarks/runs_per_posterior.py measures the budget against a direct chain
+@pytest.mark.headline
 def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
     """The default sizes on the Duffing oscillator of test_user_model (fn, zeta, k3
-    free): the truth inside every 94 % HDI, converged chains, and fewer than 300 model runs
-    in total (measured 254-256; the default sizes take about 1350)."""
+    free): the truth inside every 94 % HDI, converged chains, and at most the README's bar of
+    250 model runs in total (benchmarks/runs_per_posterior.py: 177-191)."""
     from test_user_model import TRUTH, Duffing, make_dataset
 
     from bayes_update.core.posterior import PosteriorSettings, sample
@@ -145,7 +146,7 @@ def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
     model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
     res = sample(make_dataset(seed=11), model, PosteriorSettings(), workers=2, progress=False,
                  log=lambda *a: None)
-    assert res.n_model_runs["total"] < 300, res.n_model_runs
+    assert res.n_model_runs["total"] <= 250, res.n_model_runs
     for name in free:
         s = res.summary[name]
         assert s["hdi_3%"] <= TRUTH[name] <= s["hdi_97%"], (name, s)

@@ -367,7 +367,8 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
     Per stage a run of the model at the mode and one at the stage's own point
     (the better residual counts: a Gauss-Newton step along a direction the test
     barely pins may overshoot) and, where it has ``refined()``, one of the refined
-    model at the mode (through ``executor``, all side by side); the model's compared output at the mode comes from the mode's
+    model at the mode (through ``executor``, all side by side); the model's compared output
+    at the mode comes from the mode's
     scaled ``residual`` (no run) and the span from its ``jacobian`` (rows in
     ``problem.stages`` order).  With the model
     error switched off (``model_error=False``: data made by the updating model

@@ -106,8 +106,8 @@ declared for two channels, a periodic test and one test's own force noise::
 default single velocity sensor, ``response`` for one sensor named after its
 kind, ``sensors`` otherwise.
 
-The errors are those of :mod:`bayes_update.data.dataset`.  The readers never resample, interpolate or reorder: data that do not meet
-the format are refused with one of these errors.
+The errors are those of :mod:`bayes_update.data.dataset`.  The readers never resample,
+interpolate or reorder: data that do not meet the format are refused with one of these errors.
 """
 from __future__ import annotations
 

@@ -50,5 +50,12 @@ def period_noise(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE):
     b = layout.start + last * N
     detail = (f"periods {first + 1}-{last} of {N} samples ({P} used from sample {a}"
               f"{', period detected in the force' if not layout.declared else ''}"
-              f"{'' if detrend < 0 else ', a linear trend removed per period' if detrend == 1 else f', a degree-{detrend} trend removed per period'})")
+              f"{_trend_note(detrend)})")
     return sd, float(dof), detail, ((a, b),)
+
+
+def _trend_note(detrend: int) -> str:
+    """How a period's trend was removed, for the estimate's detail."""
+    if detrend < 0:
+        return ""
+    return ", a linear trend removed per period" if detrend == 1 else f", a degree-{detrend} trend removed per period"

@@ -294,7 +294,8 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
                                cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)))
     run.log("at the MAP: " + "; ".join(
-        f"{st} model error {100 * new.scales[st].model_error:.3f} %, model form {100 * new.scales[st].model_form_sd:.3f} "
+        f"{st} model error {100 * new.scales[st].model_error:.3f} %, "
+        f"model form {100 * new.scales[st].model_form_sd:.3f} "
         f"% per direction (noise {100 * new.scales[st].noise_sd:.3f} %): s {100 * lik.scales[st].sd:.3f} -> "
         f"{100 * new.scales[st].sd:.3f} %" for st in stages))
     n_evaluations = mp.n_evaluations
