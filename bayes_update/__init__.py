@@ -15,7 +15,8 @@ The verbs::
 ``bu.beam_model(data)`` is the preloaded beam of the paper as such a model.
 """
 
-from bayes_update.core.calibrate import Calibration, calibrate_model as calibrate
+from bayes_update.core.calibrate import Calibration
+from bayes_update.core.calibrate import calibrate_model as calibrate
 from bayes_update.core.discrepancy import DiscrepancyResult, DiscrepancySettings, find_discrepancy
 from bayes_update.core.model import Model, ModelError, ModelRunError, ModelSpecError, check_model, load_model
 from bayes_update.core.parameters import Parameter, ParameterSet
@@ -27,10 +28,34 @@ from bayes_update.reports.calibration import write_calibration
 from bayes_update.reports.discrepancy import write_discrepancy
 from bayes_update.reports.posterior import write_posterior
 
-__all__ = ["Calibration", "Dataset", "DatasetError", "DiscrepancyResult", "DiscrepancySettings", "Model",
-           "ModelError", "ModelRunError", "ModelSpecError", "Parameter", "ParameterSet", "PosteriorResult", "PosteriorSettings",
-           "Problem", "Record", "beam_model", "calibrate", "check_model", "find_discrepancy", "load_model",
-           "read_dataset", "sample", "write_calibration", "write_dataset", "write_discrepancy", "write_posterior"]
+__all__ = [
+    "Calibration",
+    "Dataset",
+    "DatasetError",
+    "DiscrepancyResult",
+    "DiscrepancySettings",
+    "Model",
+    "ModelError",
+    "ModelRunError",
+    "ModelSpecError",
+    "Parameter",
+    "ParameterSet",
+    "PosteriorResult",
+    "PosteriorSettings",
+    "Problem",
+    "Record",
+    "beam_model",
+    "calibrate",
+    "check_model",
+    "find_discrepancy",
+    "load_model",
+    "read_dataset",
+    "sample",
+    "write_calibration",
+    "write_dataset",
+    "write_discrepancy",
+    "write_posterior",
+]
 __version__ = "0.2.0"
 
 

@@ -1,4 +1,5 @@
 """``python -m bayes_update``: the command line (:mod:`bayes_update.cli`)."""
+
 import sys
 
 from bayes_update.cli import main

@@ -36,8 +36,10 @@ def median_time(model, repeats=7):
 
 
 def first_call_seconds():
-    code = ("import time; t0 = time.perf_counter(); import fe; from bayes_update.data.signals import chirp; "
-            "fe.BeamModel().simulate(fe.PAPER_PARAMETERS, chirp(0.1)); print(time.perf_counter() - t0)")
+    code = (
+        "import time; t0 = time.perf_counter(); import fe; from bayes_update.data.signals import chirp; "
+        "fe.BeamModel().simulate(fe.PAPER_PARAMETERS, chirp(0.1)); print(time.perf_counter() - t0)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return float(out.stdout.strip())
 
@@ -46,9 +48,11 @@ def main():
     print(f"machine: {machine()}\n")
     default = fe.BeamModel()
     t, it = median_time(default)
-    print(f"default model ({default.n_elements} elements, {default.substeps} substeps, "
-          f"rho_inf {default.rho_inf}): median {1e3 * t:.1f} ms per 4096-sample run, "
-          f"{it:.2f} Newton iterations per step\n")
+    print(
+        f"default model ({default.n_elements} elements, {default.substeps} substeps, "
+        f"rho_inf {default.rho_inf}): median {1e3 * t:.1f} ms per 4096-sample run, "
+        f"{it:.2f} Newton iterations per step\n"
+    )
     print("| elements | substeps | ms per run | us per step | Newton it./step |")
     print("|---|---|---|---|---|")
     for n in (10, 20, 40, 80, 160):
@@ -57,8 +61,10 @@ def main():
         steps = (FORCE.size - 1) * model.substeps
         print(f"| {n} | {model.substeps} | {1e3 * t:.1f} | {1e6 * t / steps:.2f} | {it:.2f} |")
     print()
-    print(f"first call in a fresh process (import + compile or cache load + one run): "
-          f"{first_call_seconds():.2f} s (numba cache warm)")
+    print(
+        f"first call in a fresh process (import + compile or cache load + one run): "
+        f"{first_call_seconds():.2f} s (numba cache warm)"
+    )
 
 
 if __name__ == "__main__":

@@ -35,7 +35,6 @@ from bayes_update.models.beam.rig import rig_of  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
 
 
-
 def main():
     data = load_default_dataset()
     rig = rig_of(data)
@@ -55,8 +54,9 @@ def main():
             out = {}
             for st in stages:
                 test = problem.tests[st]
-                v = fe.simulate(model, params, test.force, fs=problem.fs,
-                                positions=[rig.sensor_position_m]).sensor_velocity
+                v = fe.simulate(
+                    model, params, test.force, fs=problem.fs, positions=[rig.sensor_position_m]
+                ).sensor_velocity
                 comps = projectors[st].components(v)
                 y = comps[1] if st == "linear" else comps[2] + comps[3]
                 out[st] = np.linalg.norm(refs[st] - y) / np.linalg.norm(refs[st])

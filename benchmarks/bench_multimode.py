@@ -44,6 +44,7 @@ hence the dominant-mode rule of ``KautzBasis.from_data``
 Usage:
     python benchmarks/bench_multimode.py [--threads N] [--repeat R]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -71,6 +72,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 sys.path.insert(0, HERE)
 from _machine import machine  # noqa: E402
+
 from volterra import KautzBasis, VolterraProjector, fit_volterra  # noqa: E402
 
 FS = 25.0
@@ -120,11 +122,12 @@ def main():
     fr = sorted((p.freq_hz, p.damping_ratio) for p in basis.poles[1])
     ef = max(abs(a[0] / b[0] - 1) for a, b in zip(fr, MODES))
     ez = max(abs(a[1] / b[1] - 1) for a, b in zip(fr, MODES))
-    print(f"from_data: {len(fr)} modes, {t:.2f} s, peak {mem:.0f} MB; "
-          f"largest errors: frequency {100 * ef:.3f} %, damping {100 * ez:.2f} %")
+    print(
+        f"from_data: {len(fr)} modes, {t:.2f} s, peak {mem:.0f} MB; "
+        f"largest errors: frequency {100 * ef:.3f} %, damping {100 * ez:.2f} %"
+    )
     print(basis.describe())
-    today = KautzBasis.from_modal(basis.pole(1).freq_hz, basis.pole(1).damping_ratio, FS, (2, 2, 6),
-                                  feedthrough=False)
+    today = KautzBasis.from_modal(basis.pole(1).freq_hz, basis.pole(1).damping_ratio, FS, (2, 2, 6), feedthrough=False)
     bases = {"today (2,2,6), 1 mode": today, "6 modes, feed-through": basis}
     print(f"\n{'basis':>24s} {'P':>4s} {'projector [s]':>14s} {'memory [MB]':>12s} {'fit [s]':>8s}")
     projs = {}
@@ -144,11 +147,13 @@ def main():
             proj.components(y[:, 0])
             times[name].append(time.perf_counter() - t0)
     a, b = (np.array(times[name]) for name in bases)
-    print(f"\ncomponents(y) of one sensor, {3 * ARGS.repeat} alternating runs: today "
-          f"{1e3 * np.median(a):.1f} ms, 6 modes {1e3 * np.median(b):.1f} ms; ratio of medians "
-          f"{np.median(b) / np.median(a):.2f}, median of paired ratios {np.median(b / a):.2f} "
-          f"(P ratio {basis.n_params / today.n_params:.2f}); x 3 sensors: "
-          f"{3e3 * np.median(a):.0f} / {3e3 * np.median(b):.0f} ms")
+    print(
+        f"\ncomponents(y) of one sensor, {3 * ARGS.repeat} alternating runs: today "
+        f"{1e3 * np.median(a):.1f} ms, 6 modes {1e3 * np.median(b):.1f} ms; ratio of medians "
+        f"{np.median(b) / np.median(a):.2f}, median of paired ratios {np.median(b / a):.2f} "
+        f"(P ratio {basis.n_params / today.n_params:.2f}); x 3 sensors: "
+        f"{3e3 * np.median(a):.0f} / {3e3 * np.median(b):.0f} ms"
+    )
 
 
 if __name__ == "__main__":

@@ -88,19 +88,22 @@ def main(argv=None) -> int:
 
     t_def, r_def = median_time(lambda: ours_default.simulate(params, force, fs), args.repeat_fe)
     t_lin, r_lin = median_time(lambda: ours_linear.simulate(params, force, fs), args.repeat_fe)
-    t_ops, y_ops = median_time(lambda: osm.run_opensees_transient(ours_linear, params, force, fs),
-                               args.repeat_opensees)
+    t_ops, y_ops = median_time(lambda: osm.run_opensees_transient(ours_linear, params, force, fs), args.repeat_opensees)
 
-    print(f"# fe vs OpenSeesPy: one {force.size}-sample run "
-          f"(chirp {args.amplitude} N, paper's parameters)\n")
+    print(f"# fe vs OpenSeesPy: one {force.size}-sample run (chirp {args.amplitude} N, paper's parameters)\n")
     print(f"machine: {machine()} ({platform.platform()}); {versions()}")
-    print(f"mesh and step: {args.elements} elements, {args.substeps} substeps "
-          f"({n_steps} steps of {1e3 / (fs * args.substeps):.4f} ms), rho_inf = {args.rho_inf}; "
-          f"median of {args.repeat_fe} (fe) / {args.repeat_opensees} (OpenSees) runs after warm-up\n")
+    print(
+        f"mesh and step: {args.elements} elements, {args.substeps} substeps "
+        f"({n_steps} steps of {1e3 / (fs * args.substeps):.4f} ms), rho_inf = {args.rho_inf}; "
+        f"median of {args.repeat_fe} (fe) / {args.repeat_opensees} (OpenSees) runs after warm-up\n"
+    )
     print("| model | element | ms per run | us per step | OpenSees / this |")
     print("|---|---|---:|---:|---:|")
-    rows = [("fe (default)", "shallow arch", t_def), ("fe", "linear (chord-only)", t_lin),
-            ("OpenSeesPy", "elasticBeamColumn + Corotational", t_ops)]
+    rows = [
+        ("fe (default)", "shallow arch", t_def),
+        ("fe", "linear (chord-only)", t_lin),
+        ("OpenSeesPy", "elasticBeamColumn + Corotational", t_ops),
+    ]
     for name, element, t in rows:
         print(f"| {name} | {element} | {1e3 * t:.1f} | {1e6 * t / n_steps:.2f} | {t_ops / t:.0f} |")
 
@@ -116,14 +119,13 @@ def main(argv=None) -> int:
     print("|---|---|")
     print("| frequencies fe linear [Hz] | " + " / ".join(f"{f:.4f}" for f in f_ours) + " |")
     print("| frequencies OpenSees [Hz] | " + " / ".join(f"{f:.4f}" for f in f_ops) + " |")
-    print("| max relative frequency difference | "
-          f"{np.max(np.abs(f_ops - f_ours) / f_ours):.1e} |")
-    print("| frequencies fe default (shallow arch) [Hz] | " + " / ".join(f"{f:.4f}" for f in f_def)
-          + " |")
+    print(f"| max relative frequency difference | {np.max(np.abs(f_ops - f_ours) / f_ours):.1e} |")
+    print("| frequencies fe default (shallow arch) [Hz] | " + " / ".join(f"{f:.4f}" for f in f_def) + " |")
     print(f"| peak mid-span velocity (fe linear) [m/s] | {np.abs(y_lin).max():.4f} |")
     print(f"| rel. L2, fe linear vs OpenSees | {rel_l2(y_lin, y_ops):.2e} |")
-    print(f"| of which predicted from Kelvin-Voigt vs beta K0 | "
-          f"{np.linalg.norm(predicted) / np.linalg.norm(y_ops):.2e} |")
+    print(
+        f"| of which predicted from Kelvin-Voigt vs beta K0 | {np.linalg.norm(predicted) / np.linalg.norm(y_ops):.2e} |"
+    )
     print(f"| rel. L2 left after removing it | {rel_l2(y_lin, y_ops + predicted):.2e} |")
     print(f"| rel. L2, fe default vs OpenSees (element differs) | {rel_l2(y_def, y_ops):.2e} |")
     assert np.array_equal(y_ops, y_ops2)  # the recording run is the timed run

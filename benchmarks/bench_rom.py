@@ -52,6 +52,7 @@ def interleaved_times(rom, full, rounds=15, rom_repeats=7):
     """Median and minimum [s] of: ROM excluding / including the per-parameter
     precomputation, the precomputation alone, and the full FE, measured in
     interleaved rounds so that all four see the same machine load."""
+
     def excl():
         rom.simulate(PARAMS, FORCE, FS)
 
@@ -66,8 +67,7 @@ def interleaved_times(rom, full, rounds=15, rom_repeats=7):
     def run_fe():
         full.simulate(PARAMS, FORCE, FS)
 
-    jobs = {"excl": (excl, rom_repeats), "incl": (incl, rom_repeats), "pre": (pre, rom_repeats),
-            "fe": (run_fe, 1)}
+    jobs = {"excl": (excl, rom_repeats), "incl": (incl, rom_repeats), "pre": (pre, rom_repeats), "fe": (run_fe, 1)}
     for fn, _ in jobs.values():
         fn()  # warm-up (JIT, caches)
     times = {k: [] for k in jobs}
@@ -96,8 +96,9 @@ def prior_box_times(rom, n_points=40, seed=0):
     times = []
     rom.simulate(PARAMS, FORCE, FS)
     for _ in range(n_points):
-        p = fe.Parameters(eta=rng.uniform(1e6, 6e6), c=rng.uniform(0, 30e3),
-                          F=rng.uniform(60, 95), k_s=rng.uniform(0, 600e3))
+        p = fe.Parameters(
+            eta=rng.uniform(1e6, 6e6), c=rng.uniform(0, 30e3), F=rng.uniform(60, 95), k_s=rng.uniform(0, 600e3)
+        )
         t0 = time.perf_counter()
         rom.simulate(p, FORCE, FS)
         times.append(time.perf_counter() - t0)
@@ -124,20 +125,26 @@ def opensees_time(full, repeats=3):
 
 
 def first_call_seconds():
-    code = ("import time; t0 = time.perf_counter(); import fe, numpy as np; "
-            "r = fe.ModalROM(rig=fe.Rig(bending_stiffness_factor=1.24)); "
-            "r.simulate(fe.PAPER_PARAMETERS, np.sin(np.arange(4096) / 5.0)); "
-            "print(time.perf_counter() - t0)")
+    code = (
+        "import time; t0 = time.perf_counter(); import fe, numpy as np; "
+        "r = fe.ModalROM(rig=fe.Rig(bending_stiffness_factor=1.24)); "
+        "r.simulate(fe.PAPER_PARAMETERS, np.sin(np.arange(4096) / 5.0)); "
+        "print(time.perf_counter() - t0)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     return float(out.stdout.strip())
 
 
 def main():
     load = ", ".join(f"{x:.1f}" for x in os.getloadavg())
-    print(f"machine: {machine()}; BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']}; "
-          f"load average at start {load} (a shared machine: medians absorb some of it)\n")
-    print(f"Force: default data set, chirp_high ({FORCE.size} samples at {FS:g} Hz), "
-          f"rig factor {rig_of(DATA).bending_stiffness_factor}, paper's parameters.\n")
+    print(
+        f"machine: {machine()}; BLAS threads: {os.environ['OPENBLAS_NUM_THREADS']}; "
+        f"load average at start {load} (a shared machine: medians absorb some of it)\n"
+    )
+    print(
+        f"Force: default data set, chirp_high ({FORCE.size} samples at {FS:g} Hz), "
+        f"rig factor {rig_of(DATA).bending_stiffness_factor}, paper's parameters.\n"
+    )
     rom = fe.ModalROM(rig=rig_of(DATA))
     t0 = time.perf_counter()
     model_setup = fe.ModalROM(rig=rig_of(DATA)).rig_matrices
@@ -145,32 +152,43 @@ def main():
     full = fe.BeamModel(rig=rig_of(DATA))
     t = interleaved_times(rom, full)
     substeps = rom.choose_substeps(PARAMS, FS)
-    print(f"ModalROM ({rom.n_modes} modes, shapes from {rom.n_elements} elements, "
-          f"{substeps} RK4 substep(s) per sample); median (minimum) of interleaved runs:\n")
+    print(
+        f"ModalROM ({rom.n_modes} modes, shapes from {rom.n_elements} elements, "
+        f"{substeps} RK4 substep(s) per sample); median (minimum) of interleaved runs:\n"
+    )
     fe_med, fe_min = t["fe"]
     print("| | ms per run | full FE / ROM (medians) |")
     print("|---|---|---|")
-    for key, label in (("excl", "ROM, excluding per-parameter precomputation"),
-                       ("incl", "ROM, including per-parameter precomputation")):
+    for key, label in (
+        ("excl", "ROM, excluding per-parameter precomputation"),
+        ("incl", "ROM, including per-parameter precomputation"),
+    ):
         med, low = t[key]
         print(f"| {label} | {1e3 * med:.3f} ({1e3 * low:.3f}) | {fe_med / med:.0f}x |")
     med, low = t["pre"]
-    print(f"| per-parameter precomputation alone (eigenproblem + projections) | "
-          f"{1e3 * med:.3f} ({1e3 * low:.3f}) | |")
-    print(f"| full FE ({full.n_elements} elements, {full.substeps} substeps) | "
-          f"{1e3 * fe_med:.1f} ({1e3 * fe_min:.1f}) | 1x |")
+    print(f"| per-parameter precomputation alone (eigenproblem + projections) | {1e3 * med:.3f} ({1e3 * low:.3f}) | |")
+    print(
+        f"| full FE ({full.n_elements} elements, {full.substeps} substeps) | "
+        f"{1e3 * fe_med:.1f} ({1e3 * fe_min:.1f}) | 1x |"
+    )
     os_med = opensees_time(full)
     if os_med is not None:
         inc = t["incl"][0]
-        print(f"| OpenSeesPy, the full FE's mesh and step (corotational, HHTGeneralized; 3 runs) | "
-              f"{1e3 * os_med:.0f} | {os_med / fe_med:.0f}x the full FE, {os_med / inc:.0f}x the ROM |")
+        print(
+            f"| OpenSeesPy, the full FE's mesh and step (corotational, HHTGeneralized; 3 runs) | "
+            f"{1e3 * os_med:.0f} | {os_med / fe_med:.0f}x the full FE, {os_med / inc:.0f}x the ROM |"
+        )
     print()
-    print(f"Per-model setup (FE matrices of {model_setup.mass.shape[0]} free transverse dofs, "
-          f"Cholesky, buckling load; once per ModalROM): {1e3 * setup:.1f} ms (first call, "
-          "includes the effect checks)\n")
+    print(
+        f"Per-model setup (FE matrices of {model_setup.mass.shape[0]} free transverse dofs, "
+        f"Cholesky, buckling load; once per ModalROM): {1e3 * setup:.1f} ms (first call, "
+        "includes the effect checks)\n"
+    )
     med, worst = prior_box_times(fe.ModalROM(rig=rig_of(DATA)))
-    print(f"Random points of the prior box (a new P_eff each, precomputation included, "
-          f"40 points): median {1e3 * med:.3f} ms, max {1e3 * worst:.3f} ms\n")
+    print(
+        f"Random points of the prior box (a new P_eff each, precomputation included, "
+        f"40 points): median {1e3 * med:.3f} ms, max {1e3 * worst:.3f} ms\n"
+    )
     print("Cost against the number of modes (substeps chosen automatically):\n")
     print("| modes | substeps | ms excl. | ms incl. | us per RK4 step |")
     print("|---|---|---|---|---|")
@@ -180,8 +198,10 @@ def main():
         m = r.choose_substeps(PARAMS, FS)
         print(f"| {n} | {m} | {1e3 * e:.3f} | {1e3 * i:.3f} | {1e6 * e / ((FORCE.size - 1) * m):.3f} |")
     print()
-    print(f"first call in a fresh process (import + numba cache load + setup + one run): "
-          f"{first_call_seconds():.2f} s (numba cache warm)")
+    print(
+        f"first call in a fresh process (import + numba cache load + setup + one run): "
+        f"{first_call_seconds():.2f} s (numba cache warm)"
+    )
 
 
 if __name__ == "__main__":

@@ -15,6 +15,7 @@ Usage:
 
 BLAS is limited to one thread (small matrices on a small shared machine).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -29,6 +30,7 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
 from _machine import machine  # noqa: E402
+
 from surrogates import CurvedValley, GPSurrogate, design, refine  # noqa: E402
 
 
@@ -59,10 +61,12 @@ def main():
         def posterior(s):  # log density exp(-(e/floor - 1)/2) on the surrogate
             return lambda X: -0.5 * (s.predict(X, return_std=False) / prob.floor - 1)
 
-        variants = {"weight*sd": dict(power=1.0, weight=posterior),
-                    "weight^0.5*sd": dict(power=0.5, weight=posterior),
-                    "weight^0.25*sd": dict(power=0.25, weight=posterior),
-                    "sd only": dict(power=1.0, weight=lambda s: (lambda X: np.zeros(len(X))))}
+        variants = {
+            "weight*sd": dict(power=1.0, weight=posterior),
+            "weight^0.5*sd": dict(power=0.5, weight=posterior),
+            "weight^0.25*sd": dict(power=0.25, weight=posterior),
+            "sd only": dict(power=1.0, weight=lambda s: lambda X: np.zeros(len(X))),
+        }
         table = {k: [] for k in ["one-shot Sobol", *variants]}
         t0 = time.perf_counter()
         for seed in range(a.seeds):
@@ -70,21 +74,39 @@ def main():
             table["one-shot Sobol"].append(errors(factory().fit(X, prob.values(X)), T, yT))
             X0 = design(prob.bounds, a.n // 4, seed=seed)
             for name, v in variants.items():
-                res = refine(prob, factory, X0, prob.values(X0), v["weight"], (a.n - a.n // 4) // a.batch,
-                             a.batch, None, seed=seed, log_weight=True, power=v["power"], progress=False)
+                res = refine(
+                    prob,
+                    factory,
+                    X0,
+                    prob.values(X0),
+                    v["weight"],
+                    (a.n - a.n // 4) // a.batch,
+                    a.batch,
+                    None,
+                    seed=seed,
+                    log_weight=True,
+                    power=v["power"],
+                    progress=False,
+                )
                 table[name].append(errors(res.surrogate, T, yT))
         print(f"\n## d = {d} ({a.seeds} seeds, {time.perf_counter() - t0:.0f} s)")
-        print(f"{'design':<16} {'median rel err (seed min / median / max)':>42} {'p90 (median)':>13} "
-              f"{'coverage (median)':>18}")
+        print(
+            f"{'design':<16} {'median rel err (seed min / median / max)':>42} {'p90 (median)':>13} "
+            f"{'coverage (median)':>18}"
+        )
         for name, rows in table.items():
             r = np.array(rows)
-            print(f"{name:<16} {r[:, 0].min():>12.3g} {np.median(r[:, 0]):>12.3g} {r[:, 0].max():>12.3g}   "
-                  f"{np.median(r[:, 1]):>13.3g} {np.median(r[:, 2]):>18.3g}")
+            print(
+                f"{name:<16} {r[:, 0].min():>12.3g} {np.median(r[:, 0]):>12.3g} {r[:, 0].max():>12.3g}   "
+                f"{np.median(r[:, 1]):>13.3g} {np.median(r[:, 2]):>18.3g}"
+            )
         one = np.array(table["one-shot Sobol"])[:, 0]
         for name in variants:
             f = one / np.array(table[name])[:, 0]
-            print(f"improvement factor, one-shot / {name} (median rel. error, same seed): "
-                  f"min {f.min():.2f}, median {np.median(f):.2f}, max {f.max():.2f}")
+            print(
+                f"improvement factor, one-shot / {name} (median rel. error, same seed): "
+                f"min {f.min():.2f}, median {np.median(f):.2f}, max {f.max():.2f}"
+            )
 
 
 if __name__ == "__main__":

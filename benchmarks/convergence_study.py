@@ -44,8 +44,10 @@ def main():
         f1 = fe.BeamModel(n_elements=n).modal_analysis(P, 1).frequencies_hz[0]
         e = [err(velocity(n, 64, 0.9, levels[k]), k) for k in levels]
         print(f"| {n} | {100 * e[0]:.2f} % | {100 * e[1]:.2f} % | {f1 / f_ref - 1:.1e} |")
-    print("\nTemporal error (48 elements), relative L2, and the scheme at f1 = "
-          f"{f_ref:.2f} Hz (algorithmic damping ratio, period elongation):\n")
+    print(
+        "\nTemporal error (48 elements), relative L2, and the scheme at f1 = "
+        f"{f_ref:.2f} Hz (algorithmic damping ratio, period elongation):\n"
+    )
     print("| substeps | rho_inf | low | high | zeta_alg | period error |")
     print("|---|---|---|---|---|---|")
     for m in (1, 2, 4, 8):
@@ -55,12 +57,13 @@ def main():
             print(f"| {m} | {rho} | {100 * e[0]:.2f} % | {100 * e[1]:.2f} % | {z:.1e} | {pe:.1e} |")
     d = fe.BeamModel()
     e = [err(velocity(d.n_elements, d.substeps, d.rho_inf, levels[k]), k) for k in levels]
-    print(f"\nDefault ({d.n_elements} elements, {d.substeps} substeps, rho_inf {d.rho_inf}): "
-          f"low {100 * e[0]:.2f} %, high {100 * e[1]:.2f} %")
+    print(
+        f"\nDefault ({d.n_elements} elements, {d.substeps} substeps, rho_inf {d.rho_inf}): "
+        f"low {100 * e[0]:.2f} %, high {100 * e[1]:.2f} %"
+    )
     r = (2 * d.n_elements, 4 * d.substeps)
     e = [err(velocity(*r, d.rho_inf, levels[k]), k) for k in levels]
-    print(f"Virtual-rig settings ({r[0]} elements, {r[1]} substeps): low {100 * e[0]:.2f} %, "
-          f"high {100 * e[1]:.2f} %")
+    print(f"Virtual-rig settings ({r[0]} elements, {r[1]} substeps): low {100 * e[0]:.2f} %, high {100 * e[1]:.2f} %")
 
 
 if __name__ == "__main__":

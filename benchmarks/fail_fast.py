@@ -17,6 +17,7 @@ variants below each carry one fault.
 an older commit for the "before" column).  Writes
 ``benchmarks/results/fail_fast.json`` (``--out``) and prints a table.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -80,7 +81,7 @@ class BadParameters(Duffing):
     parameters = [("fn", 30.0, 50.0), ("zeta", 0.005, 0.08)]
 '''
 
-LAB_VARIANTS = '''
+LAB_VARIANTS = """
 import sys
 sys.path.insert(0, {tests!r})
 import numpy as np
@@ -94,7 +95,7 @@ class LabShort(LabChain):
 
 class LabRefinedNone(LabChain):
     refined = None
-'''
+"""
 
 
 def _write_inputs(tmp: Path) -> None:
@@ -125,7 +126,7 @@ def _write_inputs(tmp: Path) -> None:
             (two / "copy_high.csv").write_bytes((tmp / name / high["file"]).read_bytes())
             meta["tests"].append({**high, "file": "copy_high.csv"})
         (two / "dataset.json").write_text(json.dumps(meta, indent=2))
-        read_dataset(two)                                    # a valid folder: only its roles are wrong
+        read_dataset(two)  # a valid folder: only its roles are wrong
     (tmp / "unknown_key.toml").write_text("[calibrate]\nn_starts = 8\n")
 
 
@@ -142,21 +143,26 @@ def _cases():
         ("parameters not Parameter, duffing", f"calibrate --model {d}:BadParameters --data duffing"),
         ("two tests nonlinear, duffing", f"calibrate --model {d}:Duffing --data duffing_two_nonlinear"),
         ("two tests nonlinear, lab", f"sample --quick --model {lab}:LabChain --data lab_two_nonlinear"),
-        ("unreachable scheduler, duffing", f"calibrate --model {d}:Duffing --data duffing "
-                                           "--scheduler tcp://127.0.0.1:9"),
-        ("unreachable scheduler, lab", f"sample --quick --model {lab}:LabChain --data lab "
-                                       "--scheduler tcp://127.0.0.1:9"),
+        (
+            "unreachable scheduler, duffing",
+            f"calibrate --model {d}:Duffing --data duffing --scheduler tcp://127.0.0.1:9",
+        ),
+        (
+            "unreachable scheduler, lab",
+            f"sample --quick --model {lab}:LabChain --data lab --scheduler tcp://127.0.0.1:9",
+        ),
         ("refined = None, duffing", f"sample --quick --model {d}:RefinedNone --data duffing"),
         ("refined = None, lab", f"sample --quick --model {lab}:LabRefinedNone --data lab"),
         ("misspelt hook (refine), duffing", f"sample --quick --model {d}:Misspelt --data duffing"),
-        ("candidate_effects not callable, duffing", f"discrepancy --quick --model {d}:EffectsNotCallable "
-                                                    "--data duffing"),
-        ("unknown [calibrate] key, duffing", f"calibrate --model {d}:Duffing --data duffing "
-                                             "--config unknown_key.toml"),
+        (
+            "candidate_effects not callable, duffing",
+            f"discrepancy --quick --model {d}:EffectsNotCallable --data duffing",
+        ),
+        ("unknown [calibrate] key, duffing", f"calibrate --model {d}:Duffing --data duffing --config unknown_key.toml"),
     ]
 
 
-API = '''
+API = """
 import json, sys
 import bayes_update as bu
 from bayes_update.core.model import load_model
@@ -167,7 +173,7 @@ try:
     print(json.dumps({"error": None}))
 except Exception as exc:
     print(json.dumps({"error": f"{type(exc).__name__}: {exc}"}))
-'''
+"""
 
 API_CASES = [
     ("API: short sample, lab", "calibrate", "lab_models.py:LabShort", "lab"),
@@ -182,16 +188,24 @@ def _run(argv, cwd, env, timeout):
     try:
         res = subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        return {"seconds": None, "status": None, "message": f"no error within {timeout:.0f} s (stopped)",
-                "traceback": False}
+        return {
+            "seconds": None,
+            "status": None,
+            "message": f"no error within {timeout:.0f} s (stopped)",
+            "traceback": False,
+        }
     seconds = time.perf_counter() - t0
     lines = [ln for ln in res.stderr.splitlines() if ln.strip()]
     err = [ln for ln in lines if ": error: " in ln]
     message = err[-1] if err else (lines[-1] if lines else "")
     if res.returncode == 0:
         message = "completed without an error"
-    return {"seconds": seconds, "status": res.returncode, "message": message[:300],
-            "traceback": "Traceback" in res.stderr}
+    return {
+        "seconds": seconds,
+        "status": res.returncode,
+        "message": message[:300],
+        "traceback": "Traceback" in res.stderr,
+    }
 
 
 def _run_api(argv, cwd, env, timeout):
@@ -219,7 +233,7 @@ def main() -> None:
     code = args.code.resolve()
     env = {**os.environ, "PYTHONPATH": str(code)}
     rows = []
-    load = [os.getloadavg()[0]]                   # the machine is shared: its load, at the start and the end
+    load = [os.getloadavg()[0]]  # the machine is shared: its load, at the start and the end
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         _write_inputs(tmp)
@@ -235,18 +249,26 @@ def main() -> None:
             argv = [sys.executable, "-m", "bayes_update"] + command.split() + ["--out", f"out{i}"]
             row = {"case": name, "how": "bayes-update " + command, **_run(argv, tmp, env, args.timeout)}
             rows.append(row)
-            print(f"{name:42s} {row['seconds'] or float('nan'):6.1f} s  status {row['status']}  {row['message']}",
-                  flush=True)
+            print(
+                f"{name:42s} {row['seconds'] or float('nan'):6.1f} s  status {row['status']}  {row['message']}",
+                flush=True,
+            )
         for name, verb, spec, data in API_CASES:
             if not wanted(name):
                 continue
             res = _run_api([sys.executable, "-c", API, verb, spec, data], tmp, env, args.timeout)
-            rows.append({"case": name, "how": f"bu.{verb if verb != 'discrepancy' else 'find_discrepancy'}"
-                                              "(data, model)", **res})
+            rows.append(
+                {"case": name, "how": f"bu.{verb if verb != 'discrepancy' else 'find_discrepancy'}(data, model)", **res}
+            )
             print(f"{name:42s} {res['seconds'] or float('nan'):6.1f} s  {res['message']}", flush=True)
     load.append(os.getloadavg()[0])
-    doc = {"machine": machine(), "date": time.strftime("%Y-%m-%d"), "code": str(code),
-           "load_average_1min": load, "cases": rows}
+    doc = {
+        "machine": machine(),
+        "date": time.strftime("%Y-%m-%d"),
+        "code": str(code),
+        "load_average_1min": load,
+        "cases": rows,
+    }
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(doc, indent=2) + "\n")
     print(f"wrote {args.out}")

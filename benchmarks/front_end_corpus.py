@@ -33,6 +33,7 @@ is over resolvable records; the others are scored and listed too.
 writes ``benchmarks/results/front_end_corpus.{json,md}`` (every record's row
 and the table) and prints the table and the command that regenerates it.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,17 +46,17 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 HERE = Path(__file__).resolve().parent
-sys.path[:0] = [str(HERE), str(HERE.parent)]          # this checkout's packages, not an installed copy
+sys.path[:0] = [str(HERE), str(HERE.parent)]  # this checkout's packages, not an installed copy
 
-import numpy as np                                              # noqa: E402
-from scipy.optimize import linear_sum_assignment                # noqa: E402
+import numpy as np  # noqa: E402
+from front_end_draws import CLASSES, CLEAR_PEAK, draw  # noqa: E402
+from scipy.optimize import linear_sum_assignment  # noqa: E402
 
-import volterra                                                 # noqa: E402
-from bayes_update.data.inspect import find_modes                # noqa: E402
-from bayes_update.data.lpm import HOLDS_FORCE_NOISE              # noqa: E402
-from bayes_update.data.noise import dataset_noise               # noqa: E402
-from volterra import find_periods                               # noqa: E402
-from front_end_draws import CLASSES, CLEAR_PEAK, draw           # noqa: E402
+import volterra  # noqa: E402
+from bayes_update.data.inspect import find_modes  # noqa: E402
+from bayes_update.data.lpm import HOLDS_FORCE_NOISE  # noqa: E402
+from bayes_update.data.noise import dataset_noise  # noqa: E402
+from volterra import find_periods  # noqa: E402
 
 FREQ_TOL, DAMPING_TOL, NOISE_TOL = 0.005, 0.15, 0.25
 #: the exceptions the front end documents as its answer for a record it cannot read
@@ -108,23 +109,44 @@ def score(seed: int, cls: str | None = None) -> dict:
     data, truth, _ = draw(seed, cls)
     fs = data.sampling_rate_hz
     lin = data.by_role("linear")[0]
-    row = {"seed": seed, "class": truth.details["class"], "excitation": truth.details["excitation"],
-           "form": truth.details["form"], "fs": fs, "n": lin.n_samples, "band": list(truth.band),
-           "kinds": truth.details["kinds"], "modes_true": truth.modes, "outside": truth.outside}
+    row = {
+        "seed": seed,
+        "class": truth.details["class"],
+        "excitation": truth.details["excitation"],
+        "form": truth.details["form"],
+        "fs": fs,
+        "n": lin.n_samples,
+        "band": list(truth.band),
+        "kinds": truth.details["kinds"],
+        "modes_true": truth.modes,
+        "outside": truth.outside,
+    }
     ok, why = resolvable(truth, lin.n_samples, fs, truth.period[lin.name])
     row.update(resolvable=ok, why=why)
     row["periods"] = {}
     for t in data.tests:
         found = find_periods(t.force, t.period_samples)
-        row["periods"][t.name] = {"true": truth.period[t.name],
-                                  "found": None if isinstance(found, str) else found.period}
+        row["periods"][t.name] = {
+            "true": truth.period[t.name],
+            "found": None if isinstance(found, str) else found.period,
+        }
     try:
         noise = dataset_noise(data, strict=False)
         eff = truth.details["effective_noise"]
-        row["noise"] = [{"test": t, "channel": ch, "true": truth.noise[t][ch], "effective": eff[t].get(ch),
-                         "sd": e.sd, "method": e.method, "detail": e.detail}
-                        for t, ests in noise.items() for ch, e in ests.items()]
-    except Exception as exc:                                       # a crash: a bug to report
+        row["noise"] = [
+            {
+                "test": t,
+                "channel": ch,
+                "true": truth.noise[t][ch],
+                "effective": eff[t].get(ch),
+                "sd": e.sd,
+                "method": e.method,
+                "detail": e.detail,
+            }
+            for t, ests in noise.items()
+            for ch, e in ests.items()
+        ]
+    except Exception as exc:  # a crash: a bug to report
         row["noise_crash"] = f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"
         row["noise"] = []
     try:
@@ -135,12 +157,21 @@ def score(seed: int, cls: str | None = None) -> dict:
     except Exception as exc:
         row["modes_found"], row["crash"] = [], f"{type(exc).__name__}: {exc}\n{traceback.format_exc()}"
     pairs = match(truth.modes, row["modes_found"])
-    row["errors"] = [{"f": truth.modes[i][0], "df": row["modes_found"][j][0] / truth.modes[i][0] - 1,
-                      "dz": row["modes_found"][j][1] / truth.modes[i][1] - 1} for i, j in pairs]
+    row["errors"] = [
+        {
+            "f": truth.modes[i][0],
+            "df": row["modes_found"][j][0] / truth.modes[i][0] - 1,
+            "dz": row["modes_found"][j][1] / truth.modes[i][1] - 1,
+        }
+        for i, j in pairs
+    ]
     row["missed"] = len(truth.modes) - len(pairs)
     row["spurious"] = len(row["modes_found"]) - len(pairs)
-    row["success"] = (row["missed"] == 0 and row["spurious"] == 0
-                      and all(abs(e["df"]) <= FREQ_TOL and abs(e["dz"]) <= DAMPING_TOL for e in row["errors"]))
+    row["success"] = (
+        row["missed"] == 0
+        and row["spurious"] == 0
+        and all(abs(e["df"]) <= FREQ_TOL and abs(e["dz"]) <= DAMPING_TOL for e in row["errors"])
+    )
     row["seconds"] = time.perf_counter() - t0
     return row
 
@@ -170,10 +201,12 @@ def _pct(x, q):
 
 def table(rows) -> str:
     """The per-class table (markdown)."""
-    head = ("| class | records | resolvable | success (resolvable) | freq. error % p50 / p95 / max | "
-            "damping error % p50 / p95 / max | spurious (records / modes) | missed (records / modes) | "
-            "pole errors / crashes | noise: channels, within 25 % or unknown, unknown, error % p50 / p95 | "
-            "periods found / periodic, found where none |")
+    head = (
+        "| class | records | resolvable | success (resolvable) | freq. error % p50 / p95 / max | "
+        "damping error % p50 / p95 / max | spurious (records / modes) | missed (records / modes) | "
+        "pole errors / crashes | noise: channels, within 25 % or unknown, unknown, error % p50 / p95 | "
+        "periods found / periodic, found where none |"
+    )
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for cls in list(CLASSES) + ["all"]:
         rs = [r for r in rows if cls == "all" or r["class"] == cls]
@@ -196,7 +229,8 @@ def table(rows) -> str:
             f"{sum('error' in r for r in rs)} / {sum('crash' in r or 'noise_crash' in r for r in rs)} | "
             f"{len(nz)}, {100 * np.mean([noise_ok(x) for x in nz]) if nz else float('nan'):.1f} %, "
             f"{sum(x['sd'] is None for x in nz)}, {_pct(known, 50)} / {_pct(known, 95)} | "
-            f"{sum(p['found'] == p['true'] for p in per)} / {len(per)}, {false} |")
+            f"{sum(p['found'] == p['true'] for p in per)} / {len(per)}, {false} |"
+        )
     return "\n".join(lines)
 
 
@@ -214,12 +248,15 @@ def main(argv=None) -> None:
     def done(row):
         rows.append(row)
         flag = "ok" if row["success"] else ("not resolvable" if not row["resolvable"] else "FAILED")
-        print(f"[{len(rows)}/{len(seeds)}] seed {row['seed']} {row['class']} {row['excitation']}: modes {flag}, "
-              f"noise {sum(noise_ok(x) for x in row['noise'])}/{len(row['noise'])}, {row['seconds']:.1f} s",
-              flush=True)
+        print(
+            f"[{len(rows)}/{len(seeds)}] seed {row['seed']} {row['class']} {row['excitation']}: modes {flag}, "
+            f"noise {sum(noise_ok(x) for x in row['noise'])}/{len(row['noise'])}, {row['seconds']:.1f} s",
+            flush=True,
+        )
 
     if args.jobs > 1:
         from concurrent.futures import ProcessPoolExecutor
+
         with ProcessPoolExecutor(args.jobs) as pool:
             for row in pool.map(score, seeds):
                 done(row)
@@ -230,14 +267,17 @@ def main(argv=None) -> None:
     command = f"python benchmarks/front_end_corpus.py --n {args.n} --seed0 {args.seed0}"
     text = table(rows)
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.json").write_text(json.dumps({"command": command, "wall_s": wall, "rows": rows},
-                                                          indent=1, default=float))
+    (RESULTS / f"{args.name}.json").write_text(
+        json.dumps({"command": command, "wall_s": wall, "rows": rows}, indent=1, default=float)
+    )
     (RESULTS / f"{args.name}.md").write_text(f"{text}\n\nRegenerate: `{command}` ({wall:.0f} s)\n")
     print(text)
     for r in rows:
         if not r["success"] and r["resolvable"] or "crash" in r or "noise_crash" in r:
-            print(f"seed {r['seed']} {r['class']} {r['excitation']}: found {r['modes_found']} "
-                  f"true {r['modes_true']} {r.get('error', '')[:200]} {r.get('crash', '')[:300]}")
+            print(
+                f"seed {r['seed']} {r['class']} {r['excitation']}: found {r['modes_found']} "
+                f"true {r['modes_true']} {r.get('error', '')[:200]} {r.get('crash', '')[:300]}"
+            )
     print(f"\nregenerate: {command}   ({wall:.0f} s)")
 
 

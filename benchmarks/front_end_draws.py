@@ -23,14 +23,15 @@ record's period 8-16 tau, a random record 40-100 tau, ...); at most
 by solve_ivp): fs is lowered towards 2.5x the band, and only then the
 lightest dampings raised, to fit.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import numpy as np
-
 import front_end_signals as sig
 import front_end_systems as sysm
+import numpy as np
+
 from bayes_update.data.dataset import Dataset, Record
 
 CLASSES = ("sdof_ode", "modal", "close_pair", "beam", "plate", "lumped", "nonlinear")
@@ -38,9 +39,9 @@ EXCITATIONS = ("periodic", "random", "sweep", "burst")
 EXCITATION_P = (0.4, 0.25, 0.2, 0.15)
 MAX_SAMPLES = 1 << 17
 MAX_SAMPLES_ODE = 1 << 14
-FINE = 16                          # the generator's oversampling of the record's rate (linear systems)
-FINE_ODE = 8                       # ... for solve_ivp
-PAD = 64                           # samples simulated past the record's end (the anti-alias FIR's edge)
+FINE = 16  # the generator's oversampling of the record's rate (linear systems)
+FINE_ODE = 8  # ... for solve_ivp
+PAD = 64  # samples simulated past the record's end (the anti-alias FIR's edge)
 #: a mode's peak is clear when its own response at resonance has this many times the noise's power
 #: there on its best sensor (per line; the force's noise through the FRF included)
 CLEAR_PEAK = 10.0
@@ -49,11 +50,15 @@ CLEAR_PEAK = 10.0
 #: change of the mode it causes is under a tenth of the tolerances (0.05 % in frequency, 1.5 % in
 #: damping): cubic 3/2 (x/s)^2, Bouc-Wen's hysteretic damping about 0.1 x/s, the friction's
 #: (v/v0)^2, the clearance none below the gap
-LOW_LEVEL = {"linear": 0.01, "cubic": 0.01, "quadratic": 0.01, "bouc_wen": 2e-4, "friction": 0.02,
-             "clearance": 0.1}
+LOW_LEVEL = {"linear": 0.01, "cubic": 0.01, "quadratic": 0.01, "bouc_wen": 2e-4, "friction": 0.02, "clearance": 0.1}
 #: the high-level test's displacement rms over the scale (by the linearised response)
-HIGH_LEVEL = {"cubic": (0.2, 0.6), "quadratic": (0.2, 0.6), "bouc_wen": (0.5, 3.0), "friction": (5.0, 20.0),
-              "clearance": (0.5, 2.0)}
+HIGH_LEVEL = {
+    "cubic": (0.2, 0.6),
+    "quadratic": (0.2, 0.6),
+    "bouc_wen": (0.5, 3.0),
+    "friction": (5.0, 20.0),
+    "clearance": (0.5, 2.0),
+}
 
 
 @dataclass
@@ -94,8 +99,8 @@ def _modal(rng, cls, band, kinds):
     m = int(rng.integers(1, 9)) if cls == "modal" else int(rng.integers(2, 7))
     z = _loguniform(rng, 0.002, 0.1, m)
     pair = cls == "close_pair"
-    while True:          # as many modes as the band holds apart, down to one (plus the pair)
-        f = _spread(rng, m - pair, lo * 1.15, hi / (1.3 if pair else 1.15), z[:m - pair], 8.0 if pair else 4.0)
+    while True:  # as many modes as the band holds apart, down to one (plus the pair)
+        f = _spread(rng, m - pair, lo * 1.15, hi / (1.3 if pair else 1.15), z[: m - pair], 8.0 if pair else 4.0)
         if f is not None or m == 1 + pair:
             break
         m -= 1
@@ -108,11 +113,15 @@ def _modal(rng, cls, band, kinds):
         i = int(rng.integers(0, m - 1))
         z[i] = min(z[i], 0.03)
         zp, g = z[i] * _loguniform(rng, 0.7, 1.4), rng.uniform(1.3, 3.0)
-        fp = f[i] * (1 + g * z[i]) / (1 - g * zp)          # fp - f_i = g (zeta_i f_i + zeta_p fp)
+        fp = f[i] * (1 + g * z[i]) / (1 - g * zp)  # fp - f_i = g (zeta_i f_i + zeta_p fp)
         f, z = np.insert(f, i + 1, fp), np.insert(z[:-1], i + 1, zp)
-    if rng.uniform() < 0.6:                          # modes outside the band: residual terms
-        f_out = np.concatenate([lo * _loguniform(rng, 0.2, 0.8, int(rng.integers(0, 3))),
-                                hi * _loguniform(rng, 1.2, 3.0, int(rng.integers(1, 4)))])
+    if rng.uniform() < 0.6:  # modes outside the band: residual terms
+        f_out = np.concatenate(
+            [
+                lo * _loguniform(rng, 0.2, 0.8, int(rng.integers(0, 3))),
+                hi * _loguniform(rng, 1.2, 3.0, int(rng.integers(1, 4))),
+            ]
+        )
         f = np.concatenate([f, f_out])
         z = np.concatenate([z, _loguniform(rng, 0.005, 0.05, f_out.size)])
     return sysm.modal_draw(f, z, rng, len(kinds), kinds, complex_modes=bool(rng.uniform() < 0.5)), band
@@ -139,8 +148,9 @@ def _plate(rng, band, kinds):
     aspect = rng.uniform(1.0, 1.5)
     z0 = _loguniform(rng, 0.002, 0.03)
     pts = rng.uniform(0.1, 0.9, (len(kinds) + 1, 2)) * [1.0, aspect]
-    lin = sysm.plate(aspect, 7, lo * _loguniform(rng, 1.15, 1.5), pts[0], pts[1:], kinds,
-                     lambda f: z0 * np.ones_like(f))
+    lin = sysm.plate(
+        aspect, 7, lo * _loguniform(rng, 1.15, 1.5), pts[0], pts[1:], kinds, lambda f: z0 * np.ones_like(f)
+    )
     n_in = int(rng.integers(1, 9))
     top, nxt = lin.freq_hz[n_in - 1], lin.freq_hz[n_in]
     return lin, (lo, min(np.sqrt(top * nxt), top * 1.5))
@@ -165,8 +175,14 @@ def _system(rng, cls, band):
         kinds = _kinds(rng, 1)
         form = "linear" if cls == "sdof_ode" else str(rng.choice(sysm.NONLINEAR_FORMS))
         zeta = _loguniform(rng, 0.002, 0.1) if cls == "sdof_ode" else _loguniform(rng, 0.005, 0.08)
-        system = sysm.NonlinearSDOF(float(_loguniform(rng, 0.1, 10.0)), float(_loguniform(rng, lo * 1.3, hi / 1.3)),
-                                    float(zeta), form, 1e-3, kinds[0])
+        system = sysm.NonlinearSDOF(
+            float(_loguniform(rng, 0.1, 10.0)),
+            float(_loguniform(rng, lo * 1.3, hi / 1.3)),
+            float(zeta),
+            form,
+            1e-3,
+            kinds[0],
+        )
         return system, kinds, band
     kinds = _kinds(rng, int(rng.integers(1, 4)))
     if cls in ("modal", "close_pair"):
@@ -189,7 +205,7 @@ def _excitation(rng, kind, fs, R, band, n_target, tau, f_lo):
     if kind == "periodic":
         P = int(max(rng.uniform(8, 16) * tau, 20 / f_lo) * fs)
         n_per = int(rng.integers(3, 9))
-        steady = rng.uniform() < 0.3                 # recorded after the transient has died out
+        steady = rng.uniform() < 0.3  # recorded after the transient has died out
         lead = int(rng.uniform(0.1, 0.5) * P) if (not steady and rng.uniform() < 0.3) else 0
         tail = int(8 * tau * fs) if lead else 0
         pre = (int(np.ceil(8 * tau * fs / P)) * P) if steady else 0
@@ -204,7 +220,7 @@ def _excitation(rng, kind, fs, R, band, n_target, tau, f_lo):
         n = n_target
         return sig.random_noise(rng, fs, R, band, pre + n + PAD), n, None, pre, {"steady": bool(steady)}
     if kind == "sweep":
-        decay = rng.uniform(2, 10) * tau             # at rest at the end, or not quite
+        decay = rng.uniform(2, 10) * tau  # at rest at the end, or not quite
         n = int(n_target + decay * fs)
         on = n_target / n
         log = bool(rng.uniform() < 0.5)
@@ -246,7 +262,7 @@ def draw(seed: int, cls: str | None = None):
     tau = float(np.max(1 / (lin.zeta * 2 * np.pi * lin.freq_hz)[inband]))
     fs = float(band[1] * _loguniform(rng, 2.5, 50.0))
     seconds = _budget(kind, tau, band[0])
-    if seconds * fs > n_max:                          # lower fs first, then the lightest dampings
+    if seconds * fs > n_max:  # lower fs first, then the lightest dampings
         fs = max(2.5 * band[1], n_max / seconds)
         if seconds * fs > n_max:
             tau_max = tau * n_max / (seconds * fs)
@@ -258,8 +274,13 @@ def draw(seed: int, cls: str | None = None):
         # into the band: an analog anti-alias filter never lets a lab's sensor see them) are cut
         system = lin = _truncated(lin, 0.25 * fs * R)
     n_target = int(min(n_max, _budget(kind, tau, band[0]) * fs) * (0.5 if kind == "sweep" else 1.0))
-    tests, noise, effective, period, details = [], {}, {}, {}, {"class": cls, "excitation": kind, "fs": fs,
-                                                  "kinds": list(kinds), "tau_s": tau}
+    tests, noise, effective, period, details = (
+        [],
+        {},
+        {},
+        {},
+        {"class": cls, "excitation": kind, "fs": fs, "kinds": list(kinds), "tau_s": tau},
+    )
     sensors = tuple((f"{k[:3]}{i}", k) for i, k in enumerate(kinds))
     levels = [("low", "linear")] + ([("high", "nonlinear")] if cls == "nonlinear" else [])
     snr = rng.uniform(20, 60, len(kinds) + 1)
@@ -271,8 +292,8 @@ def draw(seed: int, cls: str | None = None):
         u, n, P, pre, meta = _excitation(rng, kind, fs, R, band, n_target, tau, band[0])
         scale = _force_scale(rng, system, lin, u, R, fs, level)
         clean = _simulate(system, scale * u, R, fs)
-        clean = clean[pre: pre + n]
-        if sds is None:                               # the noise of each channel: the low test's rms / SNR
+        clean = clean[pre : pre + n]
+        if sds is None:  # the noise of each channel: the low test's rms / SNR
             sds = np.std(clean, axis=0) * 10 ** (-snr / 20)
         meas = clean.copy()
         added = np.zeros_like(clean)
@@ -286,8 +307,19 @@ def draw(seed: int, cls: str | None = None):
                 meas[:, c] += sig.drift(rng, n, rng.uniform(1, 10) * sds[c])
         name = f"{kind}_{level}"
         resp = meas[:, 1] if len(kinds) == 1 else meas[:, 1:]
-        tests.append(Record(f"{name}.csv", kind, level, role, np.arange(n) / fs, meas[:, 0], resp,
-                            sensors=sensors, period_samples=P if (P and declare) else None))
+        tests.append(
+            Record(
+                f"{name}.csv",
+                kind,
+                level,
+                role,
+                np.arange(n) / fs,
+                meas[:, 0],
+                resp,
+                sensors=sensors,
+                period_samples=P if (P and declare) else None,
+            )
+        )
         noise[name] = dict(zip(("force",) + tuple(s for s, _ in sensors), map(float, sds)))
         # what a fit driven by the measured force cannot tell from a sensor's noise: its own and the
         # (linearised) structure's response to the force's noise in the excited band (outside it the
@@ -301,16 +333,27 @@ def draw(seed: int, cls: str | None = None):
         details[name] = {**meta, "force_rms": float(np.std(clean[:, 0]))}
         if level == "low":
             clarity = _clarity(lin, clean, added, fs, band)
-    details.update(snr_db=snr.tolist(), colour=colour, offsets=bool(offsets), drifts=bool(drifts),
-                   declared_period=declare, form=getattr(system, "form", None))
+    details.update(
+        snr_db=snr.tolist(),
+        colour=colour,
+        offsets=bool(offsets),
+        drifts=bool(drifts),
+        declared_period=declare,
+        form=getattr(system, "form", None),
+    )
     f, z = lin.freq_hz, lin.zeta
     inband = (f >= band[0]) & (f <= band[1])
     order = np.argsort(f)
     details["clarity"] = [float(clarity[i]) for i in order if inband[i]]
     details["effective_noise"] = effective
-    truth = Truth([(float(f[i]), float(z[i])) for i in order if inband[i]],
-                  [(float(f[i]), float(z[i])) for i in order if not inband[i]],
-                  (float(band[0]), float(band[1])), noise, period, details)
+    truth = Truth(
+        [(float(f[i]), float(z[i])) for i in order if inband[i]],
+        [(float(f[i]), float(z[i])) for i in order if not inband[i]],
+        (float(band[0]), float(band[1])),
+        noise,
+        period,
+        details,
+    )
     return Dataset(f"corpus-{seed}", fs, None, tests), truth, lin
 
 
@@ -319,6 +362,7 @@ def _clarity(lin, clean, noise, fs, band):
     response has at its resonance over the noise there (the sensor's, and the force's through
     the FRF), from Welch PSDs of the clean force and of the noise added."""
     from scipy.signal import welch
+
     nper = min(clean.shape[0], 8192)
     f, s_uu = welch(clean[:, 0], fs, nperseg=nper)
     _, s_nn = welch(noise, fs, nperseg=nper, axis=0, detrend="linear")
@@ -337,7 +381,7 @@ def _clarity(lin, clean, noise, fs, band):
 
 def _mode_part(lin, k, fk):
     """Mode k's own part of every sensor's FRF at fk [Hz]."""
-    one = sysm.Linear(lin.lam[k:k + 1], lin.residues[k:k + 1], lin.kinds)
+    one = sysm.Linear(lin.lam[k : k + 1], lin.residues[k : k + 1], lin.kinds)
     return one.frf([fk])[0]
 
 
@@ -351,7 +395,7 @@ def _with_damping(system, lin, zeta):
         s = sysm.NonlinearSDOF(system.mass, system.freq_hz, float(zeta[0]), system.form, system.scale, system.kind)
         return s, s.linearised()
     w = np.abs(lin.lam)
-    lam = -zeta * w + 1j * w * np.sqrt(1 - zeta ** 2)
+    lam = -zeta * w + 1j * w * np.sqrt(1 - zeta**2)
     new = sysm.Linear(lam, lin.residues * (lin.lam.imag / lam.imag)[:, None], lin.kinds)
     return new, new
 

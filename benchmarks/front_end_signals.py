@@ -21,6 +21,7 @@ decimation (``scipy.signal.resample_poly``) on every channel.
 :func:`drift` a slow trend.  Every draw takes the caller's
 ``numpy.random.Generator``.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -25,6 +25,7 @@ and rational FRFs): every response here comes from the continuous system.
 
 Frequencies Hz, damping ratios [-], SI units (m, m/s, m/s^2, N, kg).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -76,8 +77,8 @@ class Linear:
             x = lam * h
             phi1, phi2 = _phi(x)
             e = np.exp(x)
-            b1 = h * phi2                       # weight of u[n]  (end of the step)
-            b0 = h * phi1 - b1                  # weight of u[n-1]
+            b1 = h * phi2  # weight of u[n]  (end of the step)
+            b0 = h * phi1 - b1  # weight of u[n-1]
             q = signal.lfilter([b1, b0], [1.0, -e], u.astype(complex))
             for s in range(out.shape[1]):
                 out[:, s] += 2.0 * np.real(self.residues[k, s] * lam ** p[s] * q)
@@ -97,7 +98,7 @@ def _phi(x: complex):
         phi2 = np.sum(x ** np.arange(13) / np.cumprod(np.arange(2, 15)))
         return complex(phi1), complex(phi2)
     e = np.exp(x)
-    return (e - 1) / x, (e - 1 - x) / x ** 2
+    return (e - 1) / x, (e - 1 - x) / x**2
 
 
 def _real_modes(freq_hz, zeta, shapes_f, shapes_s, kinds) -> Linear:
@@ -105,7 +106,7 @@ def _real_modes(freq_hz, zeta, shapes_f, shapes_s, kinds) -> Linear:
     sensors at ``shapes_s`` (M, S)."""
     w = 2 * np.pi * np.asarray(freq_hz, float)
     z = np.asarray(zeta, float)
-    lam = -z * w + 1j * w * np.sqrt(1 - z ** 2)
+    lam = -z * w + 1j * w * np.sqrt(1 - z**2)
     r = np.asarray(shapes_f, float)[:, None] * np.asarray(shapes_s, float) / (2j * lam.imag[:, None])
     return Linear(lam, r, tuple(kinds))
 
@@ -120,14 +121,20 @@ def beam(rng, n_modes: int, f1_hz: float, support: str, force_x: float, sensor_x
     if support == "pinned":
         k = np.arange(1, n_modes + 1)
         shapes = np.sqrt(2) * np.sin(np.outer(k, np.pi * x))
-        freq = f1_hz * k ** 2
+        freq = f1_hz * k**2
     elif support == "cantilever":
-        betas = np.array([optimize.brentq(lambda b: np.cos(b) * np.cosh(b) + 1, (j - 0.5) * np.pi - 0.5 + 0.1,
-                                          (j - 0.5) * np.pi + 0.6) for j in range(1, n_modes + 1)])
+        betas = np.array(
+            [
+                optimize.brentq(
+                    lambda b: np.cos(b) * np.cosh(b) + 1, (j - 0.5) * np.pi - 0.5 + 0.1, (j - 0.5) * np.pi + 0.6
+                )
+                for j in range(1, n_modes + 1)
+            ]
+        )
         sig = (np.cosh(betas) + np.cos(betas)) / (np.sinh(betas) + np.sin(betas))
         bx = np.outer(betas, x)
         # the far-field form sin/sinh - sigma (cos - cosh): cosh and sinh nearly cancel for high modes
-        shapes = (np.cosh(bx) - np.cos(bx) - sig[:, None] * (np.sinh(bx) - np.sin(bx)))
+        shapes = np.cosh(bx) - np.cos(bx) - sig[:, None] * (np.sinh(bx) - np.sin(bx))
         shapes /= np.sqrt(np.mean(_cantilever_grid(betas, sig) ** 2, axis=1))[:, None]
         freq = f1_hz * (betas / betas[0]) ** 2
     else:
@@ -147,7 +154,7 @@ def plate(aspect: float, n_side: int, f11_hz: float, force_xy, sensor_xy, kinds,
     ``zeta_of(freq)`` the modal damping."""
     m, n = np.meshgrid(np.arange(1, n_side + 1), np.arange(1, n_side + 1), indexing="ij")
     m, n = m.ravel(), n.ravel()
-    freq = f11_hz * (m ** 2 + (n / aspect) ** 2) / (1 + 1 / aspect ** 2)
+    freq = f11_hz * (m**2 + (n / aspect) ** 2) / (1 + 1 / aspect**2)
     order = np.argsort(freq)
     m, n, freq = m[order], n[order], freq[order]
     pts = np.vstack([np.asarray(force_xy, float)[None], np.asarray(sensor_xy, float)])
@@ -164,7 +171,7 @@ def lumped(rng, n_dof: int, f_first_hz: float, zeta_range, force_dof: int, senso
     mass = rng.uniform(0.5, 2.0, n_dof)
     ks = rng.uniform(0.4, 2.5, n_dof + 1)
     K = np.zeros((n_dof, n_dof))
-    for i in range(n_dof + 1):                   # spring i between dof i-1 and dof i (ground outside)
+    for i in range(n_dof + 1):  # spring i between dof i-1 and dof i (ground outside)
         a, b = i - 1, i
         for p, q, sgn in ((a, a, 1), (b, b, 1), (a, b, -1), (b, a, -1)):
             if 0 <= p < n_dof and 0 <= q < n_dof:
@@ -177,7 +184,7 @@ def lumped(rng, n_dof: int, f_first_hz: float, zeta_range, force_dof: int, senso
     z = np.exp(rng.uniform(np.log(zeta_range[0]), np.log(zeta_range[1]), n_dof))
     C = M @ phi @ np.diag(2 * z * w) @ phi.T @ M
     j = int(rng.integers(0, n_dof))
-    C[j, j] += 0.5 * C[j, j]                      # a local dashpot: the modes become complex
+    C[j, j] += 0.5 * C[j, j]  # a local dashpot: the modes become complex
     A = np.block([[np.zeros((n_dof, n_dof)), np.eye(n_dof)], [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]])
     B = np.zeros(2 * n_dof)
     B[n_dof + force_dof] = 1.0 / mass[force_dof]
@@ -203,7 +210,7 @@ def modal_draw(freq_hz, zeta, rng, n_sensors: int, kinds, complex_modes: bool) -
     if not complex_modes:
         return lin
     r = lin.residues * np.exp(1j * np.deg2rad(rng.uniform(-25, 25, size=lin.residues.shape)))
-    r = r - np.mean(r.real, axis=0, keepdims=True)      # sum of real parts zero per sensor
+    r = r - np.mean(r.real, axis=0, keepdims=True)  # sum of real parts zero per sensor
     return Linear(lin.lam, r, lin.kinds)
 
 
@@ -239,16 +246,15 @@ class NonlinearSDOF:
         """The modes about rest: Bouc-Wen and the regularised friction add stiffness / damping."""
         k, c = self.k, self.c
         if self.form == "bouc_wen":
-            k = self.k                                # alpha k + (1 - alpha) k A with A = 1
+            k = self.k  # alpha k + (1 - alpha) k A with A = 1
         if self.form == "friction":
             c = c + self._mu() / self._v0()
         w = np.sqrt(k / self.mass)
         z = c / (2 * np.sqrt(k * self.mass))
-        return _real_modes([w / (2 * np.pi)], [z], [1 / np.sqrt(self.mass)], [[1 / np.sqrt(self.mass)]],
-                           (self.kind,))
+        return _real_modes([w / (2 * np.pi)], [z], [1 / np.sqrt(self.mass)], [[1 / np.sqrt(self.mass)]], (self.kind,))
 
     def _mu(self):
-        return 0.1 * self.k * self.scale            # friction force [N]
+        return 0.1 * self.k * self.scale  # friction force [N]
 
     def _v0(self):
         # the regularisation velocity [m/s]: linearised, the friction adds a damping ratio of 0.01
@@ -261,13 +267,13 @@ class NonlinearSDOF:
         if self.form == "cubic":
             return k * x * (x / s) ** 2
         if self.form == "quadratic":
-            return 0.3 * k * x * x / s            # the well ends at x = -s / 0.3: beyond the high level
+            return 0.3 * k * x * x / s  # the well ends at x = -s / 0.3: beyond the high level
         if self.form == "bouc_wen":
-            return -0.6 * k * x + 0.6 * k * z          # alpha = 0.4 of k elastic, the rest hysteretic
+            return -0.6 * k * x + 0.6 * k * z  # alpha = 0.4 of k elastic, the rest hysteretic
         if self.form == "friction":
             return self._mu() * np.tanh(v / self._v0())
         if self.form == "clearance":
-            over = np.logaddexp(0.0, (np.abs(x) - s) / (0.02 * s)) * 0.02 * s     # softplus(|x| - gap)
+            over = np.logaddexp(0.0, (np.abs(x) - s) / (0.02 * s)) * 0.02 * s  # softplus(|x| - gap)
             return 4.0 * k * np.sign(x) * over
         raise ValueError(self.form)
 
@@ -295,8 +301,15 @@ class NonlinearSDOF:
             zd = v - beta * abs(v) * z - beta * v * abs(z) if bw else 0.0
             return (v, (f - c * v - k * x - nonlinear(x, v, z)) / m, zd)
 
-        sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], method="DOP853", t_eval=t, rtol=1e-9,
-                        atol=[1e-12 * s, 1e-12 * s * 2 * np.pi * self.freq_hz, 1e-12 * s])
+        sol = solve_ivp(
+            rhs,
+            (0.0, t[-1]),
+            [0.0, 0.0, 0.0],
+            method="DOP853",
+            t_eval=t,
+            rtol=1e-9,
+            atol=[1e-12 * s, 1e-12 * s * 2 * np.pi * self.freq_hz, 1e-12 * s],
+        )
         if not sol.success:
             raise RuntimeError(f"solve_ivp: {sol.message}")
         x, v, z = sol.y

@@ -16,6 +16,7 @@ Two measurements, the machine noted:
 
 Writes ``benchmarks/results/gp_fit_time.md`` and ``.json``.
 """
+
 from __future__ import annotations
 
 import json
@@ -29,9 +30,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from surrogates.gp import GPSurrogate  # noqa: E402
-
 from _machine import machine  # noqa: E402
+
+from surrogates.gp import GPSurrogate  # noqa: E402
 
 
 def _data(n, d, seed=0):
@@ -51,8 +52,12 @@ def one_fit(n, d, fast):
     t = time.perf_counter()
     warm = GPSurrogate(box, transform="none", n_restarts_optimizer=2, seed=0, fast=fast).warm_from(cold).fit(X2, y2)
     t_warm = time.perf_counter() - t
-    return {"cold_s": t_cold, "warm_s": t_warm, "cold_log_ml": float(cold.gp_.log_marginal_likelihood_value_),
-            "warm_log_ml": float(warm.gp_.log_marginal_likelihood_value_)}
+    return {
+        "cold_s": t_cold,
+        "warm_s": t_warm,
+        "cold_log_ml": float(cold.gp_.log_marginal_likelihood_value_),
+        "warm_log_ml": float(warm.gp_.log_marginal_likelihood_value_),
+    }
 
 
 def _duffing():
@@ -70,14 +75,15 @@ def _rom():
     return data, beam_model(data, kind="rom")
 
 
-CASES = {"duffing": ("Duffing, tests/test_user_model.py, d = 3", _duffing),
-         "beam_rom": ("the beam's ROM on the embedded data set, d = 4", _rom)}
+CASES = {
+    "duffing": ("Duffing, tests/test_user_model.py, d = 3", _duffing),
+    "beam_rom": ("the beam's ROM on the embedded data set, d = 4", _rom),
+}
 
 
 def in_posterior(fast, case="duffing"):
     """Seconds in GPSurrogate.fit during a sample of ``case``, and the sample's wall time."""
-    from bayes_update.core.posterior import PosteriorSettings, sample
-    from bayes_update.core.posterior import design
+    from bayes_update.core.posterior import PosteriorSettings, design, sample
 
     spent = [0.0, 0]
     real_fit, real_factory = GPSurrogate.fit, design.design_gp
@@ -104,9 +110,15 @@ def in_posterior(fast, case="duffing"):
     finally:
         GPSurrogate.fit, design.design_gp = real_fit, real_factory
     conv = res.diagnostics["convergence"]
-    return {"fit_s": spent[0], "n_fits": spent[1], "wall_s": wall, "runs": res.n_model_runs["total"],
-            "max_r_hat": conv["max_r_hat"], "min_ess_bulk": conv["min_ess_bulk"],
-            "means": {k: float(v) for k, v in zip(res.space.coordinate_names, res.draws.mean(axis=0))}}
+    return {
+        "fit_s": spent[0],
+        "n_fits": spent[1],
+        "wall_s": wall,
+        "runs": res.n_model_runs["total"],
+        "max_r_hat": conv["max_r_hat"],
+        "min_ess_bulk": conv["min_ess_bulk"],
+        "means": {k: float(v) for k, v in zip(res.space.coordinate_names, res.draws.mean(axis=0))},
+    }
 
 
 def main():
@@ -136,26 +148,43 @@ def main():
 
 def report(out) -> str:
     """The markdown of a run's numbers (``out``, as written to gp_fit_time.json)."""
-    md = ["# GP fits: scikit-learn's optimiser against surrogates.gp_fit", "",
-          f"Machine: {out['machine']}; load average {out['load_average_1min']:.1f} at the start "
-          "(a shared machine: the seconds are upper bounds).", "",
-          "| n | d | cold fit [s] sklearn | fast | warm fit [s] sklearn | fast | log ML sklearn | fast |",
-          "|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    md = [
+        "# GP fits: scikit-learn's optimiser against surrogates.gp_fit",
+        "",
+        f"Machine: {out['machine']}; load average {out['load_average_1min']:.1f} at the start "
+        "(a shared machine: the seconds are upper bounds).",
+        "",
+        "| n | d | cold fit [s] sklearn | fast | warm fit [s] sklearn | fast | log ML sklearn | fast |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|",
+    ]
     for r in out["one_fit"]:
-        md.append(f"| {r['n']} | {r['d']} | {r['cold_s_sklearn']:.3f} | {r['cold_s_fast']:.3f} | "
-                  f"{r['warm_s_sklearn']:.3f} | {r['warm_s_fast']:.3f} | {r['cold_log_ml_sklearn']:.3f} | "
-                  f"{r['cold_log_ml_fast']:.3f} |")
-    md += ["", "In a posterior (default settings, one worker):", "",
-           "| case | GP fits by | fits | seconds in fits | sample wall [s] | model runs | max R-hat | min bulk ESS |",
-           "|---|---|---:|---:|---:|---:|---:|---:|"]
+        md.append(
+            f"| {r['n']} | {r['d']} | {r['cold_s_sklearn']:.3f} | {r['cold_s_fast']:.3f} | "
+            f"{r['warm_s_sklearn']:.3f} | {r['warm_s_fast']:.3f} | {r['cold_log_ml_sklearn']:.3f} | "
+            f"{r['cold_log_ml_fast']:.3f} |"
+        )
+    md += [
+        "",
+        "In a posterior (default settings, one worker):",
+        "",
+        "| case | GP fits by | fits | seconds in fits | sample wall [s] | model runs | max R-hat | min bulk ESS |",
+        "|---|---|---:|---:|---:|---:|---:|---:|",
+    ]
     for case, p in out["posterior"].items():
         for k in ("sklearn", "fast"):
-            md.append(f"| {CASES[case][0]} | {k} | {p[k]['n_fits']} | {p[k]['fit_s']:.2f} | {p[k]['wall_s']:.1f} | "
-                      f"{p[k]['runs']} | {p[k]['max_r_hat']:.4f} | {p[k]['min_ess_bulk']:.0f} |")
+            md.append(
+                f"| {CASES[case][0]} | {k} | {p[k]['n_fits']} | {p[k]['fit_s']:.2f} | {p[k]['wall_s']:.1f} | "
+                f"{p[k]['runs']} | {p[k]['max_r_hat']:.4f} | {p[k]['min_ess_bulk']:.0f} |"
+            )
     md.append("")
     for case, p in out["posterior"].items():
-        md += [f"Posterior means ({case}): " + "; ".join(
-            f"{k}: " + ", ".join(f"{n} {v:.6g}" for n, v in p[k]['means'].items()) for k in ("sklearn", "fast")), ""]
+        md += [
+            f"Posterior means ({case}): "
+            + "; ".join(
+                f"{k}: " + ", ".join(f"{n} {v:.6g}" for n, v in p[k]["means"].items()) for k in ("sklearn", "fast")
+            ),
+            "",
+        ]
     return "\n".join(md)
 
 

@@ -15,6 +15,7 @@ docs/measured_records.md), and prints a summary.
 
     python benchmarks/measured_records.py
 """
+
 from __future__ import annotations
 
 import json
@@ -27,15 +28,15 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests")]
 
-import bayes_update as bu                                     # noqa: E402
-from bayes_update.data.inspect import inspect_dataset         # noqa: E402
+import test_measured_records as acceptance  # noqa: E402
+from _machine import machine  # noqa: E402
+
+from bayes_update.data.inspect import inspect_dataset  # noqa: E402
 from bayes_update.reports.inspection import write_inspection  # noqa: E402
-from _machine import machine                                  # noqa: E402
-import test_measured_records as acceptance                    # noqa: E402
 
 FIGURES = HERE.parent / "docs" / "measured_records"
 RESULTS = HERE / "results" / "measured_records.json"
-SHOWN = ("frf_acc1.png", "modes.png", "noise_acc3.png")   # of the inspection's figures, those the docs show
+SHOWN = ("frf_acc1.png", "modes.png", "noise_acc3.png")  # of the inspection's figures, those the docs show
 
 
 def main() -> None:

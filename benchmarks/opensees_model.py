@@ -94,8 +94,9 @@ def _roundoff_force(model: fe.BeamModel) -> float:
     return 8 * np.finfo(float).eps * model.rig.EA * model.rig.length_m / shortest
 
 
-def build_opensees_rig(model: fe.BeamModel, params: fe.Parameters,
-                       kelvin_voigt: bool = True, quiet: bool = True) -> dict:
+def build_opensees_rig(
+    model: fe.BeamModel, params: fe.Parameters, kelvin_voigt: bool = True, quiet: bool = True
+) -> dict:
     """Build the rig of ``model`` at ``params`` in OpenSees and solve the preloaded state.
 
     Returns a dict with the node tags of interest ('shaker', 'sensor', 'top')
@@ -131,8 +132,19 @@ def build_opensees_rig(model: fe.BeamModel, params: fe.Parameters,
     beam_tags = []
     for e in range(n_nodes - 1):
         tag = e + 1
-        ops.element("elasticBeamColumn", tag, _node_tag(e), _node_tag(e + 1), A, E, Iz,
-                    BEAM_TRANSF, "-mass", rig.mass_per_length, "-cMass")
+        ops.element(
+            "elasticBeamColumn",
+            tag,
+            _node_tag(e),
+            _node_tag(e + 1),
+            A,
+            E,
+            Iz,
+            BEAM_TRANSF,
+            "-mass",
+            rig.mass_per_length,
+            "-cMass",
+        )
         beam_tags.append(tag)
 
     # top spring and damper to ground (parallel): Elastic material, force k_s u + c v
@@ -173,8 +185,9 @@ def build_opensees_rig(model: fe.BeamModel, params: fe.Parameters,
     }
 
 
-def opensees_frequencies(model: fe.BeamModel, params: fe.Parameters, n_modes: int = 3,
-                         quiet: bool = True) -> np.ndarray:
+def opensees_frequencies(
+    model: fe.BeamModel, params: fe.Parameters, n_modes: int = 3, quiet: bool = True
+) -> np.ndarray:
     """Undamped natural frequencies [Hz] about the preloaded state (eigen after loadConst)."""
     build_opensees_rig(model, params, quiet=quiet)
     ops.system("BandGeneral")
@@ -185,9 +198,15 @@ def opensees_frequencies(model: fe.BeamModel, params: fe.Parameters, n_modes: in
     return np.sqrt(lam) / (2 * np.pi)
 
 
-def run_opensees_transient(model: fe.BeamModel, params: fe.Parameters, force, fs: float = 1024.0,
-                           kelvin_voigt: bool = True, quiet: bool = True,
-                           record_states: bool = False):
+def run_opensees_transient(
+    model: fe.BeamModel,
+    params: fe.Parameters,
+    force,
+    fs: float = 1024.0,
+    kelvin_voigt: bool = True,
+    quiet: bool = True,
+    record_states: bool = False,
+):
     """Mid-span (sensor) transverse velocity [m/s], one value per force sample.
 
     Same time step as ``model.simulate``: ``model.substeps`` HHTGeneralized steps
@@ -200,7 +219,7 @@ def run_opensees_transient(model: fe.BeamModel, params: fe.Parameters, force, fs
     """
     force = np.ascontiguousarray(force, dtype=float)
     nodes = build_opensees_rig(model, params, kelvin_voigt=kelvin_voigt, quiet=quiet)
-    am, af, gam, bet = chung_hulbert(model.rho_inf)      # closed forms, not fe's
+    am, af, gam, bet = chung_hulbert(model.rho_inf)  # closed forms, not fe's
     dt = 1.0 / (fs * model.substeps)
     ops.timeSeries("Path", SHAKER_SERIES, "-dt", 1.0 / fs, "-values", *force.tolist())
     ops.pattern("Plain", SHAKER_PATTERN, SHAKER_SERIES)
@@ -225,8 +244,8 @@ def run_opensees_transient(model: fe.BeamModel, params: fe.Parameters, force, fs
 
         def grab(j):
             for i, tag in enumerate(tags):
-                U[j, 3 * i:3 * i + 3] = ops.nodeDisp(tag)
-                V[j, 3 * i:3 * i + 3] = ops.nodeVel(tag)
+                U[j, 3 * i : 3 * i + 3] = ops.nodeDisp(tag)
+                V[j, 3 * i : 3 * i + 3] = ops.nodeVel(tag)
 
         grab(0)
     for k in range(1, force.size):
@@ -296,7 +315,7 @@ class _CorotationalBeam:
         self.top = self.n - 3
         fixed = np.zeros(self.n, bool)
         fixed[:3] = True
-        fixed[self.n - 2:] = True            # top: transverse and rotation held
+        fixed[self.n - 2 :] = True  # top: transverse and rotation held
         self.free = np.flatnonzero(~fixed)
         where = np.full(self.n, -1)
         where[self.free] = np.arange(self.free.size)
@@ -319,8 +338,19 @@ class _CorotationalBeam:
         for e, L in enumerate(self.L):
             i = 3 * e
             ax = m * L / 6.0 * np.array([[2.0, 1.0], [1.0, 2.0]])
-            tr = m * L / 420.0 * np.array([[156.0, 22 * L, 54.0, -13 * L], [22 * L, 4 * L * L, 13 * L, -3 * L * L],
-                                           [54.0, 13 * L, 156.0, -22 * L], [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
+            tr = (
+                m
+                * L
+                / 420.0
+                * np.array(
+                    [
+                        [156.0, 22 * L, 54.0, -13 * L],
+                        [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                        [54.0, 13 * L, 156.0, -22 * L],
+                        [-13 * L, -3 * L * L, -22 * L, 4 * L * L],
+                    ]
+                )
+            )
             a, t = [i, i + 3], [i + 1, i + 2, i + 4, i + 5]
             M[np.ix_(a, a)] += ax
             M[np.ix_(t, t)] += tr
@@ -351,8 +381,9 @@ class _CorotationalBeam:
         q1 = np.sum(b1 * ve, axis=1)
         q2 = np.sum(b2 * ve, axis=1)
         elastic = np.stack([self.kax * ul, self.kb * (4 * t1 + 2 * t2), self.kb * (2 * t1 + 4 * t2)], axis=1)
-        viscous = self.beta * np.stack([self.kax * q0, self.kb * (4 * q1 + 2 * q2), self.kb * (2 * q1 + 4 * q2)],
-                                       axis=1)
+        viscous = self.beta * np.stack(
+            [self.kax * q0, self.kb * (4 * q1 + 2 * q2), self.kb * (2 * q1 + 4 * q2)], axis=1
+        )
         return r, z, Ln, b1, b2, elastic, viscous
 
     def _to_global(self, r, b1, b2, loc):
@@ -365,9 +396,12 @@ class _CorotationalBeam:
     def _material(self, r, b1, b2):
         """B^T K_l B per element (ne, 6, 6)."""
         o = np.einsum
-        return (self.kax[:, None, None] * o("ei,ej->eij", r, r)
-                + self.kb[:, None, None] * (4 * o("ei,ej->eij", b1, b1) + 4 * o("ei,ej->eij", b2, b2)
-                                            + 2 * o("ei,ej->eij", b1, b2) + 2 * o("ei,ej->eij", b2, b1)))
+        return self.kax[:, None, None] * o("ei,ej->eij", r, r) + self.kb[:, None, None] * (
+            4 * o("ei,ej->eij", b1, b1)
+            + 4 * o("ei,ej->eij", b2, b2)
+            + 2 * o("ei,ej->eij", b1, b2)
+            + 2 * o("ei,ej->eij", b2, b1)
+        )
 
     def _free_matrix(self, ke):
         out = np.zeros((self.free.size, self.free.size))
@@ -400,8 +434,9 @@ class _CorotationalBeam:
         loc = elastic + viscous
         material = self._material(r, b1, b2)
         rz = np.einsum("ei,ej->eij", r, z)
-        geometric = ((loc[:, 0] / Ln)[:, None, None] * np.einsum("ei,ej->eij", z, z)
-                     + ((loc[:, 1] + loc[:, 2]) / Ln**2)[:, None, None] * (rz + rz.transpose(0, 2, 1)))
+        geometric = (loc[:, 0] / Ln)[:, None, None] * np.einsum("ei,ej->eij", z, z) + ((loc[:, 1] + loc[:, 2]) / Ln**2)[
+            :, None, None
+        ] * (rz + rz.transpose(0, 2, 1))
         K = self._free_matrix(material + geometric)
         C = self.beta * self._free_matrix(material)
         K[self.top_free, self.top_free] += self.k_s
@@ -409,8 +444,9 @@ class _CorotationalBeam:
         return K, C
 
 
-def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states: dict,
-                              fs: float = 1024.0) -> np.ndarray:
+def kelvin_voigt_perturbation(
+    model: fe.BeamModel, params: fe.Parameters, states: dict, fs: float = 1024.0
+) -> np.ndarray:
     """First-order prediction of (fe - OpenSees) in the sensor velocity [m/s] per sample,
     from the one modelling difference of the viscosity.
 
@@ -459,8 +495,7 @@ def kelvin_voigt_perturbation(model: fe.BeamModel, params: fe.Parameters, states
         pu = du + dt * dv + dt * dt * (0.5 - bet) * da
         pv = dv + dt * (1.0 - gam) * da
         S = (1.0 - am) * M + (1.0 - af) * (bet * dt * dt * k_new + gam * dt * c_new)
-        rhs = (-am * (M @ da) - (1.0 - af) * (k_new @ pu + c_new @ pv + g_new)
-               - af * (k_old @ du + c_old @ dv + g_old))
+        rhs = -am * (M @ da) - (1.0 - af) * (k_new @ pu + c_new @ pv + g_new) - af * (k_old @ du + c_old @ dv + g_old)
         da_new = np.linalg.solve(S, rhs)
         du = pu + bet * dt * dt * da_new
         dv = pv + gam * dt * da_new

@@ -11,6 +11,7 @@ the run): |mean difference| < 0.3 sd, HDI overlap > 0.8, D < 0.1.
 Writes benchmarks/results/posterior_comparison_<model>.md and
 docs/posterior/surrogate_vs_direct_<model>.png.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,17 +26,18 @@ from scipy import stats
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from _machine import machine  # noqa: E402
+
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
 from bayes_update.models.beam.model import beam_model  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units  # noqa: E402
-
-from _machine import machine  # noqa: E402
 
 THRESHOLDS = {"mean_diff_sd": 0.3, "hdi_overlap": 0.8, "ks_D": 0.1}
 
 
 def hdi(x, prob=0.94):
     import arviz as az
+
     return az.hdi(np.asarray(x), hdi_prob=prob)
 
 
@@ -49,12 +51,19 @@ def compare(a: dict, b: dict, rng) -> dict:
         union = max(ha, hb) - min(la, lb)
         xs = rng.choice(x, 4000, replace=False)
         ys = rng.choice(y, 4000, replace=False)
-        out[name] = {"mean_surrogate": float(np.mean(x)), "mean_direct": float(np.mean(y)),
-                     "sd_direct": float(sd), "mean_diff_sd": float((np.mean(x) - np.mean(y)) / sd),
-                     "hdi_overlap": float(inter / union), "ks_D": float(stats.ks_2samp(xs, ys).statistic)}
-        out[name]["pass"] = bool(abs(out[name]["mean_diff_sd"]) < THRESHOLDS["mean_diff_sd"]
-                                 and out[name]["hdi_overlap"] > THRESHOLDS["hdi_overlap"]
-                                 and out[name]["ks_D"] < THRESHOLDS["ks_D"])
+        out[name] = {
+            "mean_surrogate": float(np.mean(x)),
+            "mean_direct": float(np.mean(y)),
+            "sd_direct": float(sd),
+            "mean_diff_sd": float((np.mean(x) - np.mean(y)) / sd),
+            "hdi_overlap": float(inter / union),
+            "ks_D": float(stats.ks_2samp(xs, ys).statistic),
+        }
+        out[name]["pass"] = bool(
+            abs(out[name]["mean_diff_sd"]) < THRESHOLDS["mean_diff_sd"]
+            and out[name]["hdi_overlap"] > THRESHOLDS["hdi_overlap"]
+            and out[name]["ks_D"] < THRESHOLDS["ks_D"]
+        )
     return out
 
 
@@ -104,25 +113,44 @@ def main(argv=None):
     truth = truth_paper_units(data)
     res = compare(a, b, np.random.default_rng(0))
     name = args.model + ("_quick" if args.quick else "")
-    fig = figure(a, b, truth, f"{args.model}: surrogate ({sur.n_model_runs['total']} model runs, {t_sur:.0f} s) "
-                              f"vs direct ({direct.n_model_runs['total']} runs, {t_dir:.0f} s); line = truth")
+    fig = figure(
+        a,
+        b,
+        truth,
+        f"{args.model}: surrogate ({sur.n_model_runs['total']} model runs, {t_sur:.0f} s) "
+        f"vs direct ({direct.n_model_runs['total']} runs, {t_dir:.0f} s); line = truth",
+    )
     (ROOT / "docs" / "posterior").mkdir(parents=True, exist_ok=True)
     fig.savefig(ROOT / "docs" / "posterior" / f"surrogate_vs_direct_{name}.png", dpi=110)
-    lines = [f"# Surrogate vs direct posterior ({args.model}{', quick' if args.quick else ''})", "",
-             f"`python benchmarks/posterior_comparison.py --model {args.model}{' --quick' if args.quick else ''}`; "
-             f"{machine()}", "",
-             f"surrogate: {t_sur:.0f} s, {sur.n_model_runs['total']} model runs; direct: {t_dir:.0f} s, "
-             f"{direct.n_model_runs['total']} model runs; thresholds {THRESHOLDS}", "",
-             "| parameter | mean (surrogate) | mean (direct) | sd (direct) | diff / sd | HDI overlap | KS D | pass |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# Surrogate vs direct posterior ({args.model}{', quick' if args.quick else ''})",
+        "",
+        f"`python benchmarks/posterior_comparison.py --model {args.model}{' --quick' if args.quick else ''}`; "
+        f"{machine()}",
+        "",
+        f"surrogate: {t_sur:.0f} s, {sur.n_model_runs['total']} model runs; direct: {t_dir:.0f} s, "
+        f"{direct.n_model_runs['total']} model runs; thresholds {THRESHOLDS}",
+        "",
+        "| parameter | mean (surrogate) | mean (direct) | sd (direct) | diff / sd | HDI overlap | KS D | pass |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for k, v in res.items():
-        lines.append(f"| {k} | {v['mean_surrogate']:.5g} | {v['mean_direct']:.5g} | {v['sd_direct']:.3g} | "
-                     f"{v['mean_diff_sd']:+.3f} | {v['hdi_overlap']:.3f} | {v['ks_D']:.3f} | {v['pass']} |")
-    lines += ["", "R-hat / bulk ESS: surrogate max {:.4f} / min {:.0f}; direct max {:.4f} / min {:.0f}".format(
-        sur.diagnostics["max_r_hat"], sur.diagnostics["min_ess_bulk"], direct.diagnostics["max_r_hat"],
-        direct.diagnostics["min_ess_bulk"]), "",
-        "surrogate check at posterior draws: " + json.dumps(
-            {k: v for k, v in sur.predictive.items() if not k.startswith("_")})]
+        lines.append(
+            f"| {k} | {v['mean_surrogate']:.5g} | {v['mean_direct']:.5g} | {v['sd_direct']:.3g} | "
+            f"{v['mean_diff_sd']:+.3f} | {v['hdi_overlap']:.3f} | {v['ks_D']:.3f} | {v['pass']} |"
+        )
+    lines += [
+        "",
+        "R-hat / bulk ESS: surrogate max {:.4f} / min {:.0f}; direct max {:.4f} / min {:.0f}".format(
+            sur.diagnostics["max_r_hat"],
+            sur.diagnostics["min_ess_bulk"],
+            direct.diagnostics["max_r_hat"],
+            direct.diagnostics["min_ess_bulk"],
+        ),
+        "",
+        "surrogate check at posterior draws: "
+        + json.dumps({k: v for k, v in sur.predictive.items() if not k.startswith("_")}),
+    ]
     out = ROOT / "benchmarks" / "results" / f"posterior_comparison_{name}.md"
     out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

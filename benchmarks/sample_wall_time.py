@@ -8,6 +8,7 @@ on two workers, each from scratch (no evaluation cache): the median wall
 time, each run's time per step (``PosteriorResult.timing``) and model runs.
 Writes ``benchmarks/results/sample_wall_time_<model>.md``.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,11 +21,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from _machine import machine  # noqa: E402
+
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
 from bayes_update.models.beam.model import beam_model  # noqa: E402
 from bayes_update.models.beam.virtual_rig import load_default_dataset  # noqa: E402
-
-from _machine import machine  # noqa: E402
 
 
 def main(argv=None):
@@ -35,25 +36,34 @@ def main(argv=None):
     data = load_default_dataset()
     model = beam_model(data, args.model)
     quiet = dict(workers=2, progress=False, log=lambda *a: None)
-    sample(data, model, PosteriorSettings(seed=0), **quiet)          # warm-up
+    sample(data, model, PosteriorSettings(seed=0), **quiet)  # warm-up
     rows = []
     for i in range(args.repeats):
         t = time.perf_counter()
         res = sample(data, model, PosteriorSettings(seed=i), **quiet)
         rows.append((time.perf_counter() - t, res.timing, res.n_model_runs))
-        print(f"run {i}: {rows[-1][0]:.1f} s, {res.n_model_runs['total']} runs; "
-              + ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items()), flush=True)
+        print(
+            f"run {i}: {rows[-1][0]:.1f} s, {res.n_model_runs['total']} runs; "
+            + ", ".join(f"{k} {v:.1f}" for k, v in res.timing.items()),
+            flush=True,
+        )
     walls = [r[0] for r in rows]
     steps = [k for k in rows[0][1] if k != "total"]
-    lines = [f"# Wall time of the default `sample`, beam, {args.model}", "",
-             f"`python benchmarks/sample_wall_time.py --repeats {args.repeats} --model {args.model}`; {machine()}; "
-             "after a warm-up run, seeds 0.., two workers, no evaluation cache.", "",
-             f"**median {np.median(walls):.1f} s** (runs: {', '.join(f'{w:.1f}' for w in walls)} s)", "",
-             "| run | wall [s] | model runs | " + " | ".join(steps) + " |",
-             "|---|---|---|" + "---|" * len(steps)]
+    lines = [
+        f"# Wall time of the default `sample`, beam, {args.model}",
+        "",
+        f"`python benchmarks/sample_wall_time.py --repeats {args.repeats} --model {args.model}`; {machine()}; "
+        "after a warm-up run, seeds 0.., two workers, no evaluation cache.",
+        "",
+        f"**median {np.median(walls):.1f} s** (runs: {', '.join(f'{w:.1f}' for w in walls)} s)",
+        "",
+        "| run | wall [s] | model runs | " + " | ".join(steps) + " |",
+        "|---|---|---|" + "---|" * len(steps),
+    ]
     for i, (wall, timing, runs) in enumerate(rows):
-        lines.append(f"| {i} | {wall:.1f} | {runs['total']} | "
-                     + " | ".join(f"{timing.get(k, 0.0):.1f}" for k in steps) + " |")
+        lines.append(
+            f"| {i} | {wall:.1f} | {runs['total']} | " + " | ".join(f"{timing.get(k, 0.0):.1f}" for k in steps) + " |"
+        )
     out = ROOT / "benchmarks" / "results" / f"sample_wall_time_{args.model}.md"
     out.write_text("\n".join(lines) + "\n")
     print("\n".join(lines))

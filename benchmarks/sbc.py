@@ -19,6 +19,7 @@ Reported per parameter: coverage of the 90 % central credible interval
 the truth among 99 thinned draws, 10 bins).  Writes
 benchmarks/results/sbc.md and docs/posterior/sbc_ranks.png.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,15 +34,15 @@ from scipy import stats
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from _machine import machine  # noqa: E402
+
 import fe  # noqa: E402
-from bayes_update.data import signals  # noqa: E402
-from bayes_update.data.dataset import Dataset, Record  # noqa: E402
 from bayes_update.core.parameters import ParameterSet  # noqa: E402
 from bayes_update.core.posterior import PosteriorSettings, sample  # noqa: E402
+from bayes_update.data import signals  # noqa: E402
+from bayes_update.data.dataset import Dataset, Record  # noqa: E402
 from bayes_update.models.beam.model import Beam  # noqa: E402
 from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
-
-from _machine import machine  # noqa: E402
 
 LEVELS = {"chirp_low": (0.02, "linear"), "chirp_high": (0.2, "nonlinear")}
 FS = 1024.0
@@ -66,10 +67,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--truths", type=int, default=50)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--budget", choices=("former", "default", "budget"), default="former",
-                    help="former: the sizes of the first SBC (96 model replicates, 64 + 3 x 24 design, 24 x 5000 "
-                         "steps; results/sbc.md); default: PosteriorSettings() as shipped (results/sbc_default.md); "
-                         "budget: PosteriorSettings.budget() (results/sbc_budget.md)")
+    ap.add_argument(
+        "--budget",
+        choices=("former", "default", "budget"),
+        default="former",
+        help="former: the sizes of the first SBC (96 model replicates, 64 + 3 x 24 design, 24 x 5000 "
+        "steps; results/sbc.md); default: PosteriorSettings() as shipped (results/sbc_default.md); "
+        "budget: PosteriorSettings.budget() (results/sbc_budget.md)",
+    )
     args = ap.parse_args(argv)
     rig = PAPER_EQUIVALENT_RIG
     model = Beam(fe.ModalROM(rig))
@@ -77,9 +82,22 @@ def main(argv=None):
     rng = np.random.default_rng(args.seed)
     truths = space.sample_prior(args.truths, seed=args.seed)
     if args.budget == "former":
-        settings = PosteriorSettings(n_initial=64, n_rounds=3, batch=24, n_walkers=24, n_steps=5000, burn=1000,
-                                     thin=5, n_linear=0, n_global=0, n_predictive=0, model_error=False,
-                                     n_replicates=96, model_replicates=None, stop_tolerance=0.0)
+        settings = PosteriorSettings(
+            n_initial=64,
+            n_rounds=3,
+            batch=24,
+            n_walkers=24,
+            n_steps=5000,
+            burn=1000,
+            thin=5,
+            n_linear=0,
+            n_global=0,
+            n_predictive=0,
+            model_error=False,
+            n_replicates=96,
+            model_replicates=None,
+            stop_tolerance=0.0,
+        )
     elif args.budget == "default":
         settings = PosteriorSettings(n_linear=0, model_error=False)
     else:
@@ -99,26 +117,43 @@ def main(argv=None):
         d = space.report(res.draws)
         tr = space.report(x[None, :])
         thin = rng.choice(len(res.draws), N_RANK, replace=False)
-        row = {"truth": x.tolist(), "time_s": time.perf_counter() - t0,
-               "max_r_hat": res.diagnostics["max_r_hat"], "model_runs": res.n_model_runs["total"]}
+        row = {
+            "truth": x.tolist(),
+            "time_s": time.perf_counter() - t0,
+            "max_r_hat": res.diagnostics["max_r_hat"],
+            "model_runs": res.n_model_runs["total"],
+        }
         for name in ORDER:
             lo, hi = np.percentile(d[name], [5, 95])
-            row[name] = {"covered": bool(lo <= tr[name][0] <= hi),
-                         "rank": int(np.sum(d[name][thin] < tr[name][0])),
-                         "truth": float(tr[name][0]), "mean": float(np.mean(d[name])),
-                         "sd": float(np.std(d[name])), "q05": float(lo), "q95": float(hi)}
+            row[name] = {
+                "covered": bool(lo <= tr[name][0] <= hi),
+                "rank": int(np.sum(d[name][thin] < tr[name][0])),
+                "truth": float(tr[name][0]),
+                "mean": float(np.mean(d[name])),
+                "sd": float(np.std(d[name])),
+                "q05": float(lo),
+                "q95": float(hi),
+            }
         rows.append(row)
-        print(f"{k}: {row['time_s']:.0f} s, {row['model_runs']} runs, r_hat {row['max_r_hat']:.3f}, covered "
-              f"{[row[n]['covered'] for n in ORDER]}", flush=True)
+        print(
+            f"{k}: {row['time_s']:.0f} s, {row['model_runs']} runs, r_hat {row['max_r_hat']:.3f}, covered "
+            f"{[row[n]['covered'] for n in ORDER]}",
+            flush=True,
+        )
         (ROOT / "benchmarks" / "results" / f"sbc_rows{tag}.json").write_text(json.dumps(rows, indent=1))
     ok = [r for r in rows if "error" not in r]
-    lines = ["# Simulation-based calibration of the surrogate posterior", "",
-             f"`python benchmarks/sbc.py --truths {args.truths} --seed {args.seed} --budget {args.budget}`; "
-             f"{machine()}; "
-             f"{time.perf_counter() - t_all:.0f} s; {len(ok)} of {len(rows)} truths inferred", "",
-             "| parameter | coverage of the 90 % interval | rank histogram (10 bins) | chi-square p |",
-             "|---|---|---|---|"]
+    lines = [
+        "# Simulation-based calibration of the surrogate posterior",
+        "",
+        f"`python benchmarks/sbc.py --truths {args.truths} --seed {args.seed} --budget {args.budget}`; "
+        f"{machine()}; "
+        f"{time.perf_counter() - t_all:.0f} s; {len(ok)} of {len(rows)} truths inferred",
+        "",
+        "| parameter | coverage of the 90 % interval | rank histogram (10 bins) | chi-square p |",
+        "|---|---|---|---|",
+    ]
     from matplotlib.figure import Figure
+
     fig = Figure(figsize=(14, 3), constrained_layout=True)
     axes = fig.subplots(1, len(ORDER))
     summary = {}
@@ -139,11 +174,17 @@ def main(argv=None):
     failed = [r for r in rows if "error" in r]
     if failed:
         lines += ["", f"failed inferences: {len(failed)}: " + "; ".join(r["error"][:120] for r in failed)]
-    lines += ["", "max R-hat over truths: " + f"{max(r['max_r_hat'] for r in ok):.4f}",
-              "median time per truth: " + f"{np.median([r['time_s'] for r in ok]):.0f} s",
-              "model runs per truth (median, max): " + (
-                  f"{np.median([r['model_runs'] for r in ok]):.0f}, {max(r['model_runs'] for r in ok)}"
-                  if all("model_runs" in r for r in ok) else "not recorded")]
+    lines += [
+        "",
+        "max R-hat over truths: " + f"{max(r['max_r_hat'] for r in ok):.4f}",
+        "median time per truth: " + f"{np.median([r['time_s'] for r in ok]):.0f} s",
+        "model runs per truth (median, max): "
+        + (
+            f"{np.median([r['model_runs'] for r in ok]):.0f}, {max(r['model_runs'] for r in ok)}"
+            if all("model_runs" in r for r in ok)
+            else "not recorded"
+        ),
+    ]
     (ROOT / "benchmarks" / "results" / f"sbc{tag}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(json.dumps(summary))

@@ -18,6 +18,7 @@ delta method) should cover its truth in 90 % of them.  No surrogate, no MCMC: th
 and its adjustment from the sampler (a few seconds per truth on the ROM).
 Writes benchmarks/results/sbc_linearised_seed<seed>.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,6 +32,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from _machine import machine  # noqa: E402
+from sbc import N_RANK, synthetic_dataset  # noqa: E402
+
 import fe  # noqa: E402
 from bayes_update.core.likelihood import estimate_likelihood  # noqa: E402
 from bayes_update.core.mode import ResidualFunction, SpacePoint  # noqa: E402
@@ -38,9 +42,6 @@ from bayes_update.core.parameters import ParameterSet  # noqa: E402
 from bayes_update.core.problem import Problem  # noqa: E402
 from bayes_update.models.beam.model import Beam  # noqa: E402
 from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG  # noqa: E402
-
-from _machine import machine  # noqa: E402
-from sbc import N_RANK, synthetic_dataset  # noqa: E402
 
 #: kept draws per SBC truth (24 walkers x (5000 - 1000) / 5): sbc.py draws its
 #: rank thinning from the same generator, replayed here to meet the same noise
@@ -58,8 +59,8 @@ def covariances(J, residuals, stages, scales, k_small=24) -> list:
     for k_max in (k_small, None):
         M, row = np.zeros_like(H), 0
         for st in stages:
-            D = residuals[st][0][:k_max] / scales[st]      # (rows, weights): all-model replicates, weights 1/K
-            DJ = D @ J[row:row + D.shape[1]]
+            D = residuals[st][0][:k_max] / scales[st]  # (rows, weights): all-model replicates, weights 1/K
+            DJ = D @ J[row : row + D.shape[1]]
             row += D.shape[1]
             M += DJ.T @ DJ / len(D)
         out.append(np.linalg.solve(H, np.linalg.solve(H, M).T))
@@ -94,12 +95,12 @@ def main(argv=None):
         data = synthetic_dataset(model, space.to_parameters(x), rng)
         rng.choice(SBC_DRAWS, N_RANK, replace=False)
         problem = Problem(data, model)
-        lik = estimate_likelihood(problem, space.to_parameters(x), model_error=False,
-                                  n_replicates=args.replicates, seed=k, space=space)
+        lik = estimate_likelihood(
+            problem, space.to_parameters(x), model_error=False, n_replicates=args.replicates, seed=k, space=space
+        )
         stages = lik.stages
         scales = {st: lik.scales[st].sd for st in stages}
-        fun = ResidualFunction(problem, stages, tuple(scales[st] for st in stages),
-                               SpacePoint(space, model))
+        fun = ResidualFunction(problem, stages, tuple(scales[st] for st in stages), SpacePoint(space, model))
         r = fun(x)
         cols = []
         for i in range(len(x)):
@@ -111,25 +112,37 @@ def main(argv=None):
         grad_F = np.array([0.0, 0.0, (model.kb + x[3]) / model.kb, x[2] / model.kb])
         row = [statistics(dx, C, grad_F) for C in covariances(J, lik.noise_residuals, stages, scales)]
         rows.append(row)
-        print(f"{k}: chi^2 plain {row[0][0]:.2f}, sandwich(24) {row[1][0]:.2f}, "
-              f"sandwich({args.replicates}) {row[2][0]:.2f}", flush=True)
-    S = np.array([[c[0] for c in r] for r in rows])           # (n, 3)
-    Z = np.array([[c[1] for c in r] for r in rows])           # (n, 3, 5)
-    names = ["plain likelihood, (J^T J)^-1", "sandwich from 24 replicates",
-             f"sandwich from {args.replicates} replicates"]
-    lines = ["# Linearised calibration of the likelihood at the SBC truths", "",
-             f"`python benchmarks/sbc_linearised.py --truths {args.truths} --replicates {args.replicates} "
-             f"--seed {args.seed}`; {machine()}; {time.perf_counter() - t0:.0f} s", "",
-             "Squared Mahalanobis distance of the least-squares error at the truth (chi^2_4 if the covariance "
-             "is right: mean 4, 10 % beyond 7.78, 5 % beyond 9.49) and the coverage of the marginal 90 % "
-             f"intervals (binomial sd over {args.truths} truths: {100 * np.sqrt(0.09 / args.truths):.1f} %).", "",
-             "| covariance | mean | beyond 7.78 | beyond 9.49 | " + " | ".join(f"{n} 90 % cover" for n in PARAMS)
-             + " |", "|---" * (4 + len(PARAMS)) + "|"]
+        print(
+            f"{k}: chi^2 plain {row[0][0]:.2f}, sandwich(24) {row[1][0]:.2f}, "
+            f"sandwich({args.replicates}) {row[2][0]:.2f}",
+            flush=True,
+        )
+    S = np.array([[c[0] for c in r] for r in rows])  # (n, 3)
+    Z = np.array([[c[1] for c in r] for r in rows])  # (n, 3, 5)
+    names = [
+        "plain likelihood, (J^T J)^-1",
+        "sandwich from 24 replicates",
+        f"sandwich from {args.replicates} replicates",
+    ]
+    lines = [
+        "# Linearised calibration of the likelihood at the SBC truths",
+        "",
+        f"`python benchmarks/sbc_linearised.py --truths {args.truths} --replicates {args.replicates} "
+        f"--seed {args.seed}`; {machine()}; {time.perf_counter() - t0:.0f} s",
+        "",
+        "Squared Mahalanobis distance of the least-squares error at the truth (chi^2_4 if the covariance "
+        "is right: mean 4, 10 % beyond 7.78, 5 % beyond 9.49) and the coverage of the marginal 90 % "
+        f"intervals (binomial sd over {args.truths} truths: {100 * np.sqrt(0.09 / args.truths):.1f} %).",
+        "",
+        "| covariance | mean | beyond 7.78 | beyond 9.49 | " + " | ".join(f"{n} 90 % cover" for n in PARAMS) + " |",
+        "|---" * (4 + len(PARAMS)) + "|",
+    ]
     for j, name in enumerate(names):
         cover = np.mean(np.abs(Z[:, j]) < Z90, axis=0)
-        lines.append(f"| {name} | {S[:, j].mean():.2f} | {100 * np.mean(S[:, j] > CHI2_4_90):.0f} % | "
-                     f"{100 * np.mean(S[:, j] > CHI2_4_95):.0f} % | "
-                     + " | ".join(f"{100 * c:.0f} %" for c in cover) + " |")
+        lines.append(
+            f"| {name} | {S[:, j].mean():.2f} | {100 * np.mean(S[:, j] > CHI2_4_90):.0f} % | "
+            f"{100 * np.mean(S[:, j] > CHI2_4_95):.0f} % | " + " | ".join(f"{100 * c:.0f} %" for c in cover) + " |"
+        )
     (ROOT / "benchmarks" / "results" / f"sbc_linearised_seed{args.seed}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

@@ -9,8 +9,7 @@
 """
 
 from . import _numba_cache  # noqa: F401  (first: numba fixes the cache folder at decoration)
-from .effects import (EFFECTS, AmplitudeDependentDamping, ClampCompliance, Effect, InitialImperfection,
-                      ShakerAttachment)
+from .effects import EFFECTS, AmplitudeDependentDamping, ClampCompliance, Effect, InitialImperfection, ShakerAttachment
 from .model import (
     BeamModel,
     BucklingError,
@@ -25,10 +24,25 @@ from .rig import PAPER_PARAMETERS, Parameters, Rig
 from .rom import ModalROM
 
 __all__ = [
-    "AmplitudeDependentDamping", "BeamModel", "BucklingError", "ClampCompliance", "ConvergenceError",
-    "EFFECTS", "Effect", "InitialImperfection", "ModalROM", "Modes", "PAPER_PARAMETERS", "Parameters",
-    "Rig", "ShakerAttachment", "SimulationResult", "StaticState", "generalized_alpha_accuracy",
-    "generalized_alpha_coefficients", "simulate",
+    "AmplitudeDependentDamping",
+    "BeamModel",
+    "BucklingError",
+    "ClampCompliance",
+    "ConvergenceError",
+    "EFFECTS",
+    "Effect",
+    "InitialImperfection",
+    "ModalROM",
+    "Modes",
+    "PAPER_PARAMETERS",
+    "Parameters",
+    "Rig",
+    "ShakerAttachment",
+    "SimulationResult",
+    "StaticState",
+    "generalized_alpha_accuracy",
+    "generalized_alpha_coefficients",
+    "simulate",
 ]
 
 

@@ -50,7 +50,6 @@ LAW_QUADRATIC_DAMPER = 2  # f = p1 |v| v
 LAW_COULOMB = 3  # f = p1 tanh(v / p2)
 
 
-
 @njit(cache=True, inline="always")
 def _arch(t1, t2):
     """30 x the element average of w'^2 / 2 for a cubic w with end rotations
@@ -118,8 +117,9 @@ def internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_
 
 
 @njit(cache=True)
-def assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow,
-             d_dof, d_law, d_p1, d_p2, u, v, fint, want_k, kfac, cfac, band, kd):
+def assemble(
+    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint, want_k, kfac, cfac, band, kd
+):
     """Internal force (elastic + viscous + discrete elements) into ``fint``;
     if ``want_k``, adds kfac * (K + cfac * C) into ``band``.
 
@@ -147,8 +147,18 @@ def assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow,
         ul = (Ln * Ln - L * L) / (Ln + L)
         t1 = u[i0 + 2] - alpha
         t2 = u[i0 + 5] - alpha
-        r[0] = -c; r[1] = -s; r[2] = 0.0; r[3] = c; r[4] = s; r[5] = 0.0
-        z[0] = s; z[1] = -c; z[2] = 0.0; z[3] = -s; z[4] = c; z[5] = 0.0
+        r[0] = -c
+        r[1] = -s
+        r[2] = 0.0
+        r[3] = c
+        r[4] = s
+        r[5] = 0.0
+        z[0] = s
+        z[1] = -c
+        z[2] = 0.0
+        z[3] = -s
+        z[4] = c
+        z[5] = 0.0
         # local deformation rates
         qd0 = 0.0
         zd = 0.0
@@ -242,8 +252,13 @@ def assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow,
             fm = (f1 + f2) / (Ln * Ln)
             for i in range(6):
                 for k in range(6):
-                    ke[i, k] = (B[0, i] * BK[0, k] + B[1, i] * BK[1, k] + B[2, i] * BK[2, k]
-                                + fz * z[i] * z[k] + fm * (r[i] * z[k] + z[i] * r[k]))
+                    ke[i, k] = (
+                        B[0, i] * BK[0, k]
+                        + B[1, i] * BK[1, k]
+                        + B[2, i] * BK[2, k]
+                        + fz * z[i] * z[k]
+                        + fm * (r[i] * z[k] + z[i] * r[k])
+                    )
             for i in range(6):
                 gi = i0 + i
                 for k in range(6):
@@ -310,8 +325,9 @@ def apply_dirichlet(band, kd, fixed):
 
 
 @njit(cache=True)
-def static_newton(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2,
-                  fixed, f_ext, u, kd, n_increments, tol, max_iter):
+def static_newton(
+    X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2, fixed, f_ext, u, kd, n_increments, tol, max_iter
+):
     """Static equilibrium f_int(u) = f_ext by Newton with load increments.
 
     ``u`` is the start (modified in place).  Returns (status, iterations):
@@ -328,8 +344,30 @@ def static_newton(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p
         converged = False
         for it in range(max_iter):
             band[:, :] = 0.0
-            assemble(X, Y, L0, c0, s0, t0, EA, EI, 0.0, shallow, d_dof, d_law, d_p1, d_p2,
-                     u, v, fint, True, 1.0, 0.0, band, kd)
+            assemble(
+                X,
+                Y,
+                L0,
+                c0,
+                s0,
+                t0,
+                EA,
+                EI,
+                0.0,
+                shallow,
+                d_dof,
+                d_law,
+                d_p1,
+                d_p2,
+                u,
+                v,
+                fint,
+                True,
+                1.0,
+                0.0,
+                band,
+                kd,
+            )
             rmax = 0.0
             for i in range(n):
                 res[i] = 0.0 if fixed[i] else lam * f_ext[i] - fint[i]
@@ -350,10 +388,42 @@ def static_newton(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p
 
 
 @njit(cache=True, error_model="numpy")
-def transient(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
-              fixed, m_band, f_const, b_load, force, substeps, dt,
-              alpha_m, alpha_f, gamma, beta_n, u, v, tol, max_iter,
-              W, axial_dof, out_disp, out_vel, out_axial):
+def transient(
+    X,
+    Y,
+    L0,
+    c0,
+    s0,
+    t0,
+    EA,
+    EI,
+    beta,
+    shallow,
+    d_dof,
+    d_law,
+    d_p1,
+    d_p2,
+    fixed,
+    m_band,
+    f_const,
+    b_load,
+    force,
+    substeps,
+    dt,
+    alpha_m,
+    alpha_f,
+    gamma,
+    beta_n,
+    u,
+    v,
+    tol,
+    max_iter,
+    W,
+    axial_dof,
+    out_disp,
+    out_vel,
+    out_axial,
+):
     """Generalized-alpha (Chung and Hulbert 1993) transient, the paper's eq. 4-10
     (inertia and internal/external forces weighted by alpha_m, alpha_f).
 
@@ -386,8 +456,7 @@ def transient(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d
     atmp = np.empty(n)
     band = np.empty((n, 2 * kd + 1))
     # initial acceleration: M a0 = f_ext(0) - f_int(u0, v0)
-    internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
-                   u, v, fint_old)
+    internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint_old)
     for i in range(n):
         a[i] = 0.0 if fixed[i] else f_const[i] + b_load[i] * force[0] - fint_old[i]
     band[:, :] = m_band
@@ -421,8 +490,9 @@ def transient(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d
                     a_new[i] = (u_new[i] - u[i] - dt * v[i] - dt * dt * (0.5 - beta_n) * a[i]) / (beta_n * dt * dt)
                     v_new[i] = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * a_new[i])
                     atmp[i] = (1.0 - alpha_m) * a_new[i] + alpha_m * a[i]
-                internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
-                               u_new, v_new, fint)
+                internal_force(
+                    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u_new, v_new, fint
+                )
                 band_matvec(m_band, kd, atmp, ma)
                 rmax = 0.0
                 for i in range(n):
@@ -445,8 +515,30 @@ def transient(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d
                     for i in range(n):
                         for j in range(2 * kd + 1):
                             band[i, j] = mfac * m_band[i, j]
-                    assemble(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2,
-                             u_new, v_new, fint, True, kfac, cfac, band, kd)
+                    assemble(
+                        X,
+                        Y,
+                        L0,
+                        c0,
+                        s0,
+                        t0,
+                        EA,
+                        EI,
+                        beta,
+                        shallow,
+                        d_dof,
+                        d_law,
+                        d_p1,
+                        d_p2,
+                        u_new,
+                        v_new,
+                        fint,
+                        True,
+                        kfac,
+                        cfac,
+                        band,
+                        kd,
+                    )
                     apply_dirichlet(band, kd, fixed)
                     if band_lu(band, kd) >= 0:
                         return 2, k + 1, iterations

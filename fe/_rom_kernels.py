@@ -1,6 +1,7 @@
 """The modal ROM's compiled time integrator (:class:`fe.rom.ModalROM`): RK4 for the
 modal coordinates, the massless top integrated exactly for its interpolated drive
 (the method and its stability: :mod:`fe.rom`'s docstring, "Time integration")."""
+
 from __future__ import annotations
 
 import math
@@ -78,8 +79,7 @@ def _accel(kappa, b, beta, q, qd, a, N, f, out):
 
 
 @njit(cache=True)
-def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, ns, substeps, h,
-               q, qd, U, out_d, out_v, out_a):
+def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, ns, substeps, h, q, qd, U, out_d, out_v, out_a):
     """RK4 in (q, q') with the top state U integrated exactly for an
     interpolated drive (see :func:`_top_weights`).  ``force`` holds the force
     at every RK4 stage time, 2 substeps points per sample.  Outputs W q, W q'

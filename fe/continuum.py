@@ -79,6 +79,7 @@ def _single_threaded(func):
     shared machine a multithreaded OpenBLAS slows them (and the assembly) down by
     up to 10x.  Needs threadpoolctl; without it this is a no-op.
     """
+
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         if threadpool_limits is None:
@@ -107,7 +108,7 @@ def _scalar_basis(mesh, element, n_points: int):
 
     basis = Basis(mesh, element, quadrature=_gauss_hex(n_points))
     if basis.X.shape[1] != n_points**3:  # guard against scikit-fem changing the rule
-        raise RuntimeError(f"expected {n_points ** 3} quadrature points, got {basis.X.shape[1]}")
+        raise RuntimeError(f"expected {n_points**3} quadrature points, got {basis.X.shape[1]}")
     return basis
 
 
@@ -190,8 +191,9 @@ class _Strip:
         if not (bottom.any() and top.any() and abs(x.max() - L) < tol and abs(x.min()) < tol):
             raise ValueError("the mesh nodes must span 0 .. rig.length_m along x")
         keep = np.ones(3 * n, dtype=bool)
-        keep[np.r_[np.flatnonzero(bottom), n + np.flatnonzero(bottom | top),
-                   2 * n + np.flatnonzero(bottom | top)]] = False
+        keep[np.r_[np.flatnonzero(bottom), n + np.flatnonzero(bottom | top), 2 * n + np.flatnonzero(bottom | top)]] = (
+            False
+        )
         tied = np.flatnonzero(top)  # u_x of the top face -> one master dof
         keep[tied] = False
         free = np.flatnonzero(keep)
@@ -212,8 +214,7 @@ class _Strip:
         """Share of each column's M-norm in u_z."""
         u = self.T @ phi
         n = self.n_scalar
-        parts = [np.einsum("ij,ij->j", u[c * n:(c + 1) * n], self.Ms @ u[c * n:(c + 1) * n])
-                 for c in range(3)]
+        parts = [np.einsum("ij,ij->j", u[c * n : (c + 1) * n], self.Ms @ u[c * n : (c + 1) * n]) for c in range(3)]
         return parts[2] / (parts[0] + parts[1] + parts[2])
 
     def _factor(self, A):
@@ -242,8 +243,7 @@ class _Strip:
     def eig_near_zero(self, A, B, k: int):
         """Generalised eigenpairs of A x = lam B x with the k smallest lam (A positive definite)."""
         k = min(k, self.n_dof - 2)
-        lam, phi = spla.eigsh(A, k=k, M=B, sigma=0.0, which="LM", OPinv=self._factor(A),
-                              tol=1e-10)
+        lam, phi = spla.eigsh(A, k=k, M=B, sigma=0.0, which="LM", OPinv=self._factor(A), tol=1e-10)
         order = np.argsort(lam)
         return lam[order], phi[:, order]
 
@@ -318,8 +318,9 @@ def n_dofs(rig: Rig, mesh, element: str = "hex2") -> int:
 
 
 @_single_threaded
-def strip_modes(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, preload_n: float = 0.0,
-                n_modes: int = 1) -> np.ndarray:
+def strip_modes(
+    rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, preload_n: float = 0.0, n_modes: int = 1
+) -> np.ndarray:
     """Frequencies [Hz] of the lowest through-thickness bending modes under axial load.
 
     Parameters
@@ -341,8 +342,7 @@ def strip_modes(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, preload
     try:
         w2, _, _, _ = st.bending(A, st.M, int(n_modes), "modes")
     except np.linalg.LinAlgError:  # K - P K_g not positive definite
-        raise ValueError(f"preload {preload_n} N is at or beyond the buckling load of this "
-                         "model") from None
+        raise ValueError(f"preload {preload_n} N is at or beyond the buckling load of this model") from None
     return np.sqrt(w2) / (2 * np.pi)
 
 
@@ -360,8 +360,7 @@ def buckling_load(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT) -> fl
 
 
 @_single_threaded
-def load_for_frequency(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT,
-                       f_target: float = 37.0) -> float:
+def load_for_frequency(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, f_target: float = 37.0) -> float:
     """Axial compression [N] at which the model's first mode has frequency f_target [Hz].
 
     Exact, without iteration: the lowest P with (K - P K_g - omega_t^2 M) singular, i.e.
@@ -375,8 +374,9 @@ def load_for_frequency(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT,
     try:
         lam, phi = st.eig_near_zero((st.K - w2 * st.M).tocsc(), st.Kg, 4)
     except np.linalg.LinAlgError:  # K - omega_t^2 M not positive definite
-        raise ValueError(f"f_target = {f_target} Hz is not below the unloaded first frequency: "
-                         "reaching it needs tension") from None
+        raise ValueError(
+            f"f_target = {f_target} Hz is not below the unloaded first frequency: reaching it needs tension"
+        ) from None
     if st.uz_fraction(phi[:, :1])[0] <= UZ_FRACTION:
         raise RuntimeError("the mode reaching f_target is not through-thickness bending")
     return float(lam[0])
@@ -402,13 +402,11 @@ class BendingFactor(NamedTuple):
 def _beam(rig: Rig, factor: float = 1.0, n_elements: int = 64):
     from .model import BeamModel
 
-    return BeamModel(rig=dataclasses.replace(rig, bending_stiffness_factor=factor),
-                     n_elements=n_elements)
+    return BeamModel(rig=dataclasses.replace(rig, bending_stiffness_factor=factor), n_elements=n_elements)
 
 
 @_single_threaded
-def beam_frequency(rig: Rig, preload_n: float = 0.0, factor: float = 1.0,
-                   n_elements: int = 64) -> float:
+def beam_frequency(rig: Rig, preload_n: float = 0.0, factor: float = 1.0, n_elements: int = 64) -> float:
     """f1 [Hz] of the Euler-Bernoulli reference (fe.BeamModel, no damping) at axial load P [N]."""
     from .rig import Parameters
 
@@ -417,8 +415,9 @@ def beam_frequency(rig: Rig, preload_n: float = 0.0, factor: float = 1.0,
 
 
 @_single_threaded
-def effective_bending_factor(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT,
-                             preload_n: float = 74.0, n_beam_elements: int = 64) -> BendingFactor:
+def effective_bending_factor(
+    rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELEMENT, preload_n: float = 74.0, n_beam_elements: int = 64
+) -> BendingFactor:
     """EI_eff / EI that fe.BeamModel needs to reproduce this 3D model (three estimates).
 
     from_unloaded = (f0_3D / f0_beam)^2; from_buckling = Pcr_3D / Pcr_beam; from_loaded
@@ -434,10 +433,17 @@ def effective_bending_factor(rig: Rig, mesh=PAPER_MESH, element: str = PAPER_ELE
     c_lo, c_hi = 0.5 * c_f0, 2.0 * c_f0
     c_lo = max(c_lo, 1.01 * preload_n / pcr_beam)  # the beam must not buckle at preload_n
     c_loaded = scipy.optimize.brentq(
-        lambda c: beam_frequency(rig, preload_n, c, n_beam_elements) - fp, c_lo, c_hi, xtol=1e-7)
-    return BendingFactor(f0_hz=float(f0), f_loaded_hz=float(fp), buckling_load_n=pcr,
-                         preload_n=float(preload_n), from_unloaded=float(c_f0),
-                         from_buckling=float(pcr / pcr_beam), from_loaded=float(c_loaded))
+        lambda c: beam_frequency(rig, preload_n, c, n_beam_elements) - fp, c_lo, c_hi, xtol=1e-7
+    )
+    return BendingFactor(
+        f0_hz=float(f0),
+        f_loaded_hz=float(fp),
+        buckling_load_n=pcr,
+        preload_n=float(preload_n),
+        from_unloaded=float(c_f0),
+        from_buckling=float(pcr / pcr_beam),
+        from_loaded=float(c_loaded),
+    )
 
 
 def shear_locking_estimate(rig: Rig, element_length_m: float) -> float:

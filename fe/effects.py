@@ -101,8 +101,8 @@ class ShakerAttachment(Effect):
     anti-resonances shift.
     """
 
-    mass: float = 0.0        # kg
-    stiffness: float = 0.0   # N/m
+    mass: float = 0.0  # kg
+    stiffness: float = 0.0  # N/m
 
     name: ClassVar[str] = "shaker_attachment"
 
@@ -137,7 +137,7 @@ class ClampCompliance(Effect):
     frequency ratios and the buckling margin.
     """
 
-    stiffness: float = math.inf   # N m/rad
+    stiffness: float = math.inf  # N m/rad
 
     name: ClassVar[str] = "clamp_compliance"
 
@@ -149,7 +149,7 @@ class ClampCompliance(Effect):
 
         if math.isinf(self.stiffness):
             return
-        system.fixed[2] = False                       # bottom node: rotation
+        system.fixed[2] = False  # bottom node: rotation
         system.discrete.append(DiscreteElement(2, "spring", self.stiffness))
 
 
@@ -179,28 +179,28 @@ class AmplitudeDependentDamping(Effect):
     """
 
     kind: str = "coulomb"
-    friction_force: float = 0.0     # N
-    velocity_scale: float = 1e-4    # m/s
-    coefficient: float = 0.0        # N s^2/m^2
+    friction_force: float = 0.0  # N
+    velocity_scale: float = 1e-4  # m/s
+    coefficient: float = 0.0  # N s^2/m^2
 
     name: ClassVar[str] = "amplitude_dependent_damping"
 
     def __post_init__(self):
         if self.kind not in ("coulomb", "quadratic"):
             raise ValueError(f"amplitude_dependent_damping kind must be 'coulomb' or 'quadratic', got {self.kind!r}")
-        _check_non_negative("amplitude_dependent_damping", friction_force=self.friction_force,
-                            coefficient=self.coefficient)
+        _check_non_negative(
+            "amplitude_dependent_damping", friction_force=self.friction_force, coefficient=self.coefficient
+        )
         if not (self.velocity_scale > 0 and math.isfinite(self.velocity_scale)):
             raise ValueError(f"amplitude_dependent_damping velocity_scale must be positive, got {self.velocity_scale}")
 
     def apply(self, system, rig, params) -> None:
 
-        top = system.n_dof - 3                        # top node: axial dof
+        top = system.n_dof - 3  # top node: axial dof
         if self.kind == "coulomb" and self.friction_force > 0:
             system.discrete.append(DiscreteElement(top, "coulomb", self.friction_force, self.velocity_scale))
         elif self.kind == "quadratic" and self.coefficient > 0:
             system.discrete.append(DiscreteElement(top, "quadratic_damper", self.coefficient))
 
 
-EFFECTS = {cls.name: cls for cls in (InitialImperfection, ShakerAttachment, ClampCompliance,
-                                     AmplitudeDependentDamping)}
+EFFECTS = {cls.name: cls for cls in (InitialImperfection, ShakerAttachment, ClampCompliance, AmplitudeDependentDamping)}

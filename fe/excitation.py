@@ -20,6 +20,7 @@ about 1 % on eta (measured on the default data set).
   that do that, and for a force defined on a grid much finer than its band
   (the virtual rig's, at 4x the output rate: gain error 2.7e-4 at 37 Hz).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -30,7 +31,7 @@ from scipy import signal
 
 INTERPOLATIONS = ("bandlimited", "linear")
 _TAPS_PER_PHASE = 64
-_CUTOFF = 0.45          # of the input sampling rate
+_CUTOFF = 0.45  # of the input sampling rate
 _KAISER_BETA = 10.0
 _CACHE: OrderedDict = OrderedDict()
 _CACHE_SIZE = 32
@@ -44,8 +45,7 @@ def check_interpolation(method: str) -> str:
 
 def interpolation_filter(factor: int) -> np.ndarray:
     """FIR of the band-limited interpolator, at ``factor`` x the input rate (unit DC gain)."""
-    return signal.firwin(2 * _TAPS_PER_PHASE * factor + 1, _CUTOFF, fs=float(factor),
-                         window=("kaiser", _KAISER_BETA))
+    return signal.firwin(2 * _TAPS_PER_PHASE * factor + 1, _CUTOFF, fs=float(factor), window=("kaiser", _KAISER_BETA))
 
 
 def upsample(force: np.ndarray, factor: int, method: str = "bandlimited") -> np.ndarray:

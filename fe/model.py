@@ -44,7 +44,8 @@ def check_below_buckling(params: Parameters, rig: Rig, p_cr: float) -> float:
         raise BucklingError(
             f"the preload is at or beyond buckling: P_eff = F K_b / (K_b + k_s) = {p_eff:.2f} N "
             f">= buckling load {p_cr:.2f} N of this beam (F = {params.F} N, k_s = {params.k_s} N/m); "
-            "lower F or raise k_s")
+            "lower F or raise k_s"
+        )
     return p_eff
 
 
@@ -142,8 +143,10 @@ class SimulationResult:
 def _distribute(n: int, lengths: np.ndarray) -> np.ndarray:
     """Split n elements over segments proportionally (largest remainder, >= 1 each)."""
     if n < lengths.size:
-        raise ValueError(f"n_elements = {n} is too small: the mesh needs at least {lengths.size} "
-                         "(a node at the shaker and one at the sensor)")
+        raise ValueError(
+            f"n_elements = {n} is too small: the mesh needs at least {lengths.size} "
+            "(a node at the shaker and one at the sensor)"
+        )
     share = n * lengths / lengths.sum()
     counts = np.maximum(1, np.floor(share).astype(int))
     while counts.sum() < n:
@@ -241,8 +244,7 @@ class BeamModel:
         rig = self.rig
         stations = np.unique([0.0, rig.shaker_position_m, rig.sensor_position_m, rig.length_m])
         counts = _distribute(self.n_elements, np.diff(stations))
-        parts = [np.linspace(stations[j], stations[j + 1], counts[j] + 1)[:-1]
-                 for j in range(counts.size)]
+        parts = [np.linspace(stations[j], stations[j + 1], counts[j] + 1)[:-1] for j in range(counts.size)]
         return np.concatenate(parts + [[rig.length_m]])
 
     @property
@@ -272,9 +274,14 @@ class BeamModel:
             discrete.append(DiscreteElement(top, "spring", params.k_s))
         if params.c > 0:
             discrete.append(DiscreteElement(top, "damper", params.c))
-        system = SystemDescription(node_x=x, node_y=np.zeros_like(x), fixed=fixed,
-                                   discrete=discrete, f_const=f_const,
-                                   b_load=hermite_weights(x, self.rig.shaker_position_m))
+        system = SystemDescription(
+            node_x=x,
+            node_y=np.zeros_like(x),
+            fixed=fixed,
+            discrete=discrete,
+            f_const=f_const,
+            b_load=hermite_weights(x, self.rig.shaker_position_m),
+        )
         if effects:
             for eff in self.effects:
                 eff.apply(system, self.rig, params)
@@ -307,19 +314,29 @@ class BeamModel:
         laws = DiscreteElement._LAWS
         d = system.discrete
         return dict(
-            X=X, Y=Y, L0=L0, c0=c0, s0=s0, t0=t0, EA=rig.EA, EI=rig.EI,
+            X=X,
+            Y=Y,
+            L0=L0,
+            c0=c0,
+            s0=s0,
+            t0=t0,
+            EA=rig.EA,
+            EI=rig.EI,
             beta=rig.beam_viscosity(params.eta) / rig.youngs_modulus_pa,
             shallow=self.formulation == "shallow_arch",
             d_dof=np.array([e.dof for e in d], dtype=np.int64),
             d_law=np.array([laws[e.law] for e in d], dtype=np.int64),
             d_p1=np.array([e.p1 for e in d], dtype=float),
             d_p2=np.array([e.p2 for e in d], dtype=float),
-            fixed=system.fixed.astype(np.bool_), m_band=mband,
-            f_const=np.asarray(system.f_const, float), b_load=np.asarray(system.b_load, float),
+            fixed=system.fixed.astype(np.bool_),
+            m_band=mband,
+            f_const=np.asarray(system.f_const, float),
+            b_load=np.asarray(system.b_load, float),
         )
 
-    def matrices(self, params: Parameters, u: np.ndarray | None = None,
-                 v: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def matrices(
+        self, params: Parameters, u: np.ndarray | None = None, v: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Dense (M, K_t, C, f_int) at state (u, v) (default: the reference state).
 
         K_t = d f_int / d u, C = d f_int / d v (all dofs; apply ``fixed`` yourself).
@@ -332,9 +349,30 @@ class BeamModel:
 
         def tangent(cfac):
             band = np.zeros((n, 2 * KD + 1))
-            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"],
-                       a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
-                       u, v, fint, True, 1.0, cfac, band, KD)
+            K.assemble(
+                a["X"],
+                a["Y"],
+                a["L0"],
+                a["c0"],
+                a["s0"],
+                a["t0"],
+                a["EA"],
+                a["EI"],
+                a["beta"],
+                a["shallow"],
+                a["d_dof"],
+                a["d_law"],
+                a["d_p1"],
+                a["d_p2"],
+                u,
+                v,
+                fint,
+                True,
+                1.0,
+                cfac,
+                band,
+                KD,
+            )
             return band_to_dense(band, KD)
 
         Kt = tangent(0.0)
@@ -372,9 +410,30 @@ class BeamModel:
             u[0::3] = -p * self.node_x / self.rig.EA  # uniform compression by p
             band = np.zeros((n, 2 * KD + 1))
             fint = np.empty(n)
-            K.assemble(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], 0.0,
-                       a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
-                       u, np.zeros(n), fint, True, 1.0, 0.0, band, KD)
+            K.assemble(
+                a["X"],
+                a["Y"],
+                a["L0"],
+                a["c0"],
+                a["s0"],
+                a["t0"],
+                a["EA"],
+                a["EI"],
+                0.0,
+                a["shallow"],
+                a["d_dof"],
+                a["d_law"],
+                a["d_p1"],
+                a["d_p2"],
+                u,
+                np.zeros(n),
+                fint,
+                True,
+                1.0,
+                0.0,
+                band,
+                KD,
+            )
             return band_to_dense(band, KD)[np.ix_(free, free)]
 
         p_ref = 1.0
@@ -398,13 +457,33 @@ class BeamModel:
         u = np.zeros(n)
         tol = self.newton_rtol * params.F + self._roundoff_force
         n_inc = 1 if not self.effects else 10
-        status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
-                                    a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
-                                    a["fixed"], a["f_const"], u, KD, n_inc, tol, 50)
+        status, _ = K.static_newton(
+            a["X"],
+            a["Y"],
+            a["L0"],
+            a["c0"],
+            a["s0"],
+            a["t0"],
+            a["EA"],
+            a["EI"],
+            a["shallow"],
+            a["d_dof"],
+            a["d_law"],
+            a["d_p1"],
+            a["d_p2"],
+            a["fixed"],
+            a["f_const"],
+            u,
+            KD,
+            n_inc,
+            tol,
+            50,
+        )
         if status != 0:
             raise ConvergenceError(
                 f"static Newton solve of the preloaded equilibrium failed (status {status}) at "
-                f"F = {params.F} N; the preload may be too close to buckling ({p_eff:.2f} of {p_cr:.2f} N)")
+                f"F = {params.F} N; the preload may be too close to buckling ({p_eff:.2f} of {p_cr:.2f} N)"
+            )
         _, kt, _, fint = self.matrices(params, u)
         free = ~a["fixed"]
         try:
@@ -412,9 +491,11 @@ class BeamModel:
         except np.linalg.LinAlgError:
             raise BucklingError(
                 f"the preloaded equilibrium is unstable (tangent not positive definite) at "
-                f"P_eff = {p_eff:.2f} N, buckling load {p_cr:.2f} N") from None
-        return StaticState(u=u, axial_force=float(_beam_axial_force(self, u, a)),
-                           top_displacement=float(u[self.top_axial_dof]))
+                f"P_eff = {p_eff:.2f} N, buckling load {p_cr:.2f} N"
+            ) from None
+        return StaticState(
+            u=u, axial_force=float(_beam_axial_force(self, u, a)), top_displacement=float(u[self.top_axial_dof])
+        )
 
     # ------------------------------------------------------------------ linear
     def modal_analysis(self, params: Parameters, n_modes: int = 6) -> Modes:
@@ -431,8 +512,9 @@ class BeamModel:
         w2, phi = w2[order], phi[:, order]
         omega = np.sqrt(np.maximum(w2, 0.0))
         # damping ratios from the state-space eigenvalues closest to each mode
-        a = np.block([[np.zeros((n_free, n_free)), np.eye(n_free)],
-                      [-np.linalg.solve(mf, kf), -np.linalg.solve(mf, cf)]])
+        a = np.block(
+            [[np.zeros((n_free, n_free)), np.eye(n_free)], [-np.linalg.solve(mf, kf), -np.linalg.solve(mf, cf)]]
+        )
         lam = np.linalg.eigvals(a)
         lam = lam[lam.imag > 0]
         zeta = np.empty(n_modes)
@@ -441,11 +523,11 @@ class BeamModel:
             zeta[i] = -lam[j].real / abs(lam[j])
         shapes = np.zeros((self.n_dof, n_modes))
         shapes[free] = phi
-        return Modes(frequencies_hz=omega / (2 * np.pi), damping_ratios=zeta, shapes=shapes,
-                     node_x=self.node_x.copy())
+        return Modes(frequencies_hz=omega / (2 * np.pi), damping_ratios=zeta, shapes=shapes, node_x=self.node_x.copy())
 
-    def linear_frf(self, params: Parameters, freqs_hz, position: float | None = None,
-                   quantity: str = "velocity") -> np.ndarray:
+    def linear_frf(
+        self, params: Parameters, freqs_hz, position: float | None = None, quantity: str = "velocity"
+    ) -> np.ndarray:
         """FRF of the linearised model from the shaker force to the transverse
         response at ``position`` (default: the sensor) [m/N or m/s/N]."""
         if quantity not in ("displacement", "velocity"):
@@ -466,8 +548,15 @@ class BeamModel:
         return np.array(out)
 
     # ---------------------------------------------------------------- transient
-    def simulate(self, params: Parameters, force, fs: float = 1024.0, positions=None,
-                 initial_displacement=None, initial_velocity=None) -> SimulationResult:
+    def simulate(
+        self,
+        params: Parameters,
+        force,
+        fs: float = 1024.0,
+        positions=None,
+        initial_displacement=None,
+        initial_velocity=None,
+    ) -> SimulationResult:
         """Transient response to a sampled shaker force.
 
         Parameters
@@ -512,7 +601,7 @@ class BeamModel:
         tol = self.newton_rtol * (params.F + np.abs(force).max()) + self._roundoff_force
         ns = force.size
         if self.input_interpolation == "linear":
-            fine, m = force, 1          # the kernel interpolates linearly between samples
+            fine, m = force, 1  # the kernel interpolates linearly between samples
         else:
             # one step per point of the upsampled force; every substeps-th is a sample
             fine, m = upsample(force, self.substeps, self.input_interpolation), self.substeps
@@ -520,10 +609,41 @@ class BeamModel:
         out_v = np.empty((fine.size, positions.size))
         out_a = np.empty(fine.size)
         status, failed, iters = K.transient(
-            a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"], a["shallow"],
-            a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"], a["fixed"], a["m_band"], a["f_const"],
-            a["b_load"], fine, self.substeps // m, dt, am, af, gam, bet, u, v, tol,
-            self.max_newton_iterations, W, self.top_axial_dof, out_d, out_v, out_a)
+            a["X"],
+            a["Y"],
+            a["L0"],
+            a["c0"],
+            a["s0"],
+            a["t0"],
+            a["EA"],
+            a["EI"],
+            a["beta"],
+            a["shallow"],
+            a["d_dof"],
+            a["d_law"],
+            a["d_p1"],
+            a["d_p2"],
+            a["fixed"],
+            a["m_band"],
+            a["f_const"],
+            a["b_load"],
+            fine,
+            self.substeps // m,
+            dt,
+            am,
+            af,
+            gam,
+            bet,
+            u,
+            v,
+            tol,
+            self.max_newton_iterations,
+            W,
+            self.top_axial_dof,
+            out_d,
+            out_v,
+            out_a,
+        )
         out_d, out_v, out_a = out_d[::m], out_v[::m], out_a[::m]
         failed = -(-failed // m)
         if status != 0:
@@ -531,19 +651,40 @@ class BeamModel:
             raise ConvergenceError(
                 f"Newton {what} in the time step ending at sample {failed} "
                 f"(t = {failed / fs:.4f} s); the response may be diverging or the "
-                "step too large: try more substeps")
-        return SimulationResult(time=np.arange(ns) / fs, force=force, positions=positions,
-                                displacement=out_d, velocity=out_v, axial_top=out_a,
-                                newton_iterations=int(iters), final_displacement=u,
-                                final_velocity=v)
+                "step too large: try more substeps"
+            )
+        return SimulationResult(
+            time=np.arange(ns) / fs,
+            force=force,
+            positions=positions,
+            displacement=out_d,
+            velocity=out_v,
+            axial_top=out_a,
+            newton_iterations=int(iters),
+            final_displacement=u,
+            final_velocity=v,
+        )
 
     def energy(self, params: Parameters, u: np.ndarray, v: np.ndarray) -> float:
         """Total mechanical energy [J]: kinetic + strain + springs + potential of F."""
         system = self.describe(params)
         a = self._arrays(system, params)
         mv = band_to_dense(a["m_band"], KD) @ v
-        strain = K.strain_energy(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
-                                 a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], u)
+        strain = K.strain_energy(
+            a["X"],
+            a["Y"],
+            a["L0"],
+            a["c0"],
+            a["s0"],
+            a["t0"],
+            a["EA"],
+            a["EI"],
+            a["shallow"],
+            a["d_dof"],
+            a["d_law"],
+            a["d_p1"],
+            u,
+        )
         return float(0.5 * v @ mv + strain - a["f_const"] @ u)
 
 
@@ -565,10 +706,14 @@ def _element_mass(rho_a: float, L: float, c: float, s: float) -> np.ndarray:
     m[0, 3] = m[3, 0] = ma
     mt = rho_a * L / 420.0
     idx = [1, 2, 4, 5]
-    mb = mt * np.array([[156, 22 * L, 54, -13 * L],
-                        [22 * L, 4 * L**2, 13 * L, -3 * L**2],
-                        [54, 13 * L, 156, -22 * L],
-                        [-13 * L, -3 * L**2, -22 * L, 4 * L**2]])
+    mb = mt * np.array(
+        [
+            [156, 22 * L, 54, -13 * L],
+            [22 * L, 4 * L**2, 13 * L, -3 * L**2],
+            [54, 13 * L, 156, -22 * L],
+            [-13 * L, -3 * L**2, -22 * L, 4 * L**2],
+        ]
+    )
     m[np.ix_(idx, idx)] = mb
     t = np.zeros((6, 6))
     rot = np.array([[c, s], [-s, c]])

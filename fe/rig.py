@@ -121,9 +121,7 @@ class Rig:
         known = {f.name for f in fields(cls)}
         unknown = set(data) - known
         if unknown:
-            raise ValueError(
-                f"unknown rig key(s) {sorted(unknown)}; known keys are {sorted(known)}"
-            )
+            raise ValueError(f"unknown rig key(s) {sorted(unknown)}; known keys are {sorted(known)}")
         return cls(**data)
 
 
@@ -144,13 +142,10 @@ class Parameters:
 
     def __post_init__(self):
         for name in ("eta", "c", "F", "k_s"):
-            object.__setattr__(
-                self, name, _check_positive_finite(name, getattr(self, name), allow_zero=True)
-            )
+            object.__setattr__(self, name, _check_positive_finite(name, getattr(self, name), allow_zero=True))
 
     @classmethod
-    def from_paper_units(cls, eta_mpa_s: float, c_n_s_per_mm: float, F_n: float,
-                         k_s_n_per_mm: float) -> "Parameters":
+    def from_paper_units(cls, eta_mpa_s: float, c_n_s_per_mm: float, F_n: float, k_s_n_per_mm: float) -> "Parameters":
         """Parameters from the paper's units (MPa s, N s/mm, N, N/mm)."""
         return cls(eta=eta_mpa_s * 1e6, c=c_n_s_per_mm * 1e3, F=F_n, k_s=k_s_n_per_mm * 1e3)
 

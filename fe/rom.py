@@ -91,11 +91,10 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
-from .effects import Effect
 from ._rom_kernels import _transient
+from .effects import Effect
 from .excitation import check_interpolation, upsample
-from .model import (BeamModel, BucklingError, ConvergenceError, SimulationResult, check_below_buckling,
-                    hermite_weights)
+from .model import BeamModel, BucklingError, ConvergenceError, SimulationResult, check_below_buckling, hermite_weights
 from .rig import Parameters, Rig
 
 try:  # a declared dependency; without it the default BLAS threading is used
@@ -131,21 +130,43 @@ def _element_matrices(le: np.ndarray, rho_a: float, ei: float):
     int N_i' N_j' dx [1/m] (all exact for the cubic shapes)."""
     l = le[:, None, None]
     one = np.ones_like(l)
-    m = rho_a * l / 420.0 * np.block([
-        [156 * one, 22 * l, 54 * one, -13 * l],
-        [22 * l, 4 * l**2, 13 * l, -3 * l**2],
-        [54 * one, 13 * l, 156 * one, -22 * l],
-        [-13 * l, -3 * l**2, -22 * l, 4 * l**2]])
-    k = ei / l**3 * np.block([
-        [12 * one, 6 * l, -12 * one, 6 * l],
-        [6 * l, 4 * l**2, -6 * l, 2 * l**2],
-        [-12 * one, -6 * l, 12 * one, -6 * l],
-        [6 * l, 2 * l**2, -6 * l, 4 * l**2]])
-    g = 1.0 / (30.0 * l) * np.block([
-        [36 * one, 3 * l, -36 * one, 3 * l],
-        [3 * l, 4 * l**2, -3 * l, -(l**2)],
-        [-36 * one, -3 * l, 36 * one, -3 * l],
-        [3 * l, -(l**2), -3 * l, 4 * l**2]])
+    m = (
+        rho_a
+        * l
+        / 420.0
+        * np.block(
+            [
+                [156 * one, 22 * l, 54 * one, -13 * l],
+                [22 * l, 4 * l**2, 13 * l, -3 * l**2],
+                [54 * one, 13 * l, 156 * one, -22 * l],
+                [-13 * l, -3 * l**2, -22 * l, 4 * l**2],
+            ]
+        )
+    )
+    k = (
+        ei
+        / l**3
+        * np.block(
+            [
+                [12 * one, 6 * l, -12 * one, 6 * l],
+                [6 * l, 4 * l**2, -6 * l, 2 * l**2],
+                [-12 * one, -6 * l, 12 * one, -6 * l],
+                [6 * l, 2 * l**2, -6 * l, 4 * l**2],
+            ]
+        )
+    )
+    g = (
+        1.0
+        / (30.0 * l)
+        * np.block(
+            [
+                [36 * one, 3 * l, -36 * one, 3 * l],
+                [3 * l, 4 * l**2, -3 * l, -(l**2)],
+                [-36 * one, -3 * l, 36 * one, -3 * l],
+                [3 * l, -(l**2), -3 * l, 4 * l**2],
+            ]
+        )
+    )
     return m, k, g
 
 
@@ -154,7 +175,7 @@ def _assemble(blocks: np.ndarray) -> np.ndarray:
     ne = blocks.shape[0]
     out = np.zeros((2 * (ne + 1), 2 * (ne + 1)))
     for e in range(ne):
-        out[2 * e:2 * e + 4, 2 * e:2 * e + 4] += blocks[e]
+        out[2 * e : 2 * e + 4, 2 * e : 2 * e + 4] += blocks[e]
     return out
 
 
@@ -264,7 +285,8 @@ class ModalROM:
         if int(self.n_modes) != self.n_modes or not 1 <= self.n_modes <= n_free:
             raise ValueError(
                 f"n_modes must be an integer in [1, {n_free}]: a mesh of {int(self.n_elements)} "
-                f"elements has {n_free} free transverse dofs; got {self.n_modes}")
+                f"elements has {n_free} free transverse dofs; got {self.n_modes}"
+            )
         if self.substeps is not None and (int(self.substeps) != self.substeps or self.substeps < 1):
             raise ValueError(f"substeps must be a positive integer or None, got {self.substeps}")
         object.__setattr__(self, "n_modes", int(self.n_modes))
@@ -291,8 +313,11 @@ class ModalROM:
         for eff in self.effects:
             probe = model.describe(params, effects=False)
             eff.apply(probe, self.rig, params)
-            changed = [name for name in ("node_x", "fixed", "f_const", "b_load")
-                       if not np.array_equal(getattr(probe, name), getattr(plain, name))]
+            changed = [
+                name
+                for name in ("node_x", "fixed", "f_const", "b_load")
+                if not np.array_equal(getattr(probe, name), getattr(plain, name))
+            ]
             if probe.point_masses != plain.point_masses:
                 changed.append("point_masses")
             if probe.discrete != plain.discrete:
@@ -301,7 +326,8 @@ class ModalROM:
                 raise ValueError(
                     f"effect {eff.name!r} ({type(eff).__name__}) does not fit the modal ROM: it "
                     f"changes {', '.join(changed)} of the system, while the ROM carries only "
-                    "effects that bow the reference geometry (node_y); use fe.BeamModel for it")
+                    "effects that bow the reference geometry (node_y); use fe.BeamModel for it"
+                )
         return model
 
     @cached_property
@@ -321,9 +347,18 @@ class ModalROM:
         p0 = float(scipy.linalg.eigh(kt, gt, eigvals_only=True, subset_by_index=[0, 0])[0])
         p_cr = 2.0 * p0 / (1.0 + math.sqrt(1.0 - 4.0 * p0 / rig.EA))
         shaker = self._dof_weights(x, rig.shaker_position_m)
-        return RigMatrices(node_x=x, mass=m, bending=k, geometric=g, chol_inv=linv,
-                           bending_t=kt, geometric_t=gt, shaker=shaker,
-                           bow=self._bow_vector(x), buckling_load=p_cr)
+        return RigMatrices(
+            node_x=x,
+            mass=m,
+            bending=k,
+            geometric=g,
+            chol_inv=linv,
+            bending_t=kt,
+            geometric_t=gt,
+            shaker=shaker,
+            bow=self._bow_vector(x),
+            buckling_load=p_cr,
+        )
 
     def _bow_vector(self, node_x: np.ndarray) -> np.ndarray:
         """g0_j = int w0' N_j' dx on the free transverse dofs (zeros without effects).
@@ -337,8 +372,7 @@ class ModalROM:
         """
         if not self.effects:
             return np.zeros(2 * node_x.size - 4)
-        fine = BeamModel(rig=self.rig, n_elements=BOW_REFINEMENT * self.n_elements,
-                         effects=self.effects)
+        fine = BeamModel(rig=self.rig, n_elements=BOW_REFINEMENT * self.n_elements, effects=self.effects)
         xf = fine.node_x
         slope = np.diff(fine.describe(Parameters()).node_y) / np.diff(xf)
         values = np.array([self._dof_weights(node_x, xk) for xk in xf])  # N_j(x_k)
@@ -381,17 +415,22 @@ class ModalROM:
         n = self.n_modes
         lam = 1.0 - p_eff / self.rig.EA
         with _one_blas_thread():
-            w2, y = scipy.linalg.eigh(rm.bending_t / lam**2 - p_eff / lam * rm.geometric_t,
-                                      subset_by_index=[0, n - 1])
+            w2, y = scipy.linalg.eigh(rm.bending_t / lam**2 - p_eff / lam * rm.geometric_t, subset_by_index=[0, n - 1])
             phi = rm.chol_inv.T @ y  # mass-normalised preloaded modes
             kappa, rot = np.linalg.eigh(phi.T @ rm.bending @ phi / lam**2)
         phi = phi @ rot
         wdofs = phi[0::2]  # deterministic signs: largest transverse displacement positive
         phi = phi * np.sign(wdofs[np.argmax(np.abs(wdofs), axis=0), np.arange(n)])
         red = ReducedSystem(
-            p_eff=p_eff, stretch=lam, omega=np.sqrt(np.maximum(w2, 0.0)), shapes=phi,
-            kappa=kappa, G=phi.T @ rm.geometric @ phi / lam, g0=phi.T @ rm.bow / lam,
-            b=phi.T @ rm.shaker)
+            p_eff=p_eff,
+            stretch=lam,
+            omega=np.sqrt(np.maximum(w2, 0.0)),
+            shapes=phi,
+            kappa=kappa,
+            G=phi.T @ rm.geometric @ phi / lam,
+            g0=phi.T @ rm.bow / lam,
+            b=phi.T @ rm.shaker,
+        )
         if len(self._cache) >= _CACHE_SIZE:
             self._cache.pop(next(iter(self._cache)))
         self._cache[p_eff] = red
@@ -431,8 +470,9 @@ class ModalROM:
         f = red.b * shaker_force
         if not (np.any(f) or np.any(g0)):
             # straight and unloaded: q = 0, stable since P_eff < P_cr (omega^2 > 0)
-            return ROMState(q=np.zeros(self.n_modes), top_displacement=-params.F / ktop,
-                            shortening=0.0, axial_force=p_eff)
+            return ROMState(
+                q=np.zeros(self.n_modes), top_displacement=-params.F / ktop, shortening=0.0, axial_force=p_eff
+            )
         K0 = np.diag(red.kappa)
         q = np.linalg.solve(K0 - p_eff * G, f + p_eff * g0)
         for _ in range(50):
@@ -446,22 +486,26 @@ class ModalROM:
                 break
             q = q + np.linalg.solve(K0 + N * G + k_eff * np.outer(a, a), res)
         else:
-            raise ConvergenceError("static Newton solve of the ROM did not converge "
-                                   f"(shaker force {shaker_force} N, P_eff = {p_eff:.2f} N)")
+            raise ConvergenceError(
+                "static Newton solve of the ROM did not converge "
+                f"(shaker force {shaker_force} N, P_eff = {p_eff:.2f} N)"
+            )
         a = G @ q + g0
         s = 0.5 * q @ G @ q + g0 @ q
         N = -p_eff + k_eff * s
         try:
             np.linalg.cholesky(np.diag(red.kappa) + N * G + k_eff * np.outer(a, a))
         except np.linalg.LinAlgError:
-            raise BucklingError(f"the static state of the ROM is unstable (tangent not positive "
-                                f"definite) at P_eff = {p_eff:.2f} N") from None
+            raise BucklingError(
+                f"the static state of the ROM is unstable (tangent not positive definite) at P_eff = {p_eff:.2f} N"
+            ) from None
         U = (-params.F - kb * s) / ktop
         return ROMState(q=q, top_displacement=float(U), shortening=float(s), axial_force=float(-N))
 
     # ------------------------------------------------------------------ linear
-    def linear_frf(self, params: Parameters, freqs_hz, position: float | None = None,
-                   quantity: str = "velocity") -> np.ndarray:
+    def linear_frf(
+        self, params: Parameters, freqs_hz, position: float | None = None, quantity: str = "velocity"
+    ) -> np.ndarray:
         """FRF of the ROM linearised about its static state, from the shaker
         force to the transverse response at ``position`` (default: the sensor)
         [m/N or m/s/N].  Includes the top's dynamics (which enter at first
@@ -481,10 +525,13 @@ class ModalROM:
         for f in np.atleast_1d(np.asarray(freqs_hz, float)):
             om = 2 * np.pi * f
             # dN = kappa ds from the linearised top (k_s, c against K_b, beta K_b)
-            kappa = ((params.k_s + 1j * om * params.c) * kb * (1 + 1j * om * beta)
-                     / (ktop + 1j * om * dtop))
-            dyn = (np.diag(red.kappa * (1 + 1j * om * beta)) - st.axial_force * red.G
-                   + kappa * np.outer(a, a) - om**2 * np.eye(self.n_modes))
+            kappa = (params.k_s + 1j * om * params.c) * kb * (1 + 1j * om * beta) / (ktop + 1j * om * dtop)
+            dyn = (
+                np.diag(red.kappa * (1 + 1j * om * beta))
+                - st.axial_force * red.G
+                + kappa * np.outer(a, a)
+                - om**2 * np.eye(self.n_modes)
+            )
             val = out @ np.linalg.solve(dyn, red.b)
             h.append(val * (1j * om if quantity == "velocity" else 1.0))
         return np.array(h)
@@ -501,8 +548,7 @@ class ModalROM:
         w = math.sqrt(float(red.kappa.max()))
         return max(1, math.ceil(max(w, beta * w * w) / (fs * MAX_OMEGA_DT)))
 
-    def simulate(self, params: Parameters, force, fs: float = 1024.0,
-                 positions=None) -> SimulationResult:
+    def simulate(self, params: Parameters, force, fs: float = 1024.0, positions=None) -> SimulationResult:
         """Transient response to a sampled shaker force, from the static state.
 
         Parameters
@@ -525,8 +571,7 @@ class ModalROM:
         except (TypeError, ValueError):
             raise ValueError("force must be a 1-D array of numbers [N]") from None
         if force.ndim != 1 or force.size < 2:
-            raise ValueError(f"force must be a 1-D array with at least 2 samples, got shape "
-                             f"{force.shape}")
+            raise ValueError(f"force must be a 1-D array with at least 2 samples, got shape {force.shape}")
         if not np.all(np.isfinite(force)):
             raise ValueError("force contains NaN or inf")
         try:
@@ -535,8 +580,9 @@ class ModalROM:
             raise ValueError(f"fs must be a positive sampling rate in Hz, got {fs!r}") from None
         if not (fs > 0 and math.isfinite(fs)):
             raise ValueError(f"fs must be a positive sampling rate in Hz, got {fs}")
-        positions = np.atleast_1d(np.asarray(
-            self.rig.sensor_position_m if positions is None else positions, dtype=float))
+        positions = np.atleast_1d(
+            np.asarray(self.rig.sensor_position_m if positions is None else positions, dtype=float)
+        )
         if positions.ndim != 1:
             raise ValueError("positions must be a scalar or a 1-D array of positions [m]")
         red = self.reduced(params)
@@ -551,14 +597,41 @@ class ModalROM:
         out_d = np.empty((ns, positions.size))
         out_v = np.empty((ns, positions.size))
         out_a = np.empty(ns)
-        _transient(red.kappa, red.G, red.g0, red.b, W, beta, rig.axial_stiffness, params.F,
-                   params.k_s, params.c, upsample(force, 2 * substeps, self.input_interpolation),
-                   ns, substeps, 1.0 / (fs * substeps),
-                   q, qd, st.top_displacement, out_d, out_v, out_a)
+        _transient(
+            red.kappa,
+            red.G,
+            red.g0,
+            red.b,
+            W,
+            beta,
+            rig.axial_stiffness,
+            params.F,
+            params.k_s,
+            params.c,
+            upsample(force, 2 * substeps, self.input_interpolation),
+            ns,
+            substeps,
+            1.0 / (fs * substeps),
+            q,
+            qd,
+            st.top_displacement,
+            out_d,
+            out_v,
+            out_a,
+        )
         if not (np.isfinite(out_v[-1]).all() and np.isfinite(out_a[-1])):
             raise ConvergenceError(
                 f"the ROM's response diverged with {substeps} RK4 substeps per sample; "
-                "leave substeps=None (automatic) or raise it")
-        return SimulationResult(time=np.arange(ns) / fs, force=force, positions=positions,
-                                displacement=out_d, velocity=out_v, axial_top=out_a,
-                                newton_iterations=0, final_displacement=q, final_velocity=qd)
+                "leave substeps=None (automatic) or raise it"
+            )
+        return SimulationResult(
+            time=np.arange(ns) / fs,
+            force=force,
+            positions=positions,
+            displacement=out_d,
+            velocity=out_v,
+            axial_top=out_a,
+            newton_iterations=0,
+            final_displacement=q,
+            final_velocity=qd,
+        )

@@ -1,5 +1,6 @@
 """The editable description of a beam system that the kernels run on, and its
 discrete elements: what :mod:`fe.effects` edit and :mod:`fe.model` assembles."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -24,8 +25,12 @@ class DiscreteElement:
     p1: float
     p2: float = 1.0
 
-    _LAWS = {"spring": K.LAW_SPRING, "damper": K.LAW_DAMPER,
-             "quadratic_damper": K.LAW_QUADRATIC_DAMPER, "coulomb": K.LAW_COULOMB}
+    _LAWS = {
+        "spring": K.LAW_SPRING,
+        "damper": K.LAW_DAMPER,
+        "quadratic_damper": K.LAW_QUADRATIC_DAMPER,
+        "coulomb": K.LAW_COULOMB,
+    }
 
 
 @dataclass

@@ -3,6 +3,7 @@
 notebook FAILS with what is missing and how to install it, as the other tests
 of a missing reference do (tests/reference.py); with
 ``BAYES_UPDATE_ALLOW_MISSING_REFERENCES=1`` it is skipped instead."""
+
 import os
 
 import pytest
@@ -14,7 +15,7 @@ ALLOW_MISSING_ENV = "BAYES_UPDATE_ALLOW_MISSING_REFERENCES"
 def _openseespy_error():
     try:
         import openseespy.opensees  # noqa: F401
-    except Exception as exc:        # ImportError, or the library's own load error (a missing liblapack)
+    except Exception as exc:  # ImportError, or the library's own load error (a missing liblapack)
         return f"{type(exc).__name__}: {exc}"
     return None
 
@@ -28,8 +29,9 @@ def pytest_collection_modifyitems(config, items):
         return
     error = _openseespy_error()
     if error:
-        mark = pytest.mark.skip(reason=f"openseespy cannot be imported ({error}); the OpenSees example needs it "
-                                       f"({ALLOW_MISSING_ENV}=1)")
+        mark = pytest.mark.skip(
+            reason=f"openseespy cannot be imported ({error}); the OpenSees example needs it ({ALLOW_MISSING_ENV}=1)"
+        )
         for item in items:
             if _needs_opensees(item):
                 item.add_marker(mark)
@@ -39,6 +41,9 @@ def pytest_runtest_setup(item):
     if _needs_opensees(item) and os.environ.get(ALLOW_MISSING_ENV) != "1":
         error = _openseespy_error()
         if error:
-            pytest.fail(f"openseespy cannot be imported ({error}); the OpenSees example needs it: pip install "
-                        f"openseespy (the dev extra; libblas3 and liblapack3 on Linux). Set {ALLOW_MISSING_ENV}=1 to "
-                        "skip it instead.", pytrace=False)
+            pytest.fail(
+                f"openseespy cannot be imported ({error}); the OpenSees example needs it: pip install "
+                f"openseespy (the dev extra; libblas3 and liblapack3 on Linux). Set {ALLOW_MISSING_ENV}=1 to "
+                "skip it instead.",
+                pytrace=False,
+            )

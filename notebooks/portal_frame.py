@@ -52,6 +52,7 @@ OpenSees keeps one global domain per process: every :meth:`PortalFrame.simulate`
 wipes it and rebuilds everything, so runs never interleave (also in worker
 processes), and sends OpenSees' messages to the null device.
 """
+
 from __future__ import annotations
 
 import json
@@ -65,42 +66,42 @@ import openseespy.opensees as ops
 from bayes_update import ModelError, Parameter
 
 # ------------------------------------------------------------------ the frame's constants
-COLUMN_HEIGHT_M = 0.60            # base to beam axis [m]
-BEAM_SPAN_M = 0.50                # column axis to column axis [m]
+COLUMN_HEIGHT_M = 0.60  # base to beam axis [m]
+BEAM_SPAN_M = 0.50  # column axis to column axis [m]
 COLUMN_SECTION_M = (0.040, 0.008)  # flat bar width x thickness [m], bent about the weak axis
-BEAM_SECTION_M = (0.040, 0.010)    # flat bar width x thickness [m]
-YOUNGS_MODULUS_PA = 200e9         # steel [Pa]
-POISSON_RATIO = 0.3               # steel [-]: shear modulus E / (2 (1 + nu))
-SHEAR_COEFFICIENT = 5.0 / 6.0     # rectangular section: shear area = 5/6 A
-DENSITY_KG_M3 = 7850.0            # steel [kg/m^3]
-ROTATION_RANGE_RAD = 0.025        # the joint's table spans +- this rotation [rad]
-TANGENT_FLOOR = 0.05              # the table ends where the joint's tangent falls below this share of k_j
+BEAM_SECTION_M = (0.040, 0.010)  # flat bar width x thickness [m]
+YOUNGS_MODULUS_PA = 200e9  # steel [Pa]
+POISSON_RATIO = 0.3  # steel [-]: shear modulus E / (2 (1 + nu))
+SHEAR_COEFFICIENT = 5.0 / 6.0  # rectangular section: shear area = 5/6 A
+DENSITY_KG_M3 = 7850.0  # steel [kg/m^3]
+ROTATION_RANGE_RAD = 0.025  # the joint's table spans +- this rotation [rad]
+TANGENT_FLOOR = 0.05  # the table ends where the joint's tangent falls below this share of k_j
 
-K_J_UNIT = 1e3                    # k_j in kN m/rad
-K2_UNIT = 1e3                     # k2 in kN m/rad^2
-K3_UNIT = 1e6                     # k3 in MN m/rad^3
+K_J_UNIT = 1e3  # k_j in kN m/rad
+K2_UNIT = 1e3  # k2 in kN m/rad^2
+K3_UNIT = 1e6  # k3 in MN m/rad^3
 #: generalized-alpha (Chung and Hulbert 1993; OpenSees HHTGeneralized(rho_inf)) with a spectral radius of
 #: 0.95 at infinite frequency: it damps the ringing of the members' axial modes (kHz, far above the time
 #: step's Nyquist frequency), which Newmark's average acceleration leaves undamped and which aliases into
 #: the sampled acceleration (2 % of its rms at the low level against the continuous-time FRF, 0.6 % with
 #: it: tests/test_portal_frame.py); second-order accurate, negligible damping in the band
 RHO_INF = 0.95
-NEWTON_TOLERANCE = 1e-6          # norm of the unbalanced forces [N, N m] at convergence
-RIGID_COMPLIANCE = 1e-6           # a right-joint compliance c_r below this [rad/(kN m)] is the rigid weld
+NEWTON_TOLERANCE = 1e-6  # norm of the unbalanced forces [N, N m] at convergence
+RIGID_COMPLIANCE = 1e-6  # a right-joint compliance c_r below this [rad/(kN m)] is the rigid weld
 
 #: the member elements: both with the consistent (Hermite) mass matrix; the Timoshenko one adds the
 #: flat bars' shear flexibility (-0.02 % on the sway frequency here) and costs 2.8 times less per step
 ELEMENTS = ("ElasticTimoshenkoBeam", "elasticBeamColumn")
 
 # node and element tags
-_LEFT, _RIGHT, _BEAM = 100, 200, 300        # node tags: base + i (i = 0 at the bottom / the left end)
+_LEFT, _RIGHT, _BEAM = 100, 200, 300  # node tags: base + i (i = 0 at the bottom / the left end)
 _SPRING_MAT, _RIGHT_MAT, _TRANSF, _FORCE_SERIES, _FORCE_PATTERN = 1, 2, 1, 1, 1
 
 
 def _section(width_thickness):
     """(A [m^2], I [m^4], mass per length [kg/m]) of a flat bar bent about its weak axis."""
     b, t = width_thickness
-    return b * t, b * t ** 3 / 12.0, DENSITY_KG_M3 * b * t
+    return b * t, b * t**3 / 12.0, DENSITY_KG_M3 * b * t
 
 
 def upsample(force, factor: int, lobes: int = 10, beta: float = 9.0) -> np.ndarray:
@@ -163,8 +164,9 @@ class PortalFrame:
     ]
     sensors = (("acc_top", "acceleration"), ("disp_mid", "displacement"))
 
-    def __init__(self, n_elements: int = 4, substeps: int = 5, table_points: int = 1001,
-                 element: str = "ElasticTimoshenkoBeam"):
+    def __init__(
+        self, n_elements: int = 4, substeps: int = 5, table_points: int = 1001, element: str = "ElasticTimoshenkoBeam"
+    ):
         if element not in ELEMENTS:
             raise ValueError(f"element must be one of {ELEMENTS}, got {element!r}")
         if n_elements < 2 or n_elements % 2:
@@ -177,8 +179,10 @@ class PortalFrame:
         self.element = element
 
     def __repr__(self):
-        return (f"PortalFrame(n_elements={self.n_elements}, substeps={self.substeps}, "
-                f"table_points={self.table_points}, element={self.element!r})")
+        return (
+            f"PortalFrame(n_elements={self.n_elements}, substeps={self.substeps}, "
+            f"table_points={self.table_points}, element={self.element!r})"
+        )
 
     def refined(self) -> "PortalFrame":
         """Three times the elements per member and four times the time steps per sample.
@@ -192,8 +196,10 @@ class PortalFrame:
         return PortalFrame(3 * self.n_elements, 4 * self.substeps, self.table_points, self.element)
 
     def candidate_effects(self) -> dict:
-        return {"k2": [Parameter("k2", -100.0, 100.0, unit="kN m/rad^2", null=0.0)],
-                "right_joint": [Parameter("c_r", 0.0, 0.5, unit="rad/(kN m)", null=0.0)]}
+        return {
+            "k2": [Parameter("k2", -100.0, 100.0, unit="kN m/rad^2", null=0.0)],
+            "right_joint": [Parameter("c_r", 0.0, 0.5, unit="rad/(kN m)", null=0.0)],
+        }
 
     # ------------------------------------------------------------------ the joint
     def joint_table(self, theta) -> tuple[np.ndarray, np.ndarray]:
@@ -215,7 +221,7 @@ class PortalFrame:
         t = t[lo:hi]
         if t.size < 5:
             raise ModelError(f"the joint law has no stable range around zero rotation at {theta}")
-        return t, kj * t + k2 * t * t + k3 * t ** 3
+        return t, kj * t + k2 * t * t + k3 * t**3
 
     # ------------------------------------------------------------------ the model
     def build(self, theta) -> dict:
@@ -235,37 +241,52 @@ class PortalFrame:
             ops.node(_RIGHT + i, L, H * i / n)
         c_r = float(theta.get("c_r", 0.0))
         right_spring = c_r > RIGID_COMPLIANCE
-        for i in range(n + 1 if right_spring else n):   # rigid right joint: the beam ends on the column's top
+        for i in range(n + 1 if right_spring else n):  # rigid right joint: the beam ends on the column's top
             ops.node(_BEAM + i, L * i / n, H)
         tl, tr, joint = _LEFT + n, _RIGHT + n, _BEAM
         beam_nodes = [_BEAM + i for i in range(n + int(right_spring))] + ([] if right_spring else [tr])
         ops.fix(_LEFT, 1, 1, 1)
         ops.fix(_RIGHT, 1, 1, 1)
-        ops.equalDOF(tl, joint, 1, 2)           # the joint: translations tied, rotation through the spring
+        ops.equalDOF(tl, joint, 1, 2)  # the joint: translations tied, rotation through the spring
         if right_spring:
             ops.equalDOF(tr, _BEAM + n, 1, 2)
 
         ops.geomTransf("PDelta", _TRANSF)
-        E = YOUNGS_MODULUS_PA * float(theta.get("e_scale", 1.0))    # a model that updates the modulus
+        E = YOUNGS_MODULUS_PA * float(theta.get("e_scale", 1.0))  # a model that updates the modulus
         G = E / (2.0 * (1.0 + POISSON_RATIO))
         tag = 0
-        for chain, sec in (([_LEFT + i for i in range(n + 1)], COLUMN_SECTION_M),
-                           ([_RIGHT + i for i in range(n + 1)], COLUMN_SECTION_M),
-                           (beam_nodes, BEAM_SECTION_M)):
+        for chain, sec in (
+            ([_LEFT + i for i in range(n + 1)], COLUMN_SECTION_M),
+            ([_RIGHT + i for i in range(n + 1)], COLUMN_SECTION_M),
+            (beam_nodes, BEAM_SECTION_M),
+        ):
             A, Iz, mass = _section(sec)
             for a, b in zip(chain[:-1], chain[1:]):
                 tag += 1
                 if self.element == "elasticBeamColumn":
                     ops.element("elasticBeamColumn", tag, a, b, A, E, Iz, _TRANSF, "-mass", mass, "-cMass")
                 else:
-                    ops.element("ElasticTimoshenkoBeam", tag, a, b, E, G, A, Iz, SHEAR_COEFFICIENT * A, _TRANSF,
-                                "-mass", mass, "-cMass")
+                    ops.element(
+                        "ElasticTimoshenkoBeam",
+                        tag,
+                        a,
+                        b,
+                        E,
+                        G,
+                        A,
+                        Iz,
+                        SHEAR_COEFFICIENT * A,
+                        _TRANSF,
+                        "-mass",
+                        mass,
+                        "-cMass",
+                    )
         t, M = self.joint_table(theta)
         ops.uniaxialMaterial("ElasticMultiLinear", _SPRING_MAT, 0.0, "-strain", *t.tolist(), "-stress", *M.tolist())
         tag += 1
         spring = tag
         ops.element("zeroLength", spring, tl, joint, "-mat", _SPRING_MAT, "-dir", 3, "-doRayleigh", 1)
-        if right_spring:                        # the right joint's compliance c_r [rad/(kN m)]
+        if right_spring:  # the right joint's compliance c_r [rad/(kN m)]
             ops.uniaxialMaterial("Elastic", _RIGHT_MAT, 1.0 / (c_r / K_J_UNIT))
             tag += 1
             ops.element("zeroLength", tag, tr, _BEAM + n, "-mat", _RIGHT_MAT, "-dir", 3, "-doRayleigh", 1)
@@ -311,7 +332,7 @@ class PortalFrame:
         lam = self._eigen(2)
         w1, w2 = np.sqrt(lam[:2])
         zeta = float(theta["zeta"])
-        alpha_m = 2 * zeta * w1 * w2 / (w1 + w2)     # C = alpha_m M + beta_k K0: zeta at w1 and w2
+        alpha_m = 2 * zeta * w1 * w2 / (w1 + w2)  # C = alpha_m M + beta_k K0: zeta at w1 and w2
         beta_k = 2 * zeta / (w1 + w2)
         ops.rayleigh(alpha_m, 0.0, beta_k, 0.0)
         h = 1.0 / fs_fine
@@ -339,8 +360,10 @@ class PortalFrame:
                     self._retry(k * stride * h, h)
                 rot = ops.nodeDisp(joint, 3) - ops.nodeDisp(tl, 3)
                 if not limit_lo < rot < limit_hi:
-                    raise ModelError(f"the joint rotates {rot:.4g} rad at t = {k * stride * h:.4f} s, beyond 90 % "
-                                     f"of its law's table [{lo:.4g}, {hi:.4g}] rad")
+                    raise ModelError(
+                        f"the joint rotates {rot:.4g} rad at t = {k * stride * h:.4f} s, beyond 90 % "
+                        f"of its law's table [{lo:.4g}, {hi:.4g}] rad"
+                    )
                 out[k, 0] = ops.nodeAccel(tl, 1)
                 out[k, 1] = ops.nodeDisp(mid, 1)
                 if with_rotation:
@@ -361,17 +384,18 @@ class PortalFrame:
                 if ops.analyze(parts, step / parts) == 0:
                     break
             else:
-                raise ModelError(f"OpenSees did not converge at t = {ops.getTime():.5f} s, not even in steps of "
-                                 f"{step / 100:.3g} s")
+                raise ModelError(
+                    f"OpenSees did not converge at t = {ops.getTime():.5f} s, not even in steps of {step / 100:.3g} s"
+                )
 
 
 # ====================================================================== the virtual rig
-RIG_FS_HZ = 1024.0                # acquisition rate [Hz]
-RIG_PERIOD = 1024                 # samples per period of the multisine (1 s: lines 1 Hz apart)
-RIG_PERIODS = 2                   # periods per test: the first holds the start transient
-RIG_BAND_HZ = (2.0, 110.0)        # multisine lines in this band [Hz]: mode 1 (11 Hz) and modes 2-3 (83, 91 Hz)
-RIG_FADE_IN_S = 0.05              # the generator's raised-cosine fade-in [s]; the frame starts at rest
-RIG_LEVELS_N = {"low": 0.25, "medium": 3.0, "high": 6.0}     # force rms of each test [N]
+RIG_FS_HZ = 1024.0  # acquisition rate [Hz]
+RIG_PERIOD = 1024  # samples per period of the multisine (1 s: lines 1 Hz apart)
+RIG_PERIODS = 2  # periods per test: the first holds the start transient
+RIG_BAND_HZ = (2.0, 110.0)  # multisine lines in this band [Hz]: mode 1 (11 Hz) and modes 2-3 (83, 91 Hz)
+RIG_FADE_IN_S = 0.05  # the generator's raised-cosine fade-in [s]; the frame starts at rest
+RIG_LEVELS_N = {"low": 0.25, "medium": 3.0, "high": 6.0}  # force rms of each test [N]
 RIG_ROLES = {"low": "linear", "medium": "validation", "high": "nonlinear"}
 #: white measurement noise, sd per sample, per channel: force [N], acc_top [m/s^2], disp_mid [m]
 RIG_NOISE_SD = {"force": 2e-3, "acc_top": 5e-3, "disp_mid": 3e-7}
@@ -393,15 +417,26 @@ def multisine(period: int, n_periods: int, fs: float, band_hz, rng, oversampling
     X = np.zeros(period * oversampling // 2 + 1, complex)
     X[lines] = np.exp(2j * np.pi * rng.random(lines.size))
     x = np.fft.irfft(X, period * oversampling)
-    x = np.tile(x / np.sqrt(np.mean(x ** 2)), n_periods + 1)[:(period * n_periods - 1) * oversampling + 1]
+    x = np.tile(x / np.sqrt(np.mean(x**2)), n_periods + 1)[: (period * n_periods - 1) * oversampling + 1]
     t = np.arange(x.size) / (fs * oversampling)
     ramp = np.clip(t / RIG_FADE_IN_S, 0.0, 1.0)
     return x * (0.5 - 0.5 * np.cos(np.pi * ramp))
 
 
-def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period: int = RIG_PERIOD,
-                 n_periods: int = RIG_PERIODS, fs: float = RIG_FS_HZ, band_hz=RIG_BAND_HZ, rig=None,
-                 measure_share: bool = True, log=print) -> dict:
+def make_dataset(
+    folder,
+    seed: int,
+    hidden=None,
+    truth=None,
+    levels=None,
+    period: int = RIG_PERIOD,
+    n_periods: int = RIG_PERIODS,
+    fs: float = RIG_FS_HZ,
+    band_hz=RIG_BAND_HZ,
+    rig=None,
+    measure_share: bool = True,
+    log=print,
+) -> dict:
     """The virtual rig: three tests of the frame written as a data folder
     (``dataset.json`` and one CSV per test, docs/models.md "The data").
 
@@ -452,10 +487,19 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
             channels[name] = y[:, j] + noise[name] + offset[name]
         file = f"multisine_{level}.csv"
         table = np.column_stack([np.arange(n_samples) / fs] + [channels[c] for c in ("force", *names)])
-        np.savetxt(folder / file, table, delimiter=",", header=",".join(["time", "force", *names]),
-                   comments="", fmt="%.10g")
-        tests.append({"file": file, "role": RIG_ROLES[level], "signal": "multisine", "level": level,
-                      "period_samples": period, "force_rms_n": levels[level]})
+        np.savetxt(
+            folder / file, table, delimiter=",", header=",".join(["time", "force", *names]), comments="", fmt="%.10g"
+        )
+        tests.append(
+            {
+                "file": file,
+                "role": RIG_ROLES[level],
+                "signal": "multisine",
+                "level": level,
+                "period_samples": period,
+                "force_rms_n": levels[level],
+            }
+        )
     share = None
     if measure_share:
         shape, y_high = clean["high"]
@@ -463,8 +507,10 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
         y_low = rig.respond(full_truth, levels["low"] * shape, fs * q, q)
         times["share_check"] = time.perf_counter() - t0
         scaled = levels["high"] / levels["low"] * y_low
-        share = {name: float(np.linalg.norm(y_high[:, j] - scaled[:, j]) / np.linalg.norm(y_high[:, j]))
-                 for j, name in enumerate(names)}
+        share = {
+            name: float(np.linalg.norm(y_high[:, j] - scaled[:, j]) / np.linalg.norm(y_high[:, j]))
+            for j, name in enumerate(names)
+        }
     units = {p.name: p.unit for p in type(rig).parameters}
     units.update({p.name: p.unit for ps in rig.candidate_effects().values() for p in ps})
     doc = {
@@ -473,15 +519,28 @@ def make_dataset(folder, seed: int, hidden=None, truth=None, levels=None, period
         "sensors": [{"name": n, "response": k} for n, k in PortalFrame.sensors],
         "tests": tests,
         "truth": {**full_truth, "units": {k: units[k] for k in full_truth}},
-        "virtual_rig": {"model": repr(rig), "seed": seed, "band_hz": list(band_hz),
-                        "noise_sd_added": RIG_NOISE_SD, "nonlinear_share": share,
-                        "note": "notebooks/portal_frame.py make_dataset"},
+        "virtual_rig": {
+            "model": repr(rig),
+            "seed": seed,
+            "band_hz": list(band_hz),
+            "noise_sd_added": RIG_NOISE_SD,
+            "nonlinear_share": share,
+            "note": "notebooks/portal_frame.py make_dataset",
+        },
     }
     (folder / "dataset.json").write_text(json.dumps(doc, indent=2))
     if log:
         log(f"virtual rig {rig!r} at {full_truth}: " + ", ".join(f"{k} {v:.1f} s" for k, v in times.items()))
         if share:
-            log("nonlinear share of the high-level response: " + ", ".join(f"{k} {100 * v:.1f} %"
-                                                                           for k, v in share.items()))
-    return {"truth": full_truth, "times_s": times, "nonlinear_share": share, "noise_sd": dict(RIG_NOISE_SD),
-            "folder": str(folder), "files": [t["file"] for t in tests]}
+            log(
+                "nonlinear share of the high-level response: "
+                + ", ".join(f"{k} {100 * v:.1f} %" for k, v in share.items())
+            )
+    return {
+        "truth": full_truth,
+        "times_s": times,
+        "nonlinear_share": share,
+        "noise_sd": dict(RIG_NOISE_SD),
+        "folder": str(folder),
+        "files": [t["file"] for t in tests],
+    }

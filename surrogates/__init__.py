@@ -19,6 +19,7 @@ model is a picklable callable of one point (a 1-D array), evaluated through
 * :class:`CurvedValley` - a synthetic valley-shaped metric with a known
   posterior, for tests and benchmarks.
 """
+
 from .cache import EvaluationCache, cached_evaluate, config_hash
 from .design import DESIGN_METHODS, check_bounds, design, from_unit, to_unit
 from .evaluation import default_executor, evaluate_many
@@ -27,8 +28,22 @@ from .refine import RefinementResult, propose_points, refine
 from .synthetic import CurvedValley
 
 __all__ = [
-    "DESIGN_METHODS", "TRANSFORMS", "CurvedValley", "EvaluationCache", "GPSurrogate",
-    "RefinementResult", "cached_evaluate", "check_bounds", "config_hash", "default_executor", "design",
-    "evaluate_many", "from_unit",
-    "holdout_validation", "propose_points", "refine", "to_unit", "validation_metrics",
+    "DESIGN_METHODS",
+    "TRANSFORMS",
+    "CurvedValley",
+    "EvaluationCache",
+    "GPSurrogate",
+    "RefinementResult",
+    "cached_evaluate",
+    "check_bounds",
+    "config_hash",
+    "default_executor",
+    "design",
+    "evaluate_many",
+    "from_unit",
+    "holdout_validation",
+    "propose_points",
+    "refine",
+    "to_unit",
+    "validation_metrics",
 ]

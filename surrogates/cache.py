@@ -14,6 +14,7 @@ returns.  A failed run that *returned* (NaN metrics and a message) is cached
 like any other, as it fails again the same way; a run that *raised* is not
 cached, and stops :func:`cached_evaluate` after saving the chunks before it.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -52,8 +53,10 @@ def _jsonable(obj):
         return obj
     if isinstance(obj, os.PathLike):
         return os.fspath(obj)
-    raise TypeError(f"config values must be JSON-like (dict, list, str, number, bool, None, numpy "
-                    f"scalar or array, path); got {type(obj).__name__}: convert it first")
+    raise TypeError(
+        f"config values must be JSON-like (dict, list, str, number, bool, None, numpy "
+        f"scalar or array, path); got {type(obj).__name__}: convert it first"
+    )
 
 
 def _canonical(config: Mapping) -> str:
@@ -77,6 +80,7 @@ def _key(x: np.ndarray) -> bytes:
 def _engine() -> str:
     try:
         import h5netcdf  # noqa: F401
+
         return "h5netcdf"
     except ImportError:  # netCDF3 through scipy: always there
         return "scipy"
@@ -133,8 +137,10 @@ class EvaluationCache:
         with xr.open_dataset(self.file, engine=_engine()) as ds:
             ds = ds.load()
         if ds.attrs.get("config") != self.config_json:
-            raise ValueError(f"{self.file} holds another configuration (hash prefix collision or a "
-                             f"renamed file): {ds.attrs.get('config')!r:.200}")
+            raise ValueError(
+                f"{self.file} holds another configuration (hash prefix collision or a "
+                f"renamed file): {ds.attrs.get('config')!r:.200}"
+            )
         keys = tuple(json.loads(ds.attrs["result_keys"]))
         has_error = bool(int(ds.attrs["has_error"]))
         self._check_schema(keys, has_error)
@@ -161,10 +167,16 @@ class EvaluationCache:
             data[name] = ("entry", np.array([self._entries[k][name] for k in keys], dtype=np.float64))
         if self.has_error:
             data["error"] = ("entry", np.array([self._entries[k]["error"] or "" for k in keys], dtype=object))
-        ds = xr.Dataset(data, attrs={
-            "title": "model evaluations cached by surrogates.cache",
-            "config": self.config_json, "config_hash": self.hash,
-            "result_keys": json.dumps(list(self.keys)), "has_error": int(self.has_error)})
+        ds = xr.Dataset(
+            data,
+            attrs={
+                "title": "model evaluations cached by surrogates.cache",
+                "config": self.config_json,
+                "config_hash": self.hash,
+                "result_keys": json.dumps(list(self.keys)),
+                "has_error": int(self.has_error),
+            },
+        )
         enc = {"x": {"_FillValue": None}}
         if self.has_error:
             enc["error"] = {"dtype": str} if _engine() == "h5netcdf" else {}
@@ -182,10 +194,12 @@ class EvaluationCache:
         if self.keys is None:
             self.keys, self.has_error = tuple(keys), bool(has_error)
         elif (set(keys), bool(has_error)) != (set(self.keys), self.has_error):
-            raise ValueError(f"results for one configuration must all have the same keys: cache has "
-                             f"{list(self.keys) + (['error'] if self.has_error else [])}, got "
-                             f"{list(keys) + (['error'] if has_error else [])}; put what decides the "
-                             "keys (e.g. the stages) into the config")
+            raise ValueError(
+                f"results for one configuration must all have the same keys: cache has "
+                f"{list(self.keys) + (['error'] if self.has_error else [])}, got "
+                f"{list(keys) + (['error'] if has_error else [])}; put what decides the "
+                "keys (e.g. the stages) into the config"
+            )
 
     def _points_array(self, points) -> np.ndarray:
         X = np.asarray(points, dtype=np.float64)
@@ -275,8 +289,17 @@ class EvaluationCache:
             return ds.load()
 
 
-def cached_evaluate(func, points, cache: EvaluationCache, executor=None, *, batch_size: int | None = None,
-                    chunk_size: int | None = None, progress: bool = True, desc: str = "model runs") -> list:
+def cached_evaluate(
+    func,
+    points,
+    cache: EvaluationCache,
+    executor=None,
+    *,
+    batch_size: int | None = None,
+    chunk_size: int | None = None,
+    progress: bool = True,
+    desc: str = "model runs",
+) -> list:
     """``[func(x) for x in points]``, running only the points ``cache`` lacks.
 
     Parameters
@@ -310,9 +333,8 @@ def cached_evaluate(func, points, cache: EvaluationCache, executor=None, *, batc
     chunk_size = int(chunk_size)
     with tqdm(total=len(todo), desc=desc, unit="run", disable=None if progress and len(todo) else True) as bar:
         for i in range(0, len(todo), chunk_size):
-            chunk = X[todo[i:i + chunk_size]]
-            res = evaluate_many(func, [x.copy() for x in chunk], executor, batch_size=batch_size,
-                                progress=False)
+            chunk = X[todo[i : i + chunk_size]]
+            res = evaluate_many(func, [x.copy() for x in chunk], executor, batch_size=batch_size, progress=False)
             cache.add(chunk, res)
             bar.update(len(chunk))
     return [cache.get(x) for x in X]

@@ -5,6 +5,7 @@ A box is given as ``bounds``, an array-like of shape (d, 2) whose rows are
 log-scaled or otherwise transformed axis is the caller's business (design in
 the transformed coordinates, then map back).
 """
+
 from __future__ import annotations
 
 import inspect

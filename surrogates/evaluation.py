@@ -6,12 +6,13 @@ pool, or a Dask ``Client.get_executor()``.  Points are sent in small batches
 (one pickled copy of ``func`` per batch, not per point) and the results come
 back in the order of ``points``, with a progress bar.
 """
+
 from __future__ import annotations
 
 import os
 import signal
-from contextlib import contextmanager
 from concurrent.futures import Executor, ProcessPoolExecutor, as_completed
+from contextlib import contextmanager
 
 from tqdm.auto import tqdm
 
@@ -65,8 +66,14 @@ def _run_batch(func, batch):
     return [func(p) for p in batch]
 
 
-def evaluate_many(func, points, executor: Executor | None = None, batch_size: int | None = None,
-                  progress: bool = True, desc: str = "model runs") -> list:
+def evaluate_many(
+    func,
+    points,
+    executor: Executor | None = None,
+    batch_size: int | None = None,
+    progress: bool = True,
+    desc: str = "model runs",
+) -> list:
     """``[func(p) for p in points]``, computed through ``executor``.
 
     Parameters
@@ -89,7 +96,7 @@ def evaluate_many(func, points, executor: Executor | None = None, batch_size: in
     if batch_size is None:
         workers = getattr(executor, "_max_workers", None) or os.cpu_count() or 1
         batch_size = max(1, min(16, len(points) // (4 * workers)))
-    batches = [points[i:i + batch_size] for i in range(0, len(points), batch_size)]
+    batches = [points[i : i + batch_size] for i in range(0, len(points), batch_size)]
     futures = {executor.submit(_run_batch, func, b): i for i, b in enumerate(batches)}
     results = [None] * len(batches)
     try:

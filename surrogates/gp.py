@@ -17,6 +17,7 @@ what emulating an expensive positive metric needs:
   (time stepping, Newton tolerances) and keeps the kernel matrix invertible;
 * seeded optimizer restarts, so that a fit is reproducible.
 """
+
 from __future__ import annotations
 
 import re
@@ -95,11 +96,24 @@ class GPSurrogate:
         linear along that input); :meth:`summary` explains them.
     """
 
-    def __init__(self, bounds=None, *, transform: str = "log", names=None, nu: float = 2.5,
-                 length_scale_bounds=(1e-2, 1e2), noise_level: float = 1e-6,
-                 noise_level_bounds=(1e-10, 1e-1), n_restarts_optimizer: int = 4, seed=0,
-                 kernel=None, optimize: bool = True, prior_mean=None, max_iterations: int | None = None,
-                 fast: bool = False):
+    def __init__(
+        self,
+        bounds=None,
+        *,
+        transform: str = "log",
+        names=None,
+        nu: float = 2.5,
+        length_scale_bounds=(1e-2, 1e2),
+        noise_level: float = 1e-6,
+        noise_level_bounds=(1e-10, 1e-1),
+        n_restarts_optimizer: int = 4,
+        seed=0,
+        kernel=None,
+        optimize: bool = True,
+        prior_mean=None,
+        max_iterations: int | None = None,
+        fast: bool = False,
+    ):
         if transform not in TRANSFORMS:
             raise ValueError(f"transform must be one of {TRANSFORMS}, got {transform!r}")
         if nu not in (0.5, 1.5, 2.5, np.inf):
@@ -141,8 +155,10 @@ class GPSurrogate:
         if self.transform == "log":
             bad = ~(y > 0)
             if bad.any():
-                raise ValueError(f"transform='log' needs y > 0; {bad.sum()} of {y.size} values are not "
-                                 f"(e.g. {y[bad][:3].tolist()}); use transform='sqrt' or 'none'")
+                raise ValueError(
+                    f"transform='log' needs y > 0; {bad.sum()} of {y.size} values are not "
+                    f"(e.g. {y[bad][:3].tolist()}); use transform='sqrt' or 'none'"
+                )
             return np.log(y)
         if self.transform == "sqrt":
             bad = ~(y >= 0)
@@ -173,9 +189,9 @@ class GPSurrogate:
         return (X - lo) / (hi - lo)
 
     def _default_kernel(self, d: int):
-        return (ConstantKernel(1.0, (1e-4, 1e4))
-                * Matern(length_scale=np.full(d, 0.3), length_scale_bounds=self.length_scale_bounds, nu=self.nu)
-                + WhiteKernel(self.noise_level, self.noise_level_bounds))
+        return ConstantKernel(1.0, (1e-4, 1e4)) * Matern(
+            length_scale=np.full(d, 0.3), length_scale_bounds=self.length_scale_bounds, nu=self.nu
+        ) + WhiteKernel(self.noise_level, self.noise_level_bounds)
 
     def warm_from(self, previous: "GPSurrogate") -> "GPSurrogate":
         """A copy of this (unfitted) surrogate whose fit starts from ``previous``'s
@@ -207,8 +223,10 @@ class GPSurrogate:
         if len(X) < 2:
             raise ValueError("need at least 2 training points")
         if not np.all(np.isfinite(y)):
-            raise ValueError(f"y has {np.sum(~np.isfinite(y))} non-finite values (failed runs?); "
-                             "fit on the finite ones, e.g. X[np.isfinite(y)]")
+            raise ValueError(
+                f"y has {np.sum(~np.isfinite(y))} non-finite values (failed runs?); "
+                "fit on the finite ones, e.g. X[np.isfinite(y)]"
+            )
         if self.bounds is None:
             lo, hi = X.min(axis=0), X.max(axis=0)
             flat = np.flatnonzero(hi <= lo)
@@ -228,12 +246,23 @@ class GPSurrogate:
             from .gp_fit import fit_matern52
 
             std = float(np.std(z)) or 1.0
-            theta, _ = fit_matern52((X - lo) / (hi - lo), (z - np.mean(z)) / std, kernel.theta, kernel.bounds,
-                                    self.n_restarts_optimizer, self.seed, getattr(self, "max_iterations", None))
+            theta, _ = fit_matern52(
+                (X - lo) / (hi - lo),
+                (z - np.mean(z)) / std,
+                kernel.theta,
+                kernel.bounds,
+                self.n_restarts_optimizer,
+                self.seed,
+                getattr(self, "max_iterations", None),
+            )
             kernel, optimize = kernel.clone_with_theta(theta), False
         self.gp_ = GaussianProcessRegressor(
-            kernel=kernel, normalize_y=True, optimizer=self._optimizer() if optimize else None,
-            n_restarts_optimizer=self.n_restarts_optimizer, random_state=self.seed)
+            kernel=kernel,
+            normalize_y=True,
+            optimizer=self._optimizer() if optimize else None,
+            n_restarts_optimizer=self.n_restarts_optimizer,
+            random_state=self.seed,
+        )
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ConvergenceWarning)
             self.gp_.fit((X - lo) / (hi - lo), z)
@@ -254,7 +283,7 @@ class GPSurrogate:
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
         self.X_train_, self.y_train_ = X.copy(), y.copy()
-        self._kernel_mean = False           # mean_transformed's plain-numpy mean, built on first use
+        self._kernel_mean = False  # mean_transformed's plain-numpy mean, built on first use
         return self
 
     def _check_fitted(self):
@@ -283,7 +312,7 @@ class GPSurrogate:
         No check of ``X``: the caller's points are finite, (n, d)."""
         self._check_fitted()
         fast = getattr(self, "_kernel_mean", False)
-        if fast is False:                   # built once per fit (None: a kernel it does not read)
+        if fast is False:  # built once per fit (None: a kernel it does not read)
             fast = self._kernel_mean = kernel_mean(self)
         if fast is not None:
             return fast(X)
@@ -319,16 +348,16 @@ class GPSurrogate:
         if self.transform == "none":
             return sd
         if self.transform == "log":
-            s2 = sd ** 2
+            s2 = sd**2
             return np.sqrt(np.expm1(s2)) * np.exp(mu + s2 / 2)
         # y = max(z, 0)^2, z ~ N(mu, sd^2): raw moments from those of the
         # normal truncated to z > 0 (a = mu/sd, Phi, phi at a)
         with np.errstate(divide="ignore", invalid="ignore"):
             a = np.where(sd > 0, mu / sd, np.sign(mu) * np.inf)
         P, p = norm.cdf(a), norm.pdf(a)
-        m2 = (mu ** 2 + sd ** 2) * P + mu * sd * p
-        m4 = (mu ** 4 + 6 * mu ** 2 * sd ** 2 + 3 * sd ** 4) * P + (mu ** 3 * sd + 5 * mu * sd ** 3) * p
-        return np.sqrt(np.maximum(m4 - m2 ** 2, 0.0))
+        m2 = (mu**2 + sd**2) * P + mu * sd * p
+        m4 = (mu**4 + 6 * mu**2 * sd**2 + 3 * sd**4) * P + (mu**3 * sd + 5 * mu * sd**3) * p
+        return np.sqrt(np.maximum(m4 - m2**2, 0.0))
 
     def predict_interval(self, X, level: float = 0.95):
         """Central predictive interval in original units: ``(low, high)``, each (n,).
@@ -375,11 +404,13 @@ class GPSurrogate:
             ls = np.broadcast_to(np.asarray(m.length_scale, float), (self.n_inputs,))
             # normalize_y divides t(y) by its std (ddof 0; 1 when constant)
             scale = float(np.std(self._forward(self.y_train_))) or 1.0
-            return {"length_scales_unit": ls.copy(),
-                    "length_scales": ls * (self.bounds_[:, 1] - self.bounds_[:, 0]),
-                    "signal_sd": float(np.sqrt(c.constant_value)) * scale,
-                    "noise_sd": float(np.sqrt(w.noise_level)) * scale,
-                    "log_marginal_likelihood": float(self.gp_.log_marginal_likelihood_value_)}
+            return {
+                "length_scales_unit": ls.copy(),
+                "length_scales": ls * (self.bounds_[:, 1] - self.bounds_[:, 0]),
+                "signal_sd": float(np.sqrt(c.constant_value)) * scale,
+                "noise_sd": float(np.sqrt(w.noise_level)) * scale,
+                "log_marginal_likelihood": float(self.gp_.log_marginal_likelihood_value_),
+            }
         except AttributeError:
             return {}
 
@@ -400,16 +431,20 @@ class GPSurrogate:
         if not hp:
             lines.append(f"  kernel: {self.gp_.kernel_}")
         else:
-            lines.append(f"  signal sd {hp['signal_sd']:.4g}, noise sd {hp['noise_sd']:.3g} (units of "
-                         f"{'log y' if self.transform == 'log' else 'sqrt y' if self.transform == 'sqrt' else 'y'})"
-                         f", log marginal likelihood {hp['log_marginal_likelihood']:.4g}")
+            lines.append(
+                f"  signal sd {hp['signal_sd']:.4g}, noise sd {hp['noise_sd']:.3g} (units of "
+                f"{'log y' if self.transform == 'log' else 'sqrt y' if self.transform == 'sqrt' else 'y'})"
+                f", log marginal likelihood {hp['log_marginal_likelihood']:.4g}"
+            )
             names = self._input_names()
             w = max(8, max(len(n) for n in names))
             lines.append(f"  {'input':<{w}} {'low':>11} {'high':>11} {'length scale':>13} {'(unit box)':>11}")
             for i, name in enumerate(names):
                 lo, hi = self.bounds_[i]
-                lines.append(f"  {name:<{w}} {lo:>11.4g} {hi:>11.4g} {hp['length_scales'][i]:>13.4g} "
-                             f"{hp['length_scales_unit'][i]:>11.4g}")
+                lines.append(
+                    f"  {name:<{w}} {lo:>11.4g} {hi:>11.4g} {hp['length_scales'][i]:>13.4g} "
+                    f"{hp['length_scales_unit'][i]:>11.4g}"
+                )
         for msg in self.fit_warnings_:
             lines.append(f"  note: {self._explain(msg)}")
         return "\n".join(lines)
@@ -422,8 +457,11 @@ class GPSurrogate:
         i, param, side = int(m.group(1)), m.group(2), m.group(3)
         if param.endswith("length_scale"):
             name = self._input_names()[i]
-            why = ("the function is nearly constant or linear along it" if side == "upper"
-                   else "the function varies faster than the design resolves")
+            why = (
+                "the function is nearly constant or linear along it"
+                if side == "upper"
+                else "the function varies faster than the design resolves"
+            )
             return f"length scale of {name!r} at its {side} bound: {why}"
         if param.endswith("noise_level"):
             why = "the data look noise-free" if side == "lower" else "the data look noisy or too rough for the kernel"
@@ -437,17 +475,23 @@ def _default_form(kernel) -> bool:
     """Whether ``kernel`` is ``C * Matern(nu=2.5) + White`` (what :mod:`surrogates.gp_fit` fits)."""
     from sklearn.gaussian_process.kernels import Product, Sum
 
-    return (isinstance(kernel, Sum) and isinstance(kernel.k2, WhiteKernel) and isinstance(kernel.k1, Product)
-            and isinstance(kernel.k1.k1, ConstantKernel) and type(kernel.k1.k2) is Matern
-            and kernel.k1.k2.nu == 2.5)
+    return (
+        isinstance(kernel, Sum)
+        and isinstance(kernel.k2, WhiteKernel)
+        and isinstance(kernel.k1, Product)
+        and isinstance(kernel.k1.k1, ConstantKernel)
+        and type(kernel.k1.k2) is Matern
+        and kernel.k1.k2.nu == 2.5
+    )
 
 
 def _lbfgs(obj_func, initial_theta, bounds, max_iterations: int):
     """scikit-learn's L-BFGS-B optimiser with an iteration cap (its own has 15000)."""
     from scipy.optimize import minimize
 
-    res = minimize(obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds,
-                   options={"maxiter": max_iterations})
+    res = minimize(
+        obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds, options={"maxiter": max_iterations}
+    )
     return res.x, res.fun
 
 
@@ -467,9 +511,12 @@ def validation_metrics(y_true, y_pred, low, high) -> dict:
         raise ValueError("no points to validate on")
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = np.abs(y_pred - y_true) / np.abs(y_true)
-    return {"n": int(y_true.size), "median_rel_error": float(np.median(rel)),
-            "max_rel_error": float(np.max(rel)),
-            "coverage": float(np.mean((y_true >= low) & (y_true <= high)))}
+    return {
+        "n": int(y_true.size),
+        "median_rel_error": float(np.median(rel)),
+        "max_rel_error": float(np.max(rel)),
+        "coverage": float(np.mean((y_true >= low) & (y_true <= high))),
+    }
 
 
 def holdout_validation(gp_factory, X, y, fraction: float = 0.25, seed=0, level: float = 0.95) -> dict:
@@ -502,5 +549,10 @@ def holdout_validation(gp_factory, X, y, fraction: float = 0.25, seed=0, level: 
     perm = np.random.default_rng(seed).permutation(len(X))
     test, train = np.sort(perm[:n_test]), np.sort(perm[n_test:])
     sur = gp_factory().fit(X[train], y[train])
-    return {"n_train": len(train), "n_test": n_test, **sur.score(X[test], y[test], level),
-            "surrogate": sur, "test_index": test}
+    return {
+        "n_train": len(train),
+        "n_test": n_test,
+        **sur.score(X[test], y[test], level),
+        "surrogate": sur,
+        "test_index": test,
+    }

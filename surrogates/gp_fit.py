@@ -22,6 +22,7 @@ and ``M(r) = (1 + sqrt5 r + 5 r^2 / 3) exp(-sqrt5 r)``,
 coordinate difference); ``dlogML/dtheta = 1/2 tr((alpha alpha^T - K^-1) dK/dtheta)``.
 Checked against scikit-learn's value and gradient in ``tests/test_budget_surrogates.py``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -43,8 +44,8 @@ def log_marginal_likelihood(theta, U, y) -> tuple[float, np.ndarray]:
     (scikit-learn's ``alpha`` = :data:`JITTER` on the diagonal, as its regressor adds it)."""
     theta = np.asarray(theta, float)
     n, d = U.shape
-    C, ls, s = np.exp(theta[0]), np.exp(theta[1:1 + d]), np.exp(theta[-1])
-    D2 = (U[:, None, :] - U[None, :, :]) ** 2 / ls ** 2            # (n, n, d)
+    C, ls, s = np.exp(theta[0]), np.exp(theta[1 : 1 + d]), np.exp(theta[-1])
+    D2 = (U[:, None, :] - U[None, :, :]) ** 2 / ls**2  # (n, n, d)
     r = np.sqrt(np.sum(D2, axis=2))
     e = np.exp(-SQRT5 * r)
     M = (1.0 + SQRT5 * r + 5.0 / 3.0 * r * r) * e
@@ -73,7 +74,7 @@ def fit_matern52(U, y, theta0, bounds, n_restarts: int = 0, seed=0, max_iteratio
 
     U, y = np.asarray(U, float), np.asarray(y, float)
     bounds = np.asarray(bounds, float)
-    with threadpool_limits(1):      # n x n with n in the tens to hundreds: BLAS threads only contend
+    with threadpool_limits(1):  # n x n with n in the tens to hundreds: BLAS threads only contend
         return _fit(U, y, theta0, bounds, n_restarts, seed, max_iterations)
 
 

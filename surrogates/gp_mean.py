@@ -13,6 +13,7 @@ vectorised without Intel's SVML).  It reads the
 default kernel of :class:`~surrogates.gp.GPSurrogate` only; any other kernel
 keeps scikit-learn's path (:func:`kernel_mean` returns None).
 """
+
 from __future__ import annotations
 
 import math
@@ -78,7 +79,7 @@ class KernelMean:
         # the same operations as scikit-learn's, in its order (a GP's alpha can reach 1e5 and
         # amplify a reordered rounding): unit box, then the length scales
         self.lower, self.width, self.ls = np.asarray(lower, float), np.asarray(width, float), ls
-        self.X_train = np.asarray(X_train, float) / ls        # unit-box points / length scales
+        self.X_train = np.asarray(X_train, float) / ls  # unit-box points / length scales
         self.weights = float(constant) * float(y_std) * np.asarray(alpha, float).reshape(-1)
         self.offset = float(y_mean)
         self.nu_code = _NU_CODES[float(nu)]
@@ -97,16 +98,31 @@ def kernel_mean(surrogate) -> KernelMean | None:
     kernel has the default form ``C * Matern + White``, else None."""
     gp = surrogate.gp_
     k = gp.kernel_
-    if not (isinstance(k, Sum) and isinstance(k.k2, WhiteKernel) and isinstance(k.k1, Product)
-            and isinstance(k.k1.k1, ConstantKernel) and type(k.k1.k2) is Matern
-            and k.k1.k2.nu in (0.5, 1.5, 2.5, np.inf)):
+    if not (
+        isinstance(k, Sum)
+        and isinstance(k.k2, WhiteKernel)
+        and isinstance(k.k1, Product)
+        and isinstance(k.k1.k1, ConstantKernel)
+        and type(k.k1.k2) is Matern
+        and k.k1.k2.nu in (0.5, 1.5, 2.5, np.inf)
+    ):
         return None
     y_mean, y_std = (gp._y_train_mean, gp._y_train_std) if gp.normalize_y else (0.0, 1.0)
-    if np.ndim(y_mean) or np.ndim(y_std):          # one output: scalars (shape () or (1,))
+    if np.ndim(y_mean) or np.ndim(y_std):  # one output: scalars (shape () or (1,))
         y_mean, y_std = np.ravel(y_mean), np.ravel(y_std)
         if y_mean.size != 1:
             return None
         y_mean, y_std = y_mean[0], y_std[0]
     lo, hi = surrogate.bounds_[:, 0], surrogate.bounds_[:, 1]
-    return KernelMean(lo, hi - lo, k.k1.k2.length_scale, k.k1.k1.constant_value, k.k1.k2.nu, gp.X_train_,
-                      gp.alpha_, y_mean, y_std, surrogate.prior_mean)
+    return KernelMean(
+        lo,
+        hi - lo,
+        k.k1.k2.length_scale,
+        k.k1.k1.constant_value,
+        k.k1.k2.nu,
+        gp.X_train_,
+        gp.alpha_,
+        y_mean,
+        y_std,
+        surrogate.prior_mean,
+    )

@@ -27,6 +27,7 @@ fitted length scales; a minimum distance in the unit box also keeps picks
 away from each other and from the existing design (no near-duplicates, which
 add nothing and make the kernel matrix ill-conditioned).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -35,9 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.linalg import solve_triangular
 
-from .evaluation import evaluate_many
-
 from .design import design
+from .evaluation import evaluate_many
 
 __all__ = ["RefinementResult", "propose_points", "refine"]
 
@@ -60,7 +60,7 @@ class _ConditionalVariance:
         self.var = np.maximum(self.k.diag(self.U) - np.einsum("ij,ij->j", A, A), 1e-300)
         # to transformed units (sklearn works on standardized t(y))
         _, sd = sur.predict_transformed(X)
-        self.scale = sd ** 2 / self.var
+        self.scale = sd**2 / self.var
         self.var0 = self.var.copy()
         self.factors = []
 
@@ -69,16 +69,25 @@ class _ConditionalVariance:
 
     def add(self, j: int):
         # one step of a pivoted Cholesky of the candidates' posterior covariance
-        cov = self.k(self.U, self.U[j:j + 1])[:, 0] - self.A.T @ self.A[:, j]
+        cov = self.k(self.U, self.U[j : j + 1])[:, 0] - self.A.T @ self.A[:, j]
         for u in self.factors:
             cov -= u * u[j]
         u = cov / np.sqrt(self.var[j] + self.alpha)  # var includes the white noise
         self.factors.append(u)
-        self.var = np.maximum(self.var - u ** 2, 1e-300)
+        self.var = np.maximum(self.var - u**2, 1e-300)
 
 
-def propose_points(surrogate, candidates, weight, n: int, seed=None, *, min_distance: float = 0.01,
-                   log_weight: bool = False, power: float = 0.5) -> np.ndarray:
+def propose_points(
+    surrogate,
+    candidates,
+    weight,
+    n: int,
+    seed=None,
+    *,
+    min_distance: float = 0.01,
+    log_weight: bool = False,
+    power: float = 0.5,
+) -> np.ndarray:
     """The next ``n`` design points: high ``weight``, high surrogate uncertainty, spread.
 
     Parameters
@@ -153,8 +162,9 @@ def propose_points(surrogate, candidates, weight, n: int, seed=None, *, min_dist
     for Xt in {id(s.X_train_): s.X_train_ for s in surs}.values():
         Ut = s0.scale_inputs(Xt)
         for i in range(0, len(C), 2048):  # (chunk, n_train) distances at a time
-            dmin[i:i + 2048] = np.minimum(
-                dmin[i:i + 2048], np.sqrt(((U[i:i + 2048, None, :] - Ut[None]) ** 2).sum(-1)).min(1))
+            dmin[i : i + 2048] = np.minimum(
+                dmin[i : i + 2048], np.sqrt(((U[i : i + 2048, None, :] - Ut[None]) ** 2).sum(-1)).min(1)
+            )
     alive = np.isfinite(logw) & (dmin >= min_distance)
     picks = []
     while len(picks) < n and alive.any():
@@ -168,8 +178,11 @@ def propose_points(surrogate, candidates, weight, n: int, seed=None, *, min_dist
     if not picks:
         raise ValueError("no candidate has a positive weight at the minimum distance from the design")
     if len(picks) < n:
-        warnings.warn(f"only {len(picks)} of {n} points could be proposed (weight zero or min_distance "
-                      "excludes the others); pass more candidates or a smaller min_distance", stacklevel=2)
+        warnings.warn(
+            f"only {len(picks)} of {n} points could be proposed (weight zero or min_distance "
+            "excludes the others); pass more candidates or a smaller min_distance",
+            stacklevel=2,
+        )
     return C[picks]
 
 
@@ -225,7 +238,7 @@ def _fit(surrogate_factory, X, y, previous=None, executor=None):
 
     def one(prev, k=0):
         sur = surrogate_factory()
-        if isinstance(sur, (list, tuple)):        # one surrogate per output (e.g. each its own prior mean)
+        if isinstance(sur, (list, tuple)):  # one surrogate per output (e.g. each its own prior mean)
             sur = sur[k]
         if prev is not None and hasattr(sur, "warm_from"):
             sur = sur.warm_from(prev)
@@ -240,11 +253,28 @@ def _fit(surrogate_factory, X, y, previous=None, executor=None):
     return [_fit_one(job) for job in jobs], int(ok.sum())
 
 
-def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, batch: int,
-           executor=None, seed=None, *, candidates=4096, target=None, min_distance: float = 0.01,
-           log_weight: bool = False, power: float = 0.5, evaluate=evaluate_many,
-           progress: bool = True, until=None, warm_start: bool = False,
-           parallel_fits: bool = False) -> RefinementResult:
+def refine(
+    func,
+    surrogate_factory,
+    X,
+    y,
+    weight_from_surrogate,
+    n_rounds: int,
+    batch: int,
+    executor=None,
+    seed=None,
+    *,
+    candidates=4096,
+    target=None,
+    min_distance: float = 0.01,
+    log_weight: bool = False,
+    power: float = 0.5,
+    evaluate=evaluate_many,
+    progress: bool = True,
+    until=None,
+    warm_start: bool = False,
+    parallel_fits: bool = False,
+) -> RefinementResult:
     """Refine a surrogate by at most ``n_rounds`` batches of ``batch`` new model runs.
 
     Each round: fit ``surrogate_factory()`` to the finite rows of (X, y); build
@@ -295,23 +325,41 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
         raise ValueError(f"X must be (n, d) and y (n,) or (n, k) of the same n; got {X.shape}, {y.shape}")
     for name, v in (("n_rounds", n_rounds), ("batch", batch)):
         if isinstance(v, bool) or int(v) != v or v < (0 if name == "n_rounds" else 1):
-            raise ValueError(f"{name} must be a {'non-negative' if name == 'n_rounds' else 'positive'} "
-                             f"integer, got {v!r}")
+            raise ValueError(
+                f"{name} must be a {'non-negative' if name == 'n_rounds' else 'positive'} integer, got {v!r}"
+            )
     target = target or float
-    takes_rounds = until is not None and _n_positional(until) >= 2     # (surrogate) alone: the older form
+    takes_rounds = until is not None and _n_positional(until) >= 2  # (surrogate) alone: the older form
     seeds = np.random.SeedSequence(seed).spawn(int(n_rounds))
     fit_pool = executor if parallel_fits else None
     sur, n_ok = _fit(surrogate_factory, X, y, executor=fit_pool)
-    rounds = [{"round": 0, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X.copy(), "y_new": y.copy(),
-               "results": None, "surrogate": sur}]
+    rounds = [
+        {
+            "round": 0,
+            "n_train": n_ok,
+            "n_failed": len(X) - n_ok,
+            "X_new": X.copy(),
+            "y_new": y.copy(),
+            "results": None,
+            "surrogate": sur,
+        }
+    ]
     for r in range(1, int(n_rounds) + 1):
         if until is not None and (until(sur, rounds) if takes_rounds else until(sur)):
             break
         rng = np.random.default_rng(seeds[r - 1])
         cand = candidates(sur, rng) if callable(candidates) else candidates
-        cand_seed = int(rng.integers(2 ** 63)) if isinstance(cand, (int, np.integer)) else None
-        X_new = propose_points(sur, cand, weight_from_surrogate(sur), int(batch), seed=cand_seed,
-                               min_distance=min_distance, log_weight=log_weight, power=power)
+        cand_seed = int(rng.integers(2**63)) if isinstance(cand, (int, np.integer)) else None
+        X_new = propose_points(
+            sur,
+            cand,
+            weight_from_surrogate(sur),
+            int(batch),
+            seed=cand_seed,
+            min_distance=min_distance,
+            log_weight=log_weight,
+            power=power,
+        )
         results = evaluate(func, list(X_new), executor=executor, progress=progress)
         y_new = np.array([target(res) for res in results], dtype=float)
         y_pred = np.column_stack([s.mean_transformed(X_new) for s in _as_list(sur)])
@@ -319,9 +367,18 @@ def refine(func, surrogate_factory, X, y, weight_from_surrogate, n_rounds: int, 
             raise ValueError(f"target gave values of shape {y_new.shape[1:]}, y has {y.shape[1:]}")
         X, y = np.vstack([X, X_new]), np.concatenate([y, y_new])
         sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None, executor=fit_pool)
-        rounds.append({"round": r, "n_train": n_ok, "n_failed": len(X) - n_ok, "X_new": X_new,
-                       "y_new": y_new, "y_pred": y_pred if y.ndim == 2 else y_pred[:, 0], "results": results,
-                       "surrogate": sur})
+        rounds.append(
+            {
+                "round": r,
+                "n_train": n_ok,
+                "n_failed": len(X) - n_ok,
+                "X_new": X_new,
+                "y_new": y_new,
+                "y_pred": y_pred if y.ndim == 2 else y_pred[:, 0],
+                "results": results,
+                "surrogate": sur,
+            }
+        )
     if warm_start and len(rounds) > 1:
         sur, _ = _fit(surrogate_factory, X, y, executor=fit_pool)
         rounds[-1]["surrogate"] = sur

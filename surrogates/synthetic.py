@@ -5,6 +5,7 @@ positive, valley-shaped relative error spanning decades, whose posterior
 (``exp(-(e/e_min - 1)/2)``) is a thin curved band, here with a known closed
 form to sample from.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -61,7 +62,7 @@ class CurvedValley:
         r = (X[:, 1] - self.curve(X[:, 0])) / self.width
         q = (X[:, 0] - self.x0_opt) / self.length
         s = (X[:, 2:] - 0.5) / self.spread
-        return r ** 2 + q ** 2 + np.sum(s ** 2, axis=1)
+        return r**2 + q**2 + np.sum(s**2, axis=1)
 
     def values(self, X) -> np.ndarray:
         """e at points X (n, d): array (n,)."""

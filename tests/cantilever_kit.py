@@ -21,6 +21,7 @@ and the tip mass's change of the mode shapes, the modes' own damping law.
 
 Every constant here is this module's own.
 """
+
 from __future__ import annotations
 
 import numba
@@ -30,19 +31,19 @@ from scipy import integrate, interpolate, linalg, signal
 from bayes_update import Parameter
 from bayes_update.data.dataset import Dataset, Record
 
-LENGTH, WIDTH, THICK = 0.52, 0.030, 0.003             # [m]
-E, RHO = 2.05e11, 7850.0                              # [Pa], [kg/m^3]
-EI = E * WIDTH * THICK ** 3 / 12.0                    # [N m^2]
-RHO_A = RHO * WIDTH * THICK                           # [kg/m]
-K_CLAMP = 380.0                                       # [N m/rad]
-TIP_MASS = 0.014                                      # [kg]
-RAYLEIGH = (0.55, 2.0e-5)                             # C = a M + b K
+LENGTH, WIDTH, THICK = 0.52, 0.030, 0.003  # [m]
+E, RHO = 2.05e11, 7850.0  # [Pa], [kg/m^3]
+EI = E * WIDTH * THICK**3 / 12.0  # [N m^2]
+RHO_A = RHO * WIDTH * THICK  # [kg/m]
+K_CLAMP = 380.0  # [N m/rad]
+TIP_MASS = 0.014  # [kg]
+RAYLEIGH = (0.55, 2.0e-5)  # C = a M + b K
 N_ELEMENTS, N_MODES = 40, 5
-X_FORCE, X_SENSORS = 0.30, (0.60, 1.0)                # fractions of the length
+X_FORCE, X_SENSORS = 0.30, (0.60, 1.0)  # fractions of the length
 SENSORS = (("mid", "acceleration"), ("tip", "acceleration"))
 FS_HZ = 480.0
 BAND_HZ = (3.0, 85.0)
-K3_TRUTH = 4.0e6                                      # [N/m^3] of the tip spring, when present
+K3_TRUTH = 4.0e6  # [N/m^3] of the tip spring, when present
 NOISE = {"force": 2.0e-3, "mid": 0.02, "tip": 0.03}  # sd [N], [m/s^2]
 N_SAMPLES = 6000
 OVERSAMPLING = 8
@@ -53,10 +54,31 @@ def _fe_matrices():
     its rotation on the rotational spring), the tip mass at the last node."""
     n = N_ELEMENTS
     h = LENGTH / n
-    k = EI / h ** 3 * np.array([[12, 6 * h, -12, 6 * h], [6 * h, 4 * h * h, -6 * h, 2 * h * h],
-                                [-12, -6 * h, 12, -6 * h], [6 * h, 2 * h * h, -6 * h, 4 * h * h]])
-    m = RHO_A * h / 420 * np.array([[156, 22 * h, 54, -13 * h], [22 * h, 4 * h * h, 13 * h, -3 * h * h],
-                                    [54, 13 * h, 156, -22 * h], [-13 * h, -3 * h * h, -22 * h, 4 * h * h]])
+    k = (
+        EI
+        / h**3
+        * np.array(
+            [
+                [12, 6 * h, -12, 6 * h],
+                [6 * h, 4 * h * h, -6 * h, 2 * h * h],
+                [-12, -6 * h, 12, -6 * h],
+                [6 * h, 2 * h * h, -6 * h, 4 * h * h],
+            ]
+        )
+    )
+    m = (
+        RHO_A
+        * h
+        / 420
+        * np.array(
+            [
+                [156, 22 * h, 54, -13 * h],
+                [22 * h, 4 * h * h, 13 * h, -3 * h * h],
+                [54, 13 * h, 156, -22 * h],
+                [-13 * h, -3 * h * h, -22 * h, 4 * h * h],
+            ]
+        )
+    )
     N = 2 * (n + 1)
     K, M = np.zeros((N, N)), np.zeros((N, N))
     for e in range(n):
@@ -65,7 +87,7 @@ def _fe_matrices():
         M[s, s] += m
     K[1, 1] += K_CLAMP
     M[-2, -2] += TIP_MASS
-    keep = np.arange(1, N)                              # w = 0 at the clamp
+    keep = np.arange(1, N)  # w = 0 at the clamp
     return M[np.ix_(keep, keep)], K[np.ix_(keep, keep)]
 
 
@@ -119,15 +141,16 @@ def record(kind: str, level: float, seed: int, k3: float = 0.0, n: int = N_SAMPL
 
     def acc(q, dq, f):
         wt = tip @ q
-        return b * f - tip * (k3 * wt ** 3) - 2 * zeta * w * dq - w * w * q
+        return b * f - tip * (k3 * wt**3) - 2 * zeta * w * dq - w * w * q
 
     def rhs(t, s):
         return np.concatenate([s[N_MODES:], acc(s[:N_MODES], s[N_MODES:], float(spline(t)))])
 
     h = 1.0 / (FS_HZ * OVERSAMPLING)
     t = np.arange(0.0, pre + (n + 40) / FS_HZ, h)
-    sol = integrate.solve_ivp(rhs, (0.0, t[-1]), np.zeros(2 * N_MODES), method="DOP853", t_eval=t, rtol=1e-8,
-                              atol=1e-12)
+    sol = integrate.solve_ivp(
+        rhs, (0.0, t[-1]), np.zeros(2 * N_MODES), method="DOP853", t_eval=t, rtol=1e-8, atol=1e-12
+    )
     if not sol.success:
         raise RuntimeError(f"the cantilever's integration failed: {sol.message}")
     fv = spline(t)
@@ -136,13 +159,17 @@ def record(kind: str, level: float, seed: int, k3: float = 0.0, n: int = N_SAMPL
     a = (out_rows @ ddq).T
     both = signal.resample_poly(np.column_stack([fv, a]), 1, OVERSAMPLING, axis=0)
     start = int(round(pre * FS_HZ))
-    both = both[start:start + n]
+    both = both[start : start + n]
     return both[:, 0], both[:, 1:]
 
 
 #: (name, role, kind, force rms [N], seed)
-TESTS = (("random_low", "linear", "random", 0.03, 811), ("random_high", "nonlinear", "random", 0.45, 812),
-         ("random_mid", "validation", "random", 0.25, 813), ("sweep_mid", "validation", "sweep", 0.3, 814))
+TESTS = (
+    ("random_low", "linear", "random", 0.03, 811),
+    ("random_high", "nonlinear", "random", 0.45, 812),
+    ("random_mid", "validation", "random", 0.25, 813),
+    ("sweep_mid", "validation", "sweep", 0.3, 814),
+)
 
 
 def make_dataset(k3: float = 0.0, seed: int = 23, tests=TESTS) -> Dataset:
@@ -173,7 +200,7 @@ def _cantilever_shape(x, i):
 def _modal_acc(q0, q1, d0, d1, f, w, zeta, b, tip, k3, c2, mass):
     wt = tip[0] * q0 + tip[1] * q1
     vt = tip[0] * d0 + tip[1] * d1
-    fnl = k3 * wt ** 3 + c2 * abs(vt) * vt
+    fnl = k3 * wt**3 + c2 * abs(vt) * vt
     a0 = (b[0] * f - tip[0] * fnl) / mass - 2 * zeta[0] * w[0] * d0 - w[0] * w[0] * q0
     a1 = (b[1] * f - tip[1] * fnl) / mass - 2 * zeta[1] * w[1] * d1 - w[1] * w[1] * q1
     return a0, a1
@@ -191,12 +218,48 @@ def _modal_rk4(F, substeps, fs, w, zeta, b, tip, rows, k3, c2, mass):
         out[0, r] = rows[r, 0] * a0 + rows[r, 1] * a1
     for j in range(n_steps):
         k10, k11 = _modal_acc(q0, q1, d0, d1, F[2 * j], w, zeta, b, tip, k3, c2, mass)
-        k20, k21 = _modal_acc(q0 + 0.5 * h * d0, q1 + 0.5 * h * d1, d0 + 0.5 * h * k10, d1 + 0.5 * h * k11,
-                              F[2 * j + 1], w, zeta, b, tip, k3, c2, mass)
-        k30, k31 = _modal_acc(q0 + 0.5 * h * (d0 + 0.5 * h * k10), q1 + 0.5 * h * (d1 + 0.5 * h * k11),
-                              d0 + 0.5 * h * k20, d1 + 0.5 * h * k21, F[2 * j + 1], w, zeta, b, tip, k3, c2, mass)
-        k40, k41 = _modal_acc(q0 + h * (d0 + 0.5 * h * k20), q1 + h * (d1 + 0.5 * h * k21),
-                              d0 + h * k30, d1 + h * k31, F[2 * j + 2], w, zeta, b, tip, k3, c2, mass)
+        k20, k21 = _modal_acc(
+            q0 + 0.5 * h * d0,
+            q1 + 0.5 * h * d1,
+            d0 + 0.5 * h * k10,
+            d1 + 0.5 * h * k11,
+            F[2 * j + 1],
+            w,
+            zeta,
+            b,
+            tip,
+            k3,
+            c2,
+            mass,
+        )
+        k30, k31 = _modal_acc(
+            q0 + 0.5 * h * (d0 + 0.5 * h * k10),
+            q1 + 0.5 * h * (d1 + 0.5 * h * k11),
+            d0 + 0.5 * h * k20,
+            d1 + 0.5 * h * k21,
+            F[2 * j + 1],
+            w,
+            zeta,
+            b,
+            tip,
+            k3,
+            c2,
+            mass,
+        )
+        k40, k41 = _modal_acc(
+            q0 + h * (d0 + 0.5 * h * k20),
+            q1 + h * (d1 + 0.5 * h * k21),
+            d0 + h * k30,
+            d1 + h * k31,
+            F[2 * j + 2],
+            w,
+            zeta,
+            b,
+            tip,
+            k3,
+            c2,
+            mass,
+        )
         q0 += h * d0 + h * h / 6.0 * (k10 + k20 + k30)
         q1 += h * d1 + h * h / 6.0 * (k11 + k21 + k31)
         d0 += h / 6.0 * (k10 + 2 * k20 + 2 * k30 + k40)
@@ -211,25 +274,40 @@ def _modal_rk4(F, substeps, fs, w, zeta, b, tip, rows, k3, c2, mass):
 class TwoModes:
     """The user's two-mode model of the ideal cantilever; accelerations at 60 % and at the tip."""
 
-    parameters = [Parameter("f1", 6.0, 12.0, unit="Hz"), Parameter("f2", 40.0, 75.0, unit="Hz"),
-                  Parameter("zeta1", 0.001, 0.05, log=True), Parameter("zeta2", 0.001, 0.05, log=True)]
+    parameters = [
+        Parameter("f1", 6.0, 12.0, unit="Hz"),
+        Parameter("f2", 40.0, 75.0, unit="Hz"),
+        Parameter("zeta1", 0.001, 0.05, log=True),
+        Parameter("zeta2", 0.001, 0.05, log=True),
+    ]
 
     def __init__(self, substeps: int = 4):
         self.substeps = int(substeps)
 
     def candidate_effects(self):
-        return {"tip_cubic": [Parameter("k3", 0.0, 20.0, unit="MN/m^3", null=0.0)],
-                "tip_damper": [Parameter("c2", 0.0, 40.0, unit="N s^2/m^2", null=0.0)]}
+        return {
+            "tip_cubic": [Parameter("k3", 0.0, 20.0, unit="MN/m^3", null=0.0)],
+            "tip_damper": [Parameter("c2", 0.0, 40.0, unit="N s^2/m^2", null=0.0)],
+        }
 
     def simulate(self, theta, force, fs):
         force = np.asarray(force, float)
         q = 2 * self.substeps
-        F = signal.resample_poly(force, q, 1)[:q * (force.size - 1) + 1]
-        shapes = lambda x: np.array([_cantilever_shape(x, i) for i in range(2)])      # noqa: E731
-        return _modal_rk4(F, self.substeps, float(fs), 2 * np.pi * np.array([theta["f1"], theta["f2"]]),
-                          np.array([theta["zeta1"], theta["zeta2"]]), shapes(X_FORCE), shapes(1.0),
-                          np.array([shapes(x) for x in X_SENSORS]), 1e6 * theta.get("k3", 0.0),
-                          theta.get("c2", 0.0), RHO_A * LENGTH)
+        F = signal.resample_poly(force, q, 1)[: q * (force.size - 1) + 1]
+        shapes = lambda x: np.array([_cantilever_shape(x, i) for i in range(2)])  # noqa: E731
+        return _modal_rk4(
+            F,
+            self.substeps,
+            float(fs),
+            2 * np.pi * np.array([theta["f1"], theta["f2"]]),
+            np.array([theta["zeta1"], theta["zeta2"]]),
+            shapes(X_FORCE),
+            shapes(1.0),
+            np.array([shapes(x) for x in X_SENSORS]),
+            1e6 * theta.get("k3", 0.0),
+            theta.get("c2", 0.0),
+            RHO_A * LENGTH,
+        )
 
     def refined(self):
         return TwoModes(4 * self.substeps)

@@ -14,6 +14,7 @@ cubic spring, integrated in continuous time (nothing here imports volterra).
   them is untouched) and decimation to fs.  No discrete model of the
   package is used to make the data (no inverse crime).
 """
+
 from __future__ import annotations
 
 import math
@@ -134,8 +135,18 @@ def simulate(chain, f_lines, amp, phases, fs, n_samples, oversample=4, steps=4, 
     every ``oversample``-th sample kept."""
     fs_hi = oversample * fs
     n_hi = n_samples * oversample + numtaps
-    force, acc = _rk4(n_hi, 1.0 / (fs_hi * steps), steps, chain.m, chain.K, chain.C, chain.k3,
-                      np.asarray(f_lines, float), np.asarray(phases, float), float(amp))
+    force, acc = _rk4(
+        n_hi,
+        1.0 / (fs_hi * steps),
+        steps,
+        chain.m,
+        chain.K,
+        chain.C,
+        chain.k3,
+        np.asarray(f_lines, float),
+        np.asarray(phases, float),
+        float(amp),
+    )
     taps = firwin(numtaps, 0.45 * fs, fs=fs_hi)
     force = lfilter(taps, 1.0, force)[::oversample][:n_samples]
     acc = lfilter(taps, 1.0, acc, axis=0)[::oversample][:n_samples]

@@ -23,6 +23,7 @@ with the velocity squared (nu); the filters stay outside the catalogue.
 
 Every constant here is this module's own.
 """
+
 from __future__ import annotations
 
 import numba
@@ -35,13 +36,13 @@ from bayes_update.data.dataset import Dataset, Record
 FS_HZ = 420.0
 F0_HZ = 41.3
 ZETA = 0.031
-GAIN = 1.7          # static gain [V/V]
-K3 = 0.9            # [1/V^2]: hardening
-K2 = -0.1           # [1/V]: the asymmetry the model lacks
-NU = 2.0e-5         # [s^2/V^2]: damping growing with the velocity, which the model lacks
+GAIN = 1.7  # static gain [V/V]
+K3 = 0.9  # [1/V^2]: hardening
+K2 = -0.1  # [1/V]: the asymmetry the model lacks
+NU = 2.0e-5  # [s^2/V^2]: damping growing with the velocity, which the model lacks
 TAU_IN = 1.0 / (2 * np.pi * 3500.0)
 TAU_OUT = 1.0 / (2 * np.pi * 2400.0)
-NOISE = {"force": 2.0e-5, "response": 2.0e-4}     # sd [V]
+NOISE = {"force": 2.0e-5, "response": 2.0e-4}  # sd [V]
 OVERSAMPLING = 6
 N_SAMPLES = 8192
 
@@ -68,7 +69,7 @@ def _excitation(kind: str, level: float, n: int, seed: int):
         u *= np.linspace(0.15, 1.0, u.size)
     u *= level / np.sqrt(np.mean(u[pre:] ** 2))
     t = np.arange(u.size) / fs
-    u *= 0.5 - 0.5 * np.cos(np.pi * np.clip(t / 0.2, 0.0, 1.0))      # from rest
+    u *= 0.5 - 0.5 * np.cos(np.pi * np.clip(t / 0.2, 0.0, 1.0))  # from rest
     return interpolate.CubicSpline(t, u), pre / fs
 
 
@@ -118,10 +119,18 @@ def make_dataset(tests, seed: int = 17, k2: float = K2, nu: float = NU) -> Datas
     out = []
     for name, role, kind, level, s in tests:
         u, y = record(kind, level, s, k2=k2, nu=nu)
-        out.append(Record(f"{name}.csv", kind, name, role, np.arange(u.size) / FS_HZ,
-                          u + NOISE["force"] * rng.standard_normal(u.size),
-                          y + NOISE["response"] * rng.standard_normal(y.size),
-                          sensors=(("out", "displacement"),)))
+        out.append(
+            Record(
+                f"{name}.csv",
+                kind,
+                name,
+                role,
+                np.arange(u.size) / FS_HZ,
+                u + NOISE["force"] * rng.standard_normal(u.size),
+                y + NOISE["response"] * rng.standard_normal(y.size),
+                sensors=(("out", "displacement"),),
+            )
+        )
     return Dataset("circuit", FS_HZ, None, out)
 
 
@@ -134,7 +143,7 @@ HELD_OUT = [("arrow", "validation", "arrow", 0.025, 505), ("ms_mid", "validation
 
 @numba.njit(cache=False)
 def _accel(x, dx, u, w, zeta, gain, k2, k3, nu):
-    return w * w * (gain * u - x - k2 * x * x - k3 * x ** 3) - 2 * zeta * w * dx * (1.0 + nu * dx * dx)
+    return w * w * (gain * u - x - k2 * x * x - k3 * x**3) - 2 * zeta * w * dx * (1.0 + nu * dx * dx)
 
 
 @numba.njit(cache=False)
@@ -166,15 +175,20 @@ def _rk4(u, fs, f0, zeta, gain, k3, substeps, k2=0.0, nu=0.0):
 class Oscillator:
     """The user's Duffing oscillator: x'' + 2 zeta w x' + w^2 (x + k3 x^3) = w^2 gain u."""
 
-    parameters = [Parameter("f0", 30.0, 55.0, unit="Hz"), Parameter("zeta", 0.005, 0.12, log=True),
-                  Parameter("gain", 0.5, 5.0), Parameter("k3", 0.0, 10.0, unit="1/V^2")]
+    parameters = [
+        Parameter("f0", 30.0, 55.0, unit="Hz"),
+        Parameter("zeta", 0.005, 0.12, log=True),
+        Parameter("gain", 0.5, 5.0),
+        Parameter("k3", 0.0, 10.0, unit="1/V^2"),
+    ]
 
     def __init__(self, substeps: int = 4):
         self.substeps = int(substeps)
 
     def simulate(self, theta, force, fs):
-        return _rk4(np.asarray(force, float), float(fs), theta["f0"], theta["zeta"], theta["gain"], theta["k3"],
-                    self.substeps)
+        return _rk4(
+            np.asarray(force, float), float(fs), theta["f0"], theta["zeta"], theta["gain"], theta["k3"], self.substeps
+        )
 
     def refined(self):
         return Oscillator(4 * self.substeps)
@@ -185,12 +199,23 @@ class OscillatorWithCandidates(Oscillator):
     quadratic stiffness ``w^2 k2 x^2`` and a damping ``2 zeta w x' nu x'^2``."""
 
     def candidate_effects(self):
-        return {"quadratic_stiffness": [Parameter("k2", -1.0, 1.0, unit="1/V", null=0.0)],
-                "velocity_damping": [Parameter("nu", 0.0, 2.0e-3, unit="s^2/V^2", null=0.0)]}
+        return {
+            "quadratic_stiffness": [Parameter("k2", -1.0, 1.0, unit="1/V", null=0.0)],
+            "velocity_damping": [Parameter("nu", 0.0, 2.0e-3, unit="s^2/V^2", null=0.0)],
+        }
 
     def simulate(self, theta, force, fs):
-        return _rk4(np.asarray(force, float), float(fs), theta["f0"], theta["zeta"], theta["gain"], theta["k3"],
-                    self.substeps, theta.get("k2", 0.0), theta.get("nu", 0.0))
+        return _rk4(
+            np.asarray(force, float),
+            float(fs),
+            theta["f0"],
+            theta["zeta"],
+            theta["gain"],
+            theta["k3"],
+            self.substeps,
+            theta.get("k2", 0.0),
+            theta.get("nu", 0.0),
+        )
 
     def refined(self):
         return OscillatorWithCandidates(4 * self.substeps)

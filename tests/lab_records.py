@@ -29,6 +29,7 @@ Every random draw comes from ``numpy.random.default_rng(seed)`` of the
 record.  The constants below are this module's own (nothing else in the
 repository uses them).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -41,21 +42,21 @@ from bayes_update.data.dataset import Dataset, Record
 from bayes_update.data.folder import write_dataset
 
 LAB_MASSES_KG = (1.2, 0.8, 0.5)
-LAB_STIFFNESS_N_M = (4.0e4, 6.0e4, 4.0e4)          # k1 (ground-m1), k2 (m1-m2), k3 (m2-m3)
-LAB_DAMPING_RATIO = 0.02                            # every mode
-LAB_CUBIC_N_M3 = 7.5e8                              # k_nl of the ground spring
+LAB_STIFFNESS_N_M = (4.0e4, 6.0e4, 4.0e4)  # k1 (ground-m1), k2 (m1-m2), k3 (m2-m3)
+LAB_DAMPING_RATIO = 0.02  # every mode
+LAB_CUBIC_N_M3 = 7.5e8  # k_nl of the ground spring
 LAB_FS_HZ = 200.0
-LAB_BAND_HZ = (2.0, 80.0)                           # fs = 2.5 x the band's top
+LAB_BAND_HZ = (2.0, 80.0)  # fs = 2.5 x the band's top
 LAB_OVERSAMPLING = 16
-LAB_PERIOD_SAMPLES = 1024                           # 5.12 s at 200 Hz
+LAB_PERIOD_SAMPLES = 1024  # 5.12 s at 200 Hz
 LAB_SENSORS = (("acc1", "acceleration"), ("acc2", "acceleration"), ("acc3", "acceleration"))
-LAB_SENSOR_NOISE = (8.0e-3, 8.0e-3 * 10 ** 0.5, 8.0e-2)   # sd [m/s^2]: 10x from first to last
-LAB_SENSOR_NOISE_POLE = (0.6, 0.4, 0.75)            # AR(1) pole of each sensor's noise
-LAB_FORCE_NOISE = 5.0e-4                            # sd [N]
+LAB_SENSOR_NOISE = (8.0e-3, 8.0e-3 * 10**0.5, 8.0e-2)  # sd [m/s^2]: 10x from first to last
+LAB_SENSOR_NOISE_POLE = (0.6, 0.4, 0.75)  # AR(1) pole of each sensor's noise
+LAB_FORCE_NOISE = 5.0e-4  # sd [N]
 LAB_FORCE_NOISE_POLE = 0.3
-LAB_OFFSETS = (0.05, 0.03, -0.04, 0.02)             # force [N], acc1..acc3 [m/s^2]
-LAB_DRIFT = 5.0                                     # trend amplitude, in noise sd of its channel
-LAB_PRE_ROLL_S = 0.5                                # simulated at rest before the record, cut
+LAB_OFFSETS = (0.05, 0.03, -0.04, 0.02)  # force [N], acc1..acc3 [m/s^2]
+LAB_DRIFT = 5.0  # trend amplitude, in noise sd of its channel
+LAB_PRE_ROLL_S = 0.5  # simulated at rest before the record, cut
 
 
 def lab_modes() -> tuple[np.ndarray, np.ndarray]:
@@ -134,14 +135,14 @@ def multisine(n_half_steps_per_period: int, period_s: float, band_hz, rng) -> np
     X = np.zeros(n_half_steps_per_period // 2 + 1, complex)
     X[k] = np.exp(2j * np.pi * rng.random(k.size))
     x = np.fft.irfft(X, n_half_steps_per_period)
-    return x / np.sqrt(np.mean(x ** 2))
+    return x / np.sqrt(np.mean(x**2))
 
 
 def coloured_noise(n: int, sd: float, pole: float, rng) -> np.ndarray:
     """Stationary AR(1) noise ``e[k] = pole e[k-1] + w[k]`` of standard deviation ``sd``
     (the theoretical one; the sequence's own sd differs by ~1/sqrt(n))."""
     burn = 400
-    w = rng.standard_normal(n + burn) * np.sqrt(1.0 - pole ** 2)
+    w = rng.standard_normal(n + burn) * np.sqrt(1.0 - pole**2)
     return sd * signal.lfilter([1.0], [1.0, -pole], w)[burn:]
 
 
@@ -189,18 +190,41 @@ class LabRecord:
 
     def record(self, declare_period: bool = True, noise_sd: dict | None = None) -> Record:
         """The :class:`Record` a reader would give (``period_samples`` declared if asked)."""
-        return Record(self.file, self.signal, self.level, self.role, self.time, self.force,
-                      self.response, dict(self.meta), sensors=LAB_SENSORS,
-                      period_samples=self.period_samples if declare_period else None,
-                      noise_sd=dict(noise_sd or {}))
+        return Record(
+            self.file,
+            self.signal,
+            self.level,
+            self.role,
+            self.time,
+            self.force,
+            self.response,
+            dict(self.meta),
+            sensors=LAB_SENSORS,
+            period_samples=self.period_samples if declare_period else None,
+            noise_sd=dict(noise_sd or {}),
+        )
 
 
-def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, level: str = "",
-               fs: float = LAB_FS_HZ, band_hz=LAB_BAND_HZ, period_samples: int = LAB_PERIOD_SAMPLES,
-               sensor_noise=LAB_SENSOR_NOISE, force_noise: float = LAB_FORCE_NOISE,
-               white: bool = False, offsets=LAB_OFFSETS, drift: float = LAB_DRIFT,
-               cubic: float = LAB_CUBIC_N_M3, damping_ratio: float = LAB_DAMPING_RATIO,
-               quadratic_damping: float = 0.0) -> LabRecord:
+def lab_record(
+    file: str,
+    role: str,
+    level_n: float,
+    segments,
+    *,
+    seed: int,
+    level: str = "",
+    fs: float = LAB_FS_HZ,
+    band_hz=LAB_BAND_HZ,
+    period_samples: int = LAB_PERIOD_SAMPLES,
+    sensor_noise=LAB_SENSOR_NOISE,
+    force_noise: float = LAB_FORCE_NOISE,
+    white: bool = False,
+    offsets=LAB_OFFSETS,
+    drift: float = LAB_DRIFT,
+    cubic: float = LAB_CUBIC_N_M3,
+    damping_ratio: float = LAB_DAMPING_RATIO,
+    quadratic_damping: float = 0.0,
+) -> LabRecord:
     """A recorded test: ``segments`` is a list of ``("quiet", seconds)``,
     ``("multisine", n_periods)`` (of ``period_samples`` samples each) or
     ``("random", seconds)``; ``level_n`` [N] is the rms of the excited
@@ -226,7 +250,7 @@ def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, lev
             x = np.tile(multisine(2 * q * period_samples, period_samples / fs, band_hz, rng), int(size))
         elif kind == "random":
             n = int(round(size * fs))
-            x = multisine(4 * q * n, 2 * n / fs, band_hz, rng)[:2 * q * n]
+            x = multisine(4 * q * n, 2 * n / fs, band_hz, rng)[: 2 * q * n]
             signal_kind = "random"
         else:
             raise ValueError(f"unknown segment kind {kind!r}")
@@ -239,7 +263,7 @@ def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, lev
     b = np.array([0.0, 0.0, 1.0])
     acc = _rk4(minv, _damping(float(damping_ratio)), _stiffness(), float(cubic), float(quadratic_damping), b, F, h)
     fine = np.column_stack([F[::2], acc])
-    rec = signal.resample_poly(fine, 1, q, axis=0)[pre:pre + n_rec]
+    rec = signal.resample_poly(fine, 1, q, axis=0)[pre : pre + n_rec]
     clean_force, clean_response = rec[:, 0], rec[:, 1:]
     sds = np.array([force_noise, *sensor_noise], float)
     poles = np.zeros(4) if white else np.array([LAB_FORCE_NOISE_POLE, *LAB_SENSOR_NOISE_POLE])
@@ -248,13 +272,27 @@ def lab_record(file: str, role: str, level_n: float, segments, *, seed: int, lev
     u = t / t[-1]
     shapes = [0.6 * (u - 0.5) + 0.4 * np.sin(2 * np.pi * (0.7 * u + rng.random())) for _ in range(4)]
     trend = drift * sds * np.column_stack(shapes)
-    offs = np.asarray(offsets, float) * (1.0 + 0.5 * rng.standard_normal(4))   # differs per test
+    offs = np.asarray(offsets, float) * (1.0 + 0.5 * rng.standard_normal(4))  # differs per test
     measured = rec + noise + offs + trend
-    return LabRecord(file, role, signal_kind, level or file.split(".")[0], fs, t, measured[:, 0],
-                     measured[:, 1:], noise[:, 0], noise[:, 1:], offs, trend, clean_force,
-                     clean_response, sections,
-                     period_samples if any(k == "multisine" for k, _ in segments) else None,
-                     meta={"force_rms_n": level_n})
+    return LabRecord(
+        file,
+        role,
+        signal_kind,
+        level or file.split(".")[0],
+        fs,
+        t,
+        measured[:, 0],
+        measured[:, 1:],
+        noise[:, 0],
+        noise[:, 1:],
+        offs,
+        trend,
+        clean_force,
+        clean_response,
+        sections,
+        period_samples if any(k == "multisine" for k, _ in segments) else None,
+        meta={"force_rms_n": level_n},
+    )
 
 
 # -------------------------------------------------------------------- the usual tests
@@ -264,25 +302,32 @@ RANDOM_LAYOUT = [("random", 40.0)]
 
 def periodic_test(seed: int = 11, level_n: float = 0.5, **options) -> LabRecord:
     """Quiet lead-in 2 s, 6 periods of a multisine (5.12 s each), quiet tail 6 s."""
-    return lab_record("multisine_low.csv", "linear", level_n, MULTISINE_LAYOUT, seed=seed,
-                      level="low", **options)
+    return lab_record("multisine_low.csv", "linear", level_n, MULTISINE_LAYOUT, seed=seed, level="low", **options)
 
 
 def random_tests(seed: int = 23, low_n: float = 0.5, high_n: float = 4.0, **options) -> list:
     """A low-level (role linear) and a high-level (role nonlinear) random test of
     40 s each, without periods or quiet sections."""
-    return [lab_record("random_low.csv", "linear", low_n, RANDOM_LAYOUT, seed=seed, level="low", **options),
-            lab_record("random_high.csv", "nonlinear", high_n, RANDOM_LAYOUT, seed=seed + 1, level="high",
-                       **options)]
+    return [
+        lab_record("random_low.csv", "linear", low_n, RANDOM_LAYOUT, seed=seed, level="low", **options),
+        lab_record("random_high.csv", "nonlinear", high_n, RANDOM_LAYOUT, seed=seed + 1, level="high", **options),
+    ]
 
 
 def lab_dataset(records, noise_sd: dict | None = None, declare_period: bool = True) -> Dataset:
     """A :class:`Dataset` of lab records (the truth of the noise in ``extra['truth']``)."""
-    truth = {"note": "tests/lab_records.py: sd of the noise sequences added",
-             "noise_sd": {r.file: r.noise_sd for r in records}}
-    return Dataset("lab-chain", records[0].fs, None,
-                   [r.record(declare_period) for r in records], {"truth": truth},
-                   noise_sd=dict(noise_sd or {}))
+    truth = {
+        "note": "tests/lab_records.py: sd of the noise sequences added",
+        "noise_sd": {r.file: r.noise_sd for r in records},
+    }
+    return Dataset(
+        "lab-chain",
+        records[0].fs,
+        None,
+        [r.record(declare_period) for r in records],
+        {"truth": truth},
+        noise_sd=dict(noise_sd or {}),
+    )
 
 
 def write_lab_dataset(records, folder, noise_sd: dict | None = None, declare_period: bool = True):

@@ -5,6 +5,7 @@ filter, so that a run costs well under a millisecond: displacement, velocity or
 acceleration out, its stiffness in kN/m.  The constants here are used nowhere
 else in the repository.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -12,15 +13,15 @@ from scipy import signal
 
 from bayes_update import Parameter
 
-FS = 913.0                     # [Hz]
-TRUTH = {"fn": 23.7, "zeta": 0.031, "k": 4.6}     # Hz, -, kN/m
+FS = 913.0  # [Hz]
+TRUTH = {"fn": 23.7, "zeta": 0.031, "k": 4.6}  # Hz, -, kN/m
 N_SAMPLES = 2048
 
 
 def sdof_response(force, fs, fn, zeta, k_n_per_m, kind="displacement"):
     """Response of m x'' + c x' + k x = f (k in N/m, wn = 2 pi fn) to ``force``."""
     wn = 2 * np.pi * fn
-    m = k_n_per_m / wn ** 2
+    m = k_n_per_m / wn**2
     num = {"displacement": [1.0], "velocity": [1.0, 0.0], "acceleration": [1.0, 0.0, 0.0]}[kind]
     b, a = signal.bilinear(num, [m, 2 * zeta * wn * m, k_n_per_m], fs)
     return signal.lfilter(b, a, np.asarray(force, float))
@@ -29,8 +30,11 @@ def sdof_response(force, fs, fn, zeta, k_n_per_m, kind="displacement"):
 class Spring:
     """A mass on a spring and a dashpot; the sensor measures ``kind``."""
 
-    parameters = [Parameter("fn", 15.0, 35.0, unit="Hz"), Parameter("zeta", 0.005, 0.1, log=True),
-                  Parameter("k", 2.0, 8.0, unit="kN/m")]
+    parameters = [
+        Parameter("fn", 15.0, 35.0, unit="Hz"),
+        Parameter("zeta", 0.005, 0.1, log=True),
+        Parameter("k", 2.0, 8.0, unit="kN/m"),
+    ]
     kind = "displacement"
 
     def simulate(self, theta, force, fs):
@@ -51,8 +55,9 @@ def band_noise(n, level, seed, band=(6.0, 70.0)):
     return level * f / np.std(f)
 
 
-def make_dataset(kind="displacement", n=N_SAMPLES, seed=11, forces=None, truth=None, extra=None,
-                 sensor_name=None, validation=True):
+def make_dataset(
+    kind="displacement", n=N_SAMPLES, seed=11, forces=None, truth=None, extra=None, sensor_name=None, validation=True
+):
     """Linear (low), nonlinear (high) and validation (medium) band-limited noise tests of the spring,
     1 % noise on force and response.  ``forces``: {test name: force array} replacing a test's force."""
     from bayes_update.data.dataset import Dataset, Record

@@ -60,8 +60,13 @@ def cantilever_elastica(load_parameter):
     k = load_parameter
 
     def shoot(kappa0):
-        sol = solve_ivp(lambda s, y: [y[1], -k * np.cos(y[0]), np.sin(y[0]), np.cos(y[0])],
-                        (0, 1), [0.0, kappa0, 0.0, 0.0], rtol=1e-12, atol=1e-12)
+        sol = solve_ivp(
+            lambda s, y: [y[1], -k * np.cos(y[0]), np.sin(y[0]), np.cos(y[0])],
+            (0, 1),
+            [0.0, kappa0, 0.0, 0.0],
+            rtol=1e-12,
+            atol=1e-12,
+        )
         return sol.y[:, -1]
 
     kappa0 = brentq(lambda q: shoot(q)[1], 1e-9, k + 1e-9, xtol=1e-14)

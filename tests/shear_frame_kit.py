@@ -30,29 +30,36 @@ takes 4x the steps.
 
 Every constant here is this module's own.
 """
+
 from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy import interpolate, integrate, linalg, signal
+from scipy import integrate, interpolate, linalg, signal
 
 from bayes_update import Parameter
 from bayes_update.data.dataset import Dataset, Record
 
 MASSES_KG = (2.35, 1.95, 1.45)
-TRUTH = {"k1": 63.0, "k2": 48.0, "k3": 34.0, "zeta": 0.017, "knl": 1.2}   # kN/m x3, -, GN/m^3
+TRUTH = {"k1": 63.0, "k2": 48.0, "k3": 34.0, "zeta": 0.017, "knl": 1.2}  # kN/m x3, -, GN/m^3
 FS_HZ = 250.0
 BAND_HZ = (5.0, 60.0)
-N_SAMPLES = 6000                     # 24 s
+N_SAMPLES = 6000  # 24 s
 SENSORS = (("floor1", "acceleration"), ("floor2", "acceleration"), ("floor3", "acceleration"))
-SENSOR_NOISE = (0.021, 0.017, 0.026)      # sd [m/s^2]
-FORCE_NOISE = 0.006                       # sd [N]
+SENSOR_NOISE = (0.021, 0.017, 0.026)  # sd [m/s^2]
+FORCE_NOISE = 0.006  # sd [N]
 #: (name, role, force rms [N], seed of its multisine)
-TESTS = (("low", "linear", 0.9, 301), ("high", "nonlinear", 9.0, 302), ("middle", "validation", 5.0, 303),
-         ("high_b", "validation", 9.0, 304))
+TESTS = (
+    ("low", "linear", 0.9, 301),
+    ("high", "nonlinear", 9.0, 302),
+    ("middle", "validation", 5.0, 303),
+    ("high_b", "validation", 9.0, 304),
+)
 #: strengths of the effects the user's model lacks
-HIDDEN = {"damper": 22.0,             # c_q [N s^2/m^2]
-          "stiffness": 1.0e6}         # k_q [N/m^2]
+HIDDEN = {
+    "damper": 22.0,  # c_q [N s^2/m^2]
+    "stiffness": 1.0e6,
+}  # k_q [N/m^2]
 OVERSAMPLING = 8
 PRE_ROLL_S = 0.6
 RAMP_S = 0.4
@@ -88,8 +95,8 @@ def _force_spline(level_n: float, n: int, seed: int):
     lines = np.arange(int(np.ceil(BAND_HZ[0] * period / fs_fine)), int(BAND_HZ[1] * period / fs_fine) + 1)
     X = np.zeros(period // 2 + 1, complex)
     X[lines] = np.exp(2j * np.pi * rng.random(lines.size))
-    x = np.fft.irfft(X, period)[:total + 1]
-    x *= level_n / np.sqrt(np.mean(x ** 2))
+    x = np.fft.irfft(X, period)[: total + 1]
+    x *= level_n / np.sqrt(np.mean(x**2))
     # at rest until the record starts, then a smooth (raised-cosine) start over RAMP_S: the
     # record begins at rest, as a test whose shaker is switched on after the acquisition is
     t = np.arange(total + 1) / fs_fine
@@ -112,6 +119,7 @@ def _structure_rhs(theta: dict, hidden: dict):
         r[1] -= kq * d * d
         r[2] += f
         return M_inv * r
+
     return accel
 
 
@@ -123,7 +131,7 @@ def record(level_n: float, seed: int, theta=None, hidden=None, n: int = N_SAMPLE
     spline, t_end = _force_spline(level_n, n, seed)
 
     def rhs(t, s):
-        with np.errstate(over="ignore", invalid="ignore"):     # DOP853's rejected trial steps
+        with np.errstate(over="ignore", invalid="ignore"):  # DOP853's rejected trial steps
             return np.concatenate([s[3:], accel(s[:3], s[3:], float(spline(t)))])
 
     h = 1.0 / (FS_HZ * OVERSAMPLING)
@@ -132,10 +140,10 @@ def record(level_n: float, seed: int, theta=None, hidden=None, n: int = N_SAMPLE
     if not sol.success:
         raise RuntimeError(f"the shear frame's integration failed: {sol.message}")
     f = spline(t)
-    acc = np.array([accel(sol.y[:3, i], sol.y[3:, i], f[i]) for i in range(t.size)])   # 0.2 s of the ~8 s
+    acc = np.array([accel(sol.y[:3, i], sol.y[3:, i], f[i]) for i in range(t.size)])  # 0.2 s of the ~8 s
     both = signal.resample_poly(np.column_stack([f, acc]), 1, OVERSAMPLING, axis=0)
     pre = int(round(PRE_ROLL_S * FS_HZ))
-    both = both[pre:pre + n]
+    both = both[pre : pre + n]
     return both[:, 0], both[:, 1:]
 
 
@@ -158,8 +166,11 @@ def make_dataset(hidden=(), theta=None, tests=TESTS, seed: int = 7, n: int = N_S
         f_meas = f + _noise(n, FORCE_NOISE, rng) + 0.01
         a_meas = a + np.column_stack([_noise(n, sd, rng) for sd in SENSOR_NOISE]) + rng.normal(0, 0.05, 3)
         out.append(Record(f"{name}.csv", "random", name, role, t, f_meas, a_meas, sensors=SENSORS))
-    truth = {"theta": {**TRUTH, **(theta or {})}, "hidden": effects,
-             "noise_sd": {"force": FORCE_NOISE, **{s: sd for (s, _), sd in zip(SENSORS, SENSOR_NOISE)}}}
+    truth = {
+        "theta": {**TRUTH, **(theta or {})},
+        "hidden": effects,
+        "noise_sd": {"force": FORCE_NOISE, **{s: sd for (s, _), sd in zip(SENSORS, SENSOR_NOISE)}},
+    }
     return Dataset("shear-frame", FS_HZ, None, out, {"truth": truth})
 
 
@@ -217,9 +228,13 @@ class ShearFrame:
     """The user's model: three storeys (kN/m), one modal damping ratio, a cubic
     first storey (GN/m^3); floors weighed; RK4 at ``substeps`` per sample."""
 
-    parameters = [Parameter("k1", 40.0, 90.0, unit="kN/m"), Parameter("k2", 30.0, 70.0, unit="kN/m"),
-                  Parameter("k3", 20.0, 50.0, unit="kN/m"), Parameter("zeta", 0.004, 0.08, log=True),
-                  Parameter("knl", 0.0, 10.0, unit="GN/m^3")]
+    parameters = [
+        Parameter("k1", 40.0, 90.0, unit="kN/m"),
+        Parameter("k2", 30.0, 70.0, unit="kN/m"),
+        Parameter("k3", 20.0, 50.0, unit="kN/m"),
+        Parameter("zeta", 0.004, 0.08, log=True),
+        Parameter("knl", 0.0, 10.0, unit="GN/m^3"),
+    ]
 
     def __init__(self, substeps: int = 3):
         self.substeps = int(substeps)
@@ -231,9 +246,17 @@ class ShearFrame:
         # filter left it: linear interpolation would cut the gain by 9 % at the third mode
         force = np.asarray(force, float)
         q = 2 * self.substeps
-        F = signal.resample_poly(force, q, 1)[:q * (force.size - 1) + 1]
-        return _frame_rk4(F, self.substeps, float(fs), 1.0 / np.asarray(MASSES_KG), C, K, 1e9 * theta["knl"],
-                          float(theta.get("cq", 0.0)))
+        F = signal.resample_poly(force, q, 1)[: q * (force.size - 1) + 1]
+        return _frame_rk4(
+            F,
+            self.substeps,
+            float(fs),
+            1.0 / np.asarray(MASSES_KG),
+            C,
+            K,
+            1e9 * theta["knl"],
+            float(theta.get("cq", 0.0)),
+        )
 
     def refined(self):
         return type(self)(4 * self.substeps)

@@ -1,6 +1,7 @@
 """The curvature (sandwich) adjustment of the likelihood, on a linear Gaussian
 model where the least-squares estimator's sampling covariance is known by
 Monte Carlo, independently of the sandwich formula."""
+
 import pickle
 
 import numpy as np
@@ -12,30 +13,37 @@ N, D_PAR = 40, 4
 
 
 def _likelihood(residuals, s, model_error=0.0):
-    sc = StageScale("nonlinear", float(np.mean(residuals ** 2) * N), float(N), model_error, N, len(residuals),
-                    span_variance=s ** 2 - model_error ** 2)
+    sc = StageScale(
+        "nonlinear",
+        float(np.mean(residuals**2) * N),
+        float(N),
+        model_error,
+        N,
+        len(residuals),
+        span_variance=s**2 - model_error**2,
+    )
     return Likelihood({"nonlinear": sc}, {"nonlinear": residuals})
 
 
 def _problem(seed=0):
     rng = np.random.default_rng(seed)
-    G = rng.standard_normal((N, D_PAR)) * np.array([1.0, 0.3, 3.0, 0.05])   # badly scaled columns
+    G = rng.standard_normal((N, D_PAR)) * np.array([1.0, 0.3, 3.0, 0.05])  # badly scaled columns
     # anisotropic noise: large along G's second column, small elsewhere
     q = G[:, 1] / np.linalg.norm(G[:, 1])
-    Sigma = 0.2 ** 2 * np.eye(N) + 0.9 ** 2 * np.outer(q, q)
+    Sigma = 0.2**2 * np.eye(N) + 0.9**2 * np.outer(q, q)
     return rng, G, Sigma
 
 
 def test_adjusted_covariance_is_the_estimators_sampling_covariance():
     rng, G, Sigma = _problem()
     L = np.linalg.cholesky(Sigma)
-    s = 0.25                                      # one scale for every direction: misspecified
+    s = 0.25  # one scale for every direction: misspecified
     replicates = (L @ rng.standard_normal((N, 20000))).T
     lik = _likelihood(replicates, s)
-    widths = np.full(D_PAR, 1e6)                  # a flat prior: no information from the box
+    widths = np.full(D_PAR, 1e6)  # a flat prior: no information from the box
     x_true = np.array([1.0, -2.0, 0.5, 3.0])
     adj = curvature_adjustment(lik, -G / s, x_true, widths)
-    H = G.T @ G / s ** 2
+    H = G.T @ G / s**2
     cov_adjusted = np.linalg.inv(adj.A.T @ H @ adj.A)
     # Monte Carlo of the least-squares estimate under the true noise (fresh draws)
     y = G @ x_true + (L @ rng.standard_normal((N, 20000))).T
@@ -43,8 +51,10 @@ def test_adjusted_covariance_is_the_estimators_sampling_covariance():
     cov_mc = np.cov(est.T)
     sd_a, sd_mc = np.sqrt(np.diag(cov_adjusted)), np.sqrt(np.diag(cov_mc))
     assert np.all(np.abs(sd_a / sd_mc - 1) < 0.03), (sd_a, sd_mc)
+
     def corr(C):
         return C / np.sqrt(np.outer(np.diag(C), np.diag(C)))
+
     assert np.max(np.abs(corr(cov_adjusted) - corr(cov_mc))) < 0.03
     # the unadjusted likelihood is off by much more than that along the noisy direction
     sd_0 = np.sqrt(np.diag(np.linalg.inv(H)))
@@ -55,8 +65,8 @@ def test_adjusted_covariance_is_the_estimators_sampling_covariance():
 def test_well_specified_likelihood_is_left_alone():
     rng, G, _ = _problem(1)
     s, K = 0.3, 64
-    Q = np.linalg.qr(rng.standard_normal((K, N)))[0][:, :N]      # orthonormal columns
-    replicates = np.sqrt(K) * s * Q                                # second moment exactly s^2 I
+    Q = np.linalg.qr(rng.standard_normal((K, N)))[0][:, :N]  # orthonormal columns
+    replicates = np.sqrt(K) * s * Q  # second moment exactly s^2 I
     adj = curvature_adjustment(_likelihood(replicates, s), -G / s, np.zeros(D_PAR), np.full(D_PAR, 10.0))
     assert np.allclose(adj.A, np.eye(D_PAR), atol=1e-8)
     assert np.allclose(adj.variance_ratios, 1.0, atol=1e-8)
@@ -67,8 +77,9 @@ def test_model_error_is_budgeted_isotropically():
     rng, G, Sigma = _problem(2)
     L = np.linalg.cholesky(0.01 * Sigma)
     replicates = (L @ rng.standard_normal((N, 4000))).T
-    adj = curvature_adjustment(_likelihood(replicates, 1.0, model_error=0.999), -G, np.zeros(D_PAR),
-                               np.full(D_PAR, 1e6))
+    adj = curvature_adjustment(
+        _likelihood(replicates, 1.0, model_error=0.999), -G, np.zeros(D_PAR), np.full(D_PAR, 1e6)
+    )
     assert np.all(np.abs(adj.sd_ratios - 1) < 0.02)
 
 
@@ -90,13 +101,17 @@ def test_the_surrogate_posterior_reads_its_gps_at_the_adjusted_points():
     """WhitenedLogPosterior.gp_points folds x(u), the adjustment and u(x) into one
     affine map: the same points as the three maps one after the other."""
     from bayes_update.core.adjustment import CurvatureAdjustment
-    from bayes_update.core.posterior.target import Whitening, WhitenedLogPosterior
+    from bayes_update.core.posterior.target import WhitenedLogPosterior, Whitening
 
     rng = np.random.default_rng(41)
     cov = np.cov(rng.normal(size=(3, 20)))
     whitening = Whitening.from_covariance(rng.normal(size=3), cov)
-    adj = CurvatureAdjustment(center=rng.normal(size=3), A=np.eye(3) + 0.3 * rng.normal(size=(3, 3)),
-                              variance_ratios=np.ones(3), sd_ratios=np.ones(3))
+    adj = CurvatureAdjustment(
+        center=rng.normal(size=3),
+        A=np.eye(3) + 0.3 * rng.normal(size=(3, 3)),
+        variance_ratios=np.ones(3),
+        sd_ratios=np.ones(3),
+    )
     target = WhitenedLogPosterior({}, None, np.array([[-4.0, 4.0]] * 3), whitening, adj)
     U = rng.normal(size=(50, 3))
     expected = whitening.to_u(adj(whitening.to_x(U)))
@@ -111,21 +126,24 @@ def _two_tests(rng, tau, n=30, sigma=1.0, k=200):
     to the next), noise sigma.  Returns the truth, the direction v and a function
     drawing one realisation: (likelihood, jacobian, residual, joint estimate)."""
     d = 3
-    G = [rng.standard_normal((n, d)) * np.array([1.0, 0.5, 2.0]),
-         rng.standard_normal((n, d)) * np.array([0.7, 1.5, 1.0])]
+    G = [
+        rng.standard_normal((n, d)) * np.array([1.0, 0.5, 2.0]),
+        rng.standard_normal((n, d)) * np.array([0.7, 1.5, 1.0]),
+    ]
     theta = np.array([1.0, -0.5, 2.0])
     v = np.array([1.0, 1.0, 0.0]) / np.sqrt(2.0)
-    scales = {st: StageScale(st, n * sigma ** 2, float(n), 0.0, n, k, span_variance=sigma ** 2)
-              for st in ("linear", "nonlinear")}
+    scales = {
+        st: StageScale(st, n * sigma**2, float(n), 0.0, n, k, span_variance=sigma**2) for st in ("linear", "nonlinear")
+    }
     noise = {st: (sigma * rng.standard_normal((k, n)), np.full(k, 1.0 / k)) for st in scales}
     lik = Likelihood(scales, noise)
     Gs = np.vstack(G)
 
     def realisation():
-        y = np.concatenate([g @ (theta + tau * rng.standard_normal() * v) + sigma * rng.standard_normal(n)
-                            for g in G])
+        y = np.concatenate([g @ (theta + tau * rng.standard_normal() * v) + sigma * rng.standard_normal(n) for g in G])
         est = np.linalg.lstsq(Gs, y, rcond=None)[0]
         return lik, -Gs / sigma, (y - Gs @ est) / sigma, est
+
     return theta, v, realisation
 
 
@@ -143,7 +161,7 @@ def test_agreeing_tests_leave_the_adjustment_alone():
 
 def test_disagreeing_tests_widen_the_intervals_to_cover_the_truth():
     rng = np.random.default_rng(8)
-    theta, v, realisation = _two_tests(rng, tau=1.5)      # the effect moves v . theta by ~10 noise sd per test
+    theta, v, realisation = _two_tests(rng, tau=1.5)  # the effect moves v . theta by ~10 noise sd per test
     covered = {"with": 0, "without": 0}
     m, spanned = 300, []
     for _ in range(m):

@@ -1,11 +1,12 @@
 """Discrepancy diagnostics (bayes_update.models.beam.diagnostics) on data with a hidden bow."""
+
 import numpy as np
 import pytest
 
 import fe
-from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.diagnostics import decay_curve, diagnose, diagnostics_figure, harmonic_amplitudes
 from bayes_update.models.beam.model import Beam
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import PAPER_TESTS, load_default_dataset, make_dataset
 
 TRUTH = fe.Parameters.from_paper_units(3, 15, 77, 180)
@@ -28,11 +29,11 @@ def test_harmonic_fit_and_decay_curve_against_closed_forms():
     h = harmonic_amplitudes(x, fs, f0)
     assert h[1] == pytest.approx(2.0, rel=1e-9) and h[2] < 1e-9 and h[3] == pytest.approx(0.5, rel=1e-9)
     zeta, f1 = 0.013, 37.0
-    wd = 2 * np.pi * f1 * np.sqrt(1 - zeta ** 2)
+    wd = 2 * np.pi * f1 * np.sqrt(1 - zeta**2)
     v = np.where(t > 1.0, np.exp(-zeta * 2 * np.pi * f1 * (t - 1.0)) * np.sin(wd * (t - 1.0)), 0.0)
     d = decay_curve(v, fs, f1, 1.0)
     assert np.allclose(d["zeta"], zeta, rtol=0.03)
-    assert np.allclose(d["freq_hz"], f1 * np.sqrt(1 - zeta ** 2), rtol=2e-3)
+    assert np.allclose(d["freq_hz"], f1 * np.sqrt(1 - zeta**2), rtol=2e-3)
 
 
 def test_a_hidden_bow_shows_in_y2_and_the_even_harmonic(diagnoses):

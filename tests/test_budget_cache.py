@@ -3,6 +3,7 @@
 it finished, a finished one makes none at all, and ``sample`` after ``calibrate`` on the
 same data and model starts from calibrate's runs.  Counted exactly: a model that logs
 every run it finishes (its theta and force) to a file."""
+
 import hashlib
 import json
 import os
@@ -36,8 +37,10 @@ class LoggingModel:
         if os.path.exists(self.stop) and _lines(self.log) >= int(Path(self.stop).read_text()):
             raise KeyboardInterrupt
         y = self.inner.simulate(theta, force, fs)
-        key = hashlib.sha256(json.dumps(sorted((k, float(v).hex()) for k, v in theta.items())).encode()
-                             + np.asarray(force, float).tobytes()).hexdigest()[:16]
+        key = hashlib.sha256(
+            json.dumps(sorted((k, float(v).hex()) for k, v in theta.items())).encode()
+            + np.asarray(force, float).tobytes()
+        ).hexdigest()[:16]
         with open(self.log, "a") as f:
             f.write(f"{key} {type(self.inner).__name__} {self.inner.substeps}\n")
         return y
@@ -57,8 +60,9 @@ SETTINGS = dict(n_steps=1000, burn=300, max_steps=4000, n_linear=0)
 def _sample(data, model, cache):
     from bayes_update.core.posterior import PosteriorSettings, sample
 
-    return sample(data, model, PosteriorSettings(**SETTINGS), workers=1, cache_dir=cache, progress=False,
-                  log=lambda *a: None)
+    return sample(
+        data, model, PosteriorSettings(**SETTINGS), workers=1, cache_dir=cache, progress=False, log=lambda *a: None
+    )
 
 
 @pytest.fixture(scope="module")
@@ -81,7 +85,7 @@ def test_an_interrupted_sample_run_again_makes_none_of_its_finished_runs(data, t
     assert len(first) == len(made) // 2
     stop.unlink()
     again = _sample(data, LoggingModel(log, stop), tmp_path / "cache")
-    second = _runs(log)[len(first):]
+    second = _runs(log)[len(first) :]
     # every run finished before the interruption is read, none made again; together they are the
     # uninterrupted command's runs, each made once
     assert not set(first) & set(second)
@@ -90,7 +94,7 @@ def test_an_interrupted_sample_run_again_makes_none_of_its_finished_runs(data, t
     assert sum(again.n_model_runs_reused.values()) >= len(first)
     # and a finished command run again makes no run at all
     third = _sample(data, LoggingModel(log, stop), tmp_path / "cache")
-    assert _runs(log)[len(first) + len(second):] == []
+    assert _runs(log)[len(first) + len(second) :] == []
     assert third.summary == ref.summary
 
 
@@ -98,15 +102,23 @@ def test_sample_after_calibrate_starts_from_calibrates_runs(data, tmp_path):
     from bayes_update.core.calibrate import calibrate_model
 
     log, stop = tmp_path / "runs.log", tmp_path / "stop"
-    cal = calibrate_model(data, LoggingModel(log, stop), n_start=16, n_best=1, workers=1, progress=False,
-                          log=lambda *a: None, cache_dir=tmp_path / "cache")
+    cal = calibrate_model(
+        data,
+        LoggingModel(log, stop),
+        n_start=16,
+        n_best=1,
+        workers=1,
+        progress=False,
+        log=lambda *a: None,
+        cache_dir=tmp_path / "cache",
+    )
     by_calibrate = set(_runs(log))
     res = _sample(data, LoggingModel(log, stop), tmp_path / "cache")
-    by_sample = _runs(log)[len(by_calibrate):]
-    assert not set(by_sample) & by_calibrate                   # none of calibrate's runs made again
-    assert res.n_model_runs["start"] == 0                      # its start is calibrate's best point
+    by_sample = _runs(log)[len(by_calibrate) :]
+    assert not set(by_sample) & by_calibrate  # none of calibrate's runs made again
+    assert res.n_model_runs["start"] == 0  # its start is calibrate's best point
     assert res.start == pytest.approx(cal.theta, rel=1e-12)
-    assert res.n_model_runs_reused.get("check_and_screen", 0) >= 1   # the screen's runs were found
+    assert res.n_model_runs_reused.get("check_and_screen", 0) >= 1  # the screen's runs were found
 
 
 def test_the_store_keys_runs_by_model_force_and_theta(tmp_path):
@@ -143,10 +155,19 @@ def test_a_direct_chain_keeps_no_run(data, tmp_path):
     the cache; the steps before it are."""
     from bayes_update.core.posterior import PosteriorSettings, sample
 
-    settings = PosteriorSettings(direct_walkers=8, direct_steps=40, direct_burn=10, direct_max_steps=40,
-                                 n_linear=0, n_global=0, n_predictive=0)
-    res = sample(data, LoggingModel(tmp_path / "runs.log", tmp_path / "stop"), settings, workers=1, direct=True,
-                 cache_dir=tmp_path / "cache", progress=False, log=lambda *a: None)
+    settings = PosteriorSettings(
+        direct_walkers=8, direct_steps=40, direct_burn=10, direct_max_steps=40, n_linear=0, n_global=0, n_predictive=0
+    )
+    res = sample(
+        data,
+        LoggingModel(tmp_path / "runs.log", tmp_path / "stop"),
+        settings,
+        workers=1,
+        direct=True,
+        cache_dir=tmp_path / "cache",
+        progress=False,
+        log=lambda *a: None,
+    )
     made = RunStore(tmp_path / "cache" / "runs").made()
     assert res.n_model_runs["mcmc"] >= 2 * 8 * 40
     assert 0 < made <= res.n_model_runs["total"] - res.n_model_runs["mcmc"]
@@ -160,8 +181,16 @@ def test_calibrate_run_again_makes_no_run(data, tmp_path):
     log, stop = tmp_path / "runs.log", tmp_path / "stop"
 
     def calibrate():
-        return calibrate_model(data, LoggingModel(log, stop), n_start=16, n_best=1, workers=1, progress=False,
-                               log=lambda *a: None, cache_dir=tmp_path / "cache")
+        return calibrate_model(
+            data,
+            LoggingModel(log, stop),
+            n_start=16,
+            n_best=1,
+            workers=1,
+            progress=False,
+            log=lambda *a: None,
+            cache_dir=tmp_path / "cache",
+        )
 
     first = calibrate()
     made = _runs(log)
@@ -172,13 +201,29 @@ def test_calibrate_run_again_makes_no_run(data, tmp_path):
     log2, cache2 = tmp_path / "runs2.log", tmp_path / "cache2"
     stop.write_text(str(len(made) // 2))
     with pytest.raises(KeyboardInterrupt):
-        calibrate_model(data, LoggingModel(log2, stop), n_start=16, n_best=1, workers=1, progress=False,
-                        log=lambda *a: None, cache_dir=cache2)
+        calibrate_model(
+            data,
+            LoggingModel(log2, stop),
+            n_start=16,
+            n_best=1,
+            workers=1,
+            progress=False,
+            log=lambda *a: None,
+            cache_dir=cache2,
+        )
     before = _runs(log2)
     stop.unlink()
-    resumed = calibrate_model(data, LoggingModel(log2, stop), n_start=16, n_best=1, workers=1, progress=False,
-                              log=lambda *a: None, cache_dir=cache2)
-    after = _runs(log2)[len(before):]
+    resumed = calibrate_model(
+        data,
+        LoggingModel(log2, stop),
+        n_start=16,
+        n_best=1,
+        workers=1,
+        progress=False,
+        log=lambda *a: None,
+        cache_dir=cache2,
+    )
+    after = _runs(log2)[len(before) :]
     assert not set(before) & set(after)
     assert sorted(before + after) == sorted(made)
     assert resumed.theta == first.theta
@@ -211,4 +256,4 @@ def test_the_cache_command_shows_and_clears_the_kept_runs(tmp_path, capsys):
     assert main(["cache", "--cache", str(tmp_path), "--clear"]) == 0
     assert runs_usage(tmp_path)["runs"] == 0 and not list(store.root.glob("*"))
     assert all(store.get(model, force, 1024.0, theta) is None for theta in thetas)
-    assert main(["cache", "--cache", str(tmp_path), "--older-than", "1"]) == 2      # without --clear: an error
+    assert main(["cache", "--cache", str(tmp_path), "--older-than", "1"]) == 2  # without --clear: an error

@@ -9,13 +9,13 @@ import shutil
 import numpy as np
 
 import fe
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.posterior.design import design_cache
 from bayes_update.core.posterior.target import Evaluate
 from bayes_update.core.problem import Problem
+from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.model import Beam
-from bayes_update.core.posterior.design import design_cache
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import DEFAULT_DATASET_DIR
 
 
@@ -33,7 +33,7 @@ def test_changed_data_at_the_same_path_gets_a_new_cache(tmp_path):
     before = _cache_file(data_dir, tmp_path / "cache")
     data = read_dataset(data_dir)
     test = data.test("chirp_high")
-    test.velocity[100] += 1e-7            # one sample of one channel, far below the noise [m/s]
+    test.velocity[100] += 1e-7  # one sample of one channel, far below the noise [m/s]
     write_dataset(data, data_dir)
     after = _cache_file(data_dir, tmp_path / "cache")
     assert after != before

@@ -3,6 +3,7 @@
 The truth of the embedded data set (virtual rig: 20 elements, 16 substeps per
 sample, noisy force and velocity) is the paper's Table 3; the updating model
 is the default 10-element, 4-substep FE, so there is no inverse crime."""
+
 import json
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
@@ -11,16 +12,16 @@ import numpy as np
 import pytest
 
 import fe
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.calibrate import parabola_vertex, parameters_from, preload_for_frequency
 from bayes_update.cli import main
-from bayes_update.data.dataset import DatasetError
-from bayes_update.data.folder import read_dataset
-from surrogates.evaluation import default_executor, evaluate_many
 from bayes_update.core.metrics import relative_error
 from bayes_update.core.problem import Problem
+from bayes_update.data.dataset import DatasetError
+from bayes_update.data.folder import read_dataset
+from bayes_update.models.beam.calibrate import parabola_vertex, parameters_from, preload_for_frequency
 from bayes_update.models.beam.model import Beam
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import default_dataset_path, load_default_dataset
+from surrogates.evaluation import default_executor, evaluate_many
 
 TRUTH = fe.PAPER_PARAMETERS
 
@@ -64,15 +65,14 @@ def test_e_lin_sees_only_p_eff_and_e_nlin_breaks_the_ridge(data, problem):
     e_lin = [r["e_lin"] for r in e]
     assert max(e_lin[:3]) - min(e_lin[:3]) < 0.05 * (e_lin[3] - e_lin[1])
     e_nlin = [r["e_nlin"] for r in e[:3]]
-    assert e_nlin[1] < 0.5 * min(e_nlin[0], e_nlin[2])   # the truth's k_s is preferred
+    assert e_nlin[1] < 0.5 * min(e_nlin[0], e_nlin[2])  # the truth's k_s is preferred
 
 
 def test_e_lin_is_unimodal_in_eta_with_its_minimum_at_the_truth(data, problem):
     """A linear-only fit of the low-level test: e_lin falls then rises through the
     true eta (with orders 2-3 in that fit it was erratic, see bayes_update.core.problem)."""
     etas = [2.0, 2.5, 3.0, 3.5, 4.0]
-    e = [problem.evaluate(parameters_from(problem.model, eta, 15.0, 180.0, 74.06), "linear")["e_lin"]
-         for eta in etas]
+    e = [problem.evaluate(parameters_from(problem.model, eta, 15.0, 180.0, 74.06), "linear")["e_lin"] for eta in etas]
     assert int(np.argmin(e)) == 2
     assert e[0] > e[1] > e[2] < e[3] < e[4]
     assert e[1] > 5 * e[2] and e[3] > 5 * e[2]
@@ -102,12 +102,13 @@ def test_problem_rejects_bad_data_sets(data):
     no_linear = dataclasses.replace(data, tests=[t for t in data.tests if t.role != "linear"])
     with pytest.raises(DatasetError, match="role 'linear'"):
         Problem(no_linear, Beam(fe.BeamModel(rig=rig_of(data))))
-    two = dataclasses.replace(data, tests=[dataclasses.replace(t, role="linear") for t in data.tests
-                                           if t.signal == "chirp"])
+    two = dataclasses.replace(
+        data, tests=[dataclasses.replace(t, role="linear") for t in data.tests if t.signal == "chirp"]
+    )
     with pytest.raises(DatasetError, match="exactly one"):
         Problem(two, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(ValueError, match="another rig"):
-        Problem(data, Beam(fe.BeamModel()))                      # factor 1.0 against 1.24
+        Problem(data, Beam(fe.BeamModel()))  # factor 1.0 against 1.24
     lin_only = dataclasses.replace(data, tests=[t for t in data.tests if t.role == "linear"])
     prob = Problem(lin_only, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(DatasetError, match="e_nlin"):
@@ -144,7 +145,7 @@ def quick_run(tmp_path_factory):
         return captured["result"]
 
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(cal_module, "calibrate", capture)    # the CLI imports it at call time
+        mp.setattr(cal_module, "calibrate", capture)  # the CLI imports it at call time
         assert main(["calibrate", "--quick", "--workers", "2", "--out", str(out)]) == 0
     return out, captured["result"]
 
@@ -168,7 +169,7 @@ def png_size(path):
 def test_calibrate_writes_the_documented_outputs(quick_run, data):
     out, result = quick_run
     settings = result.settings
-    kb = rig_of(data).axial_stiffness / 1e3                     # N/mm
+    kb = rig_of(data).axial_stiffness / 1e3  # N/mm
     pcols = ["c_N_s_per_mm", "F_N", "k_s_N_per_mm", "P_eff_N", "eta_MPa_s"]
     # calibration.json: the result object, SI and paper units consistent
     cal = json.loads((out / "calibration.json").read_text())
@@ -181,19 +182,21 @@ def test_calibrate_writes_the_documented_outputs(quick_run, data):
     assert cal["setup"]["basis"]["orders"]["3"]["n_functions"] == 6
     pu = cal["paper_units"]
     assert (pu["eta_MPa_s"], pu["c_N_s_per_mm"], pu["F_N"], pu["k_s_N_per_mm"]) == pytest.approx(
-        (cal["eta"] / 1e6, cal["c"] / 1e3, cal["F"], cal["k_s"] / 1e3), rel=1e-12)
+        (cal["eta"] / 1e6, cal["c"] / 1e3, cal["F"], cal["k_s"] / 1e3), rel=1e-12
+    )
     # P_eff is the statics of the two axial springs, from the JSON's own F and k_s
     assert cal["P_eff"] == pytest.approx(cal["F"] * kb / (kb + cal["k_s"] / 1e3), rel=1e-12)
     # tables: the documented columns, one row per c (Tables 1 and 2), the grid's size
-    p_grid_size = len(np.arange(-settings.p_eff_halfwidth, settings.p_eff_halfwidth + 1e-9,
-                                settings.p_eff_step))
+    p_grid_size = len(np.arange(-settings.p_eff_halfwidth, settings.p_eff_halfwidth + 1e-9, settings.p_eff_step))
     n_grid = len(settings.c_values) * len(settings.k_s_values) * p_grid_size
-    expected = {"table1_linear.csv": (pcols + ["e_lin"], len(settings.c_values)),
-                "table2_nonlinear.csv": (pcols + ["e_lin_nlin", "e_lin", "e_nlin"], len(settings.c_values)),
-                "table3_final.csv": (list(result.table3), 1),
-                "grid_linear.csv": (pcols + ["e_lin", "error"], n_grid),
-                "grid_nonlinear.csv": (pcols + ["e_lin", "e_nlin", "e_lin_nlin", "error"], n_grid),
-                "eta_scan.csv": (["eta_MPa_s", "e_lin"], len(settings.eta_values))}
+    expected = {
+        "table1_linear.csv": (pcols + ["e_lin"], len(settings.c_values)),
+        "table2_nonlinear.csv": (pcols + ["e_lin_nlin", "e_lin", "e_nlin"], len(settings.c_values)),
+        "table3_final.csv": (list(result.table3), 1),
+        "grid_linear.csv": (pcols + ["e_lin", "error"], n_grid),
+        "grid_nonlinear.csv": (pcols + ["e_lin", "e_nlin", "e_lin_nlin", "error"], n_grid),
+        "eta_scan.csv": (["eta_MPa_s", "e_lin"], len(settings.eta_values)),
+    }
     tables = {}
     for name, (columns, n_rows) in expected.items():
         header, rows = read_csv(out / name)
@@ -201,14 +204,17 @@ def test_calibrate_writes_the_documented_outputs(quick_run, data):
         assert len(rows) == n_rows, name
         tables[name] = [dict(zip(header, r)) for r in rows]
     # the CSVs hold the result's numbers (written with 6 significant digits)
-    for name, rows_obj in (("table1_linear.csv", result.table1), ("table2_nonlinear.csv", result.table2),
-                           ("table3_final.csv", [result.table3])):
+    for name, rows_obj in (
+        ("table1_linear.csv", result.table1),
+        ("table2_nonlinear.csv", result.table2),
+        ("table3_final.csv", [result.table3]),
+    ):
         for row, obj in zip(tables[name], rows_obj):
             for col, text in row.items():
                 assert float(text) == pytest.approx(obj[col], rel=1e-5), (name, col)
     for name in ("table1_linear.csv", "table2_nonlinear.csv"):
         assert [float(r["c_N_s_per_mm"]) for r in tables[name]] == list(settings.c_values)
-        for r in tables[name]:      # each row on the statics of its own F and k_s
+        for r in tables[name]:  # each row on the statics of its own F and k_s
             F, ks = float(r["F_N"]), float(r["k_s_N_per_mm"])
             assert float(r["P_eff_N"]) == pytest.approx(F * kb / (kb + ks), rel=2e-5)
     for r in tables["table2_nonlinear.csv"]:
@@ -225,8 +231,15 @@ def test_calibrate_writes_the_documented_outputs(quick_run, data):
     # figures: real PNGs, not blank (more than one colour)
     import matplotlib.image as mpimg
 
-    for name in ("fig4_e_lin_grid", "fig8_e_lin_eta", "fig12_components_high", "fig13_chirp_medium",
-                 "fig14_sine_psd", "table2_e_lin_nlin_grid", "ridge_k_s_profile"):
+    for name in (
+        "fig4_e_lin_grid",
+        "fig8_e_lin_eta",
+        "fig12_components_high",
+        "fig13_chirp_medium",
+        "fig14_sine_psd",
+        "table2_e_lin_nlin_grid",
+        "ridge_k_s_profile",
+    ):
         w, h = png_size(out / f"{name}.png")
         assert w >= 300 and h >= 200, name
         img = mpimg.imread(out / f"{name}.png")
@@ -235,7 +248,7 @@ def test_calibrate_writes_the_documented_outputs(quick_run, data):
 
 def test_calibrate_recovers_the_truth(quick_run, data):
     out, _ = quick_run
-    truth = read_dataset(default_dataset_path()).extra["truth"]   # read by the test only
+    truth = read_dataset(default_dataset_path()).extra["truth"]  # read by the test only
     assert fe.Parameters(**truth["parameters_si"]) == TRUTH
     cal = json.loads((out / "calibration.json").read_text())
     p_true = TRUTH.effective_preload(rig_of(data))
@@ -259,7 +272,7 @@ def test_calibrate_recovers_the_truth(quick_run, data):
     assert abs(across) < 20.0
     assert 0.0 <= cal["k_s"] / 1e3 <= 600.0
     rows = np.genfromtxt(out / "table1_linear.csv", delimiter=",", names=True)
-    assert np.all(np.abs(rows["P_eff_N"] / p_true - 1) < 0.01)           # the ridge, row by row
+    assert np.all(np.abs(rows["P_eff_N"] / p_true - 1) < 0.01)  # the ridge, row by row
     # validation as numbers: the medium chirp at its 1 % noise (measured 1.13 %)
     assert cal["validation"]["chirp_medium"]["rel_l2"] < 0.015
 
@@ -268,7 +281,17 @@ def test_factor_override_needs_to_be_explicit(tmp_path, capsys):
     code = main(["calibrate", "--quick", "--bending-stiffness-factor", "1.0", "--out", str(tmp_path)])
     assert code == 2
     assert "--override-factor" in capsys.readouterr().err
-    code = main(["simulate", "--data", str(default_dataset_path()), "--bending-stiffness-factor", "-1",
-                 "--override-factor", "--out", str(tmp_path)])
+    code = main(
+        [
+            "simulate",
+            "--data",
+            str(default_dataset_path()),
+            "--bending-stiffness-factor",
+            "-1",
+            "--override-factor",
+            "--out",
+            str(tmp_path),
+        ]
+    )
     assert code == 2
     assert "bending_stiffness_factor" in capsys.readouterr().err

@@ -22,8 +22,10 @@ def small_dataset(tmp_path):
     fs = 1024.0
     t = np.arange(512) / fs
     force = 0.001 * np.sin(2 * np.pi * 30 * t)
-    tests = [Record("sine_low.csv", "sine", "low", "validation", t, force, np.zeros_like(t)),
-             Record("sine_high.csv", "sine", "high", "validation", t, 5 * force, np.zeros_like(t))]
+    tests = [
+        Record("sine_low.csv", "sine", "low", "validation", t, force, np.zeros_like(t)),
+        Record("sine_high.csv", "sine", "high", "validation", t, 5 * force, np.zeros_like(t)),
+    ]
     ds = Dataset("tiny", fs, Rig(), tests, extra={"truth": {"F": 77.0}})
     return write_dataset(ds, tmp_path / "data")
 

@@ -1,5 +1,6 @@
 """The command line's shared behaviour: --version, required --out, --config,
 the log (no progress bar in a file), and a failed command leaving no OUT."""
+
 import subprocess
 import sys
 
@@ -13,8 +14,9 @@ def test_version_and_required_out(capsys):
         main(["--version"])
     assert exc.value.code == 0
     from bayes_update import __version__
+
     assert capsys.readouterr().out.strip() == f"bayes-update {__version__}"
-    with pytest.raises(SystemExit) as exc:        # make-dataset never writes into the installed package
+    with pytest.raises(SystemExit) as exc:  # make-dataset never writes into the installed package
         main(["make-dataset"])
     assert exc.value.code == 2
     assert "--out" in capsys.readouterr().err
@@ -34,7 +36,7 @@ def test_config_file_is_read_and_checked(tmp_path, capsys):
     good = tmp_path / "good.toml"
     good.write_text("[sample]\nn_walkers = 48\nn_steps = 5000\n")
     s = settings_from(PosteriorSettings, True, read_config(good, "sample"), n_steps=4000, seed=None)
-    assert (s.n_walkers, s.n_steps, s.seed) == (48, 4000, 0)          # the command line wins over the file
+    assert (s.n_walkers, s.n_steps, s.seed) == (48, 4000, 0)  # the command line wins over the file
 
 
 def test_a_failed_command_leaves_no_out_folder(tmp_path):
@@ -47,17 +49,51 @@ def test_calibrate_logs_to_a_file_without_progress_bars(tmp_path):
     """stderr to a file (not a terminal): the log's lines, no carriage returns, no bars."""
     out, err = tmp_path / "cal", tmp_path / "stderr.txt"
     with open(err, "w") as fh:
-        res = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--quick", "--model", "rom",
-                              "--workers", "1", "--out", str(out), "--log-file", str(tmp_path / "log.txt")],
-                             stdout=subprocess.PIPE, stderr=fh, text=True, timeout=600)
+        res = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "bayes_update",
+                "calibrate",
+                "--quick",
+                "--model",
+                "rom",
+                "--workers",
+                "1",
+                "--out",
+                str(out),
+                "--log-file",
+                str(tmp_path / "log.txt"),
+            ],
+            stdout=subprocess.PIPE,
+            stderr=fh,
+            text=True,
+            timeout=600,
+        )
     text = err.read_text()
     assert res.returncode == 0, text[-2000:]
     assert "\r" not in text and "it/s" not in text and "run/s" not in text, text[-2000:]
-    assert "Kautz pole" in text                               # the log's lines are there
+    assert "Kautz pole" in text  # the log's lines are there
     assert "Kautz pole" in (tmp_path / "log.txt").read_text()
-    quiet = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--quick", "--model", "rom",
-                            "--workers", "1", "--quiet", "--out", str(tmp_path / "cal2")],
-                           capture_output=True, text=True, timeout=600)
+    quiet = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bayes_update",
+            "calibrate",
+            "--quick",
+            "--model",
+            "rom",
+            "--workers",
+            "1",
+            "--quiet",
+            "--out",
+            str(tmp_path / "cal2"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert quiet.returncode == 0 and "Kautz pole" not in quiet.stderr
 
 
@@ -91,8 +127,11 @@ def test_reproduce_hands_each_table_to_its_own_step(tmp_path, monkeypatch):
     from bayes_update.core.posterior import PosteriorSettings
     from bayes_update.models.beam.calibrate import CalibrationSettings
 
-    given = {"calibrate": CalibrationSettings.quick(), "sample": PosteriorSettings.quick(n_linear=0),
-             "discrepancy": DiscrepancySettings.quick(max_effects=1)}
+    given = {
+        "calibrate": CalibrationSettings.quick(),
+        "sample": PosteriorSettings.quick(n_linear=0),
+        "discrepancy": DiscrepancySettings.quick(max_effects=1),
+    }
     seen = {"calibrate": [], "sample": []}
 
     class Reached(Exception):
@@ -102,8 +141,9 @@ def test_reproduce_hands_each_table_to_its_own_step(tmp_path, monkeypatch):
         seen["discrepancy"] = settings
         raise Reached
 
-    monkeypatch.setattr(study, "calibrate", lambda d, m, s, **kw: seen["calibrate"].append(s) or
-                        types.SimpleNamespace(final_theta=None))
+    monkeypatch.setattr(
+        study, "calibrate", lambda d, m, s, **kw: seen["calibrate"].append(s) or types.SimpleNamespace(final_theta=None)
+    )
     monkeypatch.setattr(study, "sample", lambda d, m, s, **kw: seen["sample"].append(s))
     monkeypatch.setattr(study, "write_result", lambda *a, **kw: None)
     monkeypatch.setattr(study, "write_posterior", lambda *a, **kw: None)

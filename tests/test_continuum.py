@@ -8,15 +8,18 @@ import math
 
 import numpy as np
 import pytest
+from reference import import_error, require_reference
 
 import fe
 import fe.continuum as fc
-from reference import import_error, require_reference
 
 # scikit-fem is a hard dependency of fe.continuum: its absence fails these tests
 # unless BAYES_UPDATE_ALLOW_MISSING_REFERENCES=1.
-_requires_skfem = require_reference(import_error("skfem"), "scikit-fem (fe.continuum's 3D reference)",
-                                    "pip install scikit-fem (a dependency of this package)")
+_requires_skfem = require_reference(
+    import_error("skfem"),
+    "scikit-fem (fe.continuum's 3D reference)",
+    "pip install scikit-fem (a dependency of this package)",
+)
 
 RIG = fe.Rig()
 RIG_NU0 = fe.Rig(poisson_ratio=0.0)
@@ -25,8 +28,7 @@ RIG_NU0 = fe.Rig(poisson_ratio=0.0)
 @pytest.fixture(scope="module")
 def beam_nu0():
     """Euler-Bernoulli reference (fe.BeamModel, 64 elements): f0, f74 [Hz], buckling load [N]."""
-    return (fc.beam_frequency(RIG_NU0, 0.0), fc.beam_frequency(RIG_NU0, 74.0),
-            fc._beam(RIG_NU0).buckling_load())
+    return (fc.beam_frequency(RIG_NU0, 0.0), fc.beam_frequency(RIG_NU0, 74.0), fc._beam(RIG_NU0).buckling_load())
 
 
 @pytest.fixture(scope="module")
@@ -96,7 +98,7 @@ def test_continuum_is_close_to_the_beam(continuum_coarse):
     f_beam = 4.730041**2 / (2 * math.pi * RIG.length_m**2) * math.sqrt(RIG.EI / RIG.mass_per_length)
     f = continuum_coarse
     assert f[0] > f[1] > f_beam
-    assert f[1] / f_beam - 1 < 0.01   # measured +0.75 %
+    assert f[1] / f_beam - 1 < 0.01  # measured +0.75 %
 
 
 def test_regression_continuum_80x4x2_matches_the_study(continuum_coarse):
@@ -135,9 +137,8 @@ def test_paper_mesh_is_a_beam_stiffened_by_shear_locking(paper_factor, paper_loa
     mesh adds ~1 %: docs/mesh_locking_study.md).  Tolerances 2 / 2.5 / 2.5 /
     5 %, 1.5-2.5x.  The paper's numbers (50.2 Hz, 37.1 Hz at 74 N, 161 N, 74.6 N)
     follow: its 74 N preload stands for the locking, not for the rig."""
-    from scipy.optimize import brentq
-
     from reference import clamped_clamped_frequencies
+    from scipy.optimize import brentq
 
     EI, m, L = RIG.EI, RIG.mass_per_length, RIG.length_m
     c = fc.shear_locking_estimate(RIG, L / 300)

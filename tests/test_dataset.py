@@ -6,10 +6,21 @@ import json
 import numpy as np
 import pytest
 
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.data.dataset import Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, NonIncreasingTimeError, NonUniformTimeError, Record, SamplingRateError, UnknownRoleError
+from bayes_update.data.dataset import (
+    Dataset,
+    DatasetError,
+    LengthMismatchError,
+    MissingColumnError,
+    NonFiniteError,
+    NonIncreasingTimeError,
+    NonUniformTimeError,
+    Record,
+    SamplingRateError,
+    UnknownRoleError,
+)
 from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.data.uff import read_uff, write_uff
+from bayes_update.models.beam.rig import rig_of
 from fe import Rig
 
 FS = 1024.0
@@ -18,12 +29,17 @@ FS = 1024.0
 def make_records(n=512, seed=0):
     rng = np.random.default_rng(seed)
     t = np.arange(n) / FS
-    specs = [("chirp_low.csv", "chirp", "low", "linear"),
-             ("chirp_high.csv", "chirp", "high", "nonlinear"),
-             ("sine_low.csv", "sine", "low", "validation")]
-    return [Record(f, s, lvl, role, t, 0.1 * rng.standard_normal(n), 1e-3 * rng.standard_normal(n),
-                   {"force_amplitude_n": 0.1})
-            for f, s, lvl, role in specs]
+    specs = [
+        ("chirp_low.csv", "chirp", "low", "linear"),
+        ("chirp_high.csv", "chirp", "high", "nonlinear"),
+        ("sine_low.csv", "sine", "low", "validation"),
+    ]
+    return [
+        Record(
+            f, s, lvl, role, t, 0.1 * rng.standard_normal(n), 1e-3 * rng.standard_normal(n), {"force_amplitude_n": 0.1}
+        )
+        for f, s, lvl, role in specs
+    ]
 
 
 def make_dataset(**rig):
@@ -85,10 +101,12 @@ def test_dataset_json_may_reference_uff_files_and_sets_the_rig(tmp_path):
     folder = tmp_path / "user"
     folder.mkdir()
     write_uff(ds, folder / "all.uff")
-    meta = {"name": "my rig", "sampling_rate_hz": FS,
-            "rig": {"length_m": 0.6, "shaker_position_m": 0.1, "sensor_position_m": 0.3},
-            "tests": [{"file": "all.uff", "uff_load_case": 2, "signal": "chirp", "level": "high",
-                       "role": "nonlinear"}]}
+    meta = {
+        "name": "my rig",
+        "sampling_rate_hz": FS,
+        "rig": {"length_m": 0.6, "shaker_position_m": 0.1, "sensor_position_m": 0.3},
+        "tests": [{"file": "all.uff", "uff_load_case": 2, "signal": "chirp", "level": "high", "role": "nonlinear"}],
+    }
     (folder / "dataset.json").write_text(json.dumps(meta))
     read = read_dataset(folder)
     assert rig_of(read).length_m == 0.6 and rig_of(read).sensor_position_m == 0.3
@@ -139,16 +157,23 @@ def test_non_increasing_time(folder):
     def swap(L):
         L[10], L[11] = L[11], L[10]
         return L
+
     edit_csv(folder, "chirp_high.csv", swap)
-    with pytest.raises(NonIncreasingTimeError, match=r"chirp_high.csv: time is not strictly "
-                                                     r"increasing at line 12"):
+    with pytest.raises(
+        NonIncreasingTimeError,
+        match=r"chirp_high.csv: time is not strictly "
+        r"increasing at line 12",
+    ):
         read_dataset(folder)
 
 
 def test_non_uniform_time(folder):
     edit_csv(folder, "chirp_low.csv", lambda L: L[:100] + L[101:])  # a dropped sample
-    with pytest.raises(NonUniformTimeError, match=r"chirp_low.csv: time column is not uniform"
-                                                  r".*line 101.*never resamples"):
+    with pytest.raises(
+        NonUniformTimeError,
+        match=r"chirp_low.csv: time column is not uniform"
+        r".*line 101.*never resamples",
+    ):
         read_dataset(folder)
 
 
@@ -156,9 +181,12 @@ def test_sampling_rate_disagrees_with_time_column(folder):
     meta = json.loads((folder / "dataset.json").read_text())
     meta["sampling_rate_hz"] = 1000.0
     (folder / "dataset.json").write_text(json.dumps(meta))
-    with pytest.raises(SamplingRateError, match=r"chirp_low.csv: the time column implies a "
-                                                r"sampling rate of 1024 Hz but sampling_rate_hz "
-                                                r"is 1000 Hz"):
+    with pytest.raises(
+        SamplingRateError,
+        match=r"chirp_low.csv: the time column implies a "
+        r"sampling rate of 1024 Hz but sampling_rate_hz "
+        r"is 1000 Hz",
+    ):
         read_dataset(folder)
 
 
@@ -168,9 +196,13 @@ def test_nan_or_inf(folder, bad):
         t, f, v = L[7].split(",")
         L[7] = ",".join([t, bad, v])
         return L
+
     edit_csv(folder, "sine_low.csv", poison)
-    with pytest.raises(NonFiniteError, match=r"sine_low.csv: column 'force' has NaN or inf "
-                                             r"\(line 8\)"):
+    with pytest.raises(
+        NonFiniteError,
+        match=r"sine_low.csv: column 'force' has NaN or inf "
+        r"\(line 8\)",
+    ):
         read_dataset(folder)
 
 
@@ -178,9 +210,13 @@ def test_row_with_missing_value_is_a_length_mismatch(folder):
     def short(L):
         L[20] = ",".join(L[20].split(",")[:2])
         return L
+
     edit_csv(folder, "chirp_low.csv", short)
-    with pytest.raises(LengthMismatchError, match=r"chirp_low.csv: line 21 has 2 value\(s\), "
-                                                  r"the header has 3"):
+    with pytest.raises(
+        LengthMismatchError,
+        match=r"chirp_low.csv: line 21 has 2 value\(s\), "
+        r"the header has 3",
+    ):
         read_dataset(folder)
 
 
@@ -202,8 +238,11 @@ def test_unknown_role(folder):
     meta = json.loads((folder / "dataset.json").read_text())
     meta["tests"][1]["role"] = "calibration"
     (folder / "dataset.json").write_text(json.dumps(meta))
-    with pytest.raises(UnknownRoleError, match=r"dataset.json: test chirp_high.csv has unknown "
-                                               r"role 'calibration'"):
+    with pytest.raises(
+        UnknownRoleError,
+        match=r"dataset.json: test chirp_high.csv has unknown "
+        r"role 'calibration'",
+    ):
         read_dataset(folder)
     with pytest.raises(UnknownRoleError, match="unknown role"):
         Record("x.csv", "sine", "low", "reference", np.arange(3.0), np.zeros(3), np.zeros(3))
@@ -215,9 +254,9 @@ def test_missing_file_bad_json_and_bad_rig(folder):
         read_dataset(folder)
     meta = json.loads((folder / "dataset.json").read_text())
     meta["rig"]["sensor_position_m"] = 2.0
-    meta["tests"] = meta["tests"][:2]    # without the missing file
+    meta["tests"] = meta["tests"][:2]  # without the missing file
     (folder / "dataset.json").write_text(json.dumps(meta))
-    read = read_dataset(folder)          # the data layer keeps the block; the beam code reads it
+    read = read_dataset(folder)  # the data layer keeps the block; the beam code reads it
     assert read.rig["sensor_position_m"] == 2.0
     with pytest.raises(DatasetError, match=r"dataset.json: bad 'rig' block: sensor_position_m"):
         rig_of(read)
@@ -227,8 +266,15 @@ def test_missing_file_bad_json_and_bad_rig(folder):
 
 
 def test_errors_are_value_errors():
-    for cls in (MissingColumnError, LengthMismatchError, NonFiniteError, NonIncreasingTimeError,
-                NonUniformTimeError, SamplingRateError, UnknownRoleError):
+    for cls in (
+        MissingColumnError,
+        LengthMismatchError,
+        NonFiniteError,
+        NonIncreasingTimeError,
+        NonUniformTimeError,
+        SamplingRateError,
+        UnknownRoleError,
+    ):
         assert issubclass(cls, DatasetError) and issubclass(cls, ValueError)
 
 
@@ -248,18 +294,27 @@ def test_uff_wrong_channel_type_rate_and_lengths(tmp_path):
         return path
 
     acc = dict(v, ordinate_spec_data_type=12, ordinate_axis_units_lab="m/s^2")
-    with pytest.raises(DatasetError, match=r"acc.uff: record 1 .*ordinate type 12 "
-                                           r"\(acceleration\).*does not integrate"):
+    with pytest.raises(
+        DatasetError,
+        match=r"acc.uff: record 1 .*ordinate type 12 "
+        r"\(acceleration\).*does not integrate",
+    ):
         read_uff(write("acc.uff", [f, acc]))
     with pytest.raises(MissingColumnError, match=r"novel.uff: load case 1 has no velocity record"):
         read_uff(write("novel.uff", [f]))
     short = dict(v, data=rec.velocity[:-5], x=rec.time[:-5])
-    with pytest.raises(LengthMismatchError, match=r"short.uff: load case 1: force has 512 "
-                                                  r"samples, velocity 507"):
+    with pytest.raises(
+        LengthMismatchError,
+        match=r"short.uff: load case 1: force has 512 "
+        r"samples, velocity 507",
+    ):
         read_uff(write("short.uff", [f, short]))
     path = write("ok.uff", [f, v])
-    with pytest.raises(SamplingRateError, match=r"ok.uff: record 0 .*implies 1024 Hz but the "
-                                                r"declared sampling rate is 2048 Hz"):
+    with pytest.raises(
+        SamplingRateError,
+        match=r"ok.uff: record 0 .*implies 1024 Hz but the "
+        r"declared sampling rate is 2048 Hz",
+    ):
         read_uff(path, sampling_rate_hz=2048.0)
     # NaN in the file (pyuff's writer turns NaN into 0, so edit the text)
     text = path.read_text().splitlines()
@@ -267,8 +322,11 @@ def test_uff_wrong_channel_type_rate_and_lengths(tmp_path):
     first_value = text[last_header + 1]
     text[last_header + 1] = "%20s" % "nan" + first_value[20:]
     (tmp_path / "nan.uff").write_text("\n".join(text) + "\n")
-    with pytest.raises(NonFiniteError, match=r"nan.uff: record 1 \(velocity, load case 1\) has "
-                                             r"NaN or inf \(sample 0\)"):
+    with pytest.raises(
+        NonFiniteError,
+        match=r"nan.uff: record 1 \(velocity, load case 1\) has "
+        r"NaN or inf \(sample 0\)",
+    ):
         read_uff(tmp_path / "nan.uff")
     bad_role = dict(v, id2="signal=sine level=low role=whatever")
     with pytest.raises(UnknownRoleError, match=r"role.uff: load case 1 .*unknown role 'whatever'"):

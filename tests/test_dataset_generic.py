@@ -8,7 +8,14 @@ import sys
 import numpy as np
 import pytest
 
-from bayes_update.data.dataset import Dataset, DatasetError, MissingColumnError, Record, SensorError, UnknownResponseError
+from bayes_update.data.dataset import (
+    Dataset,
+    DatasetError,
+    MissingColumnError,
+    Record,
+    SensorError,
+    UnknownResponseError,
+)
 from bayes_update.data.folder import read_dataset, write_dataset
 
 FS = 2000.0
@@ -38,12 +45,22 @@ def write_folder(folder, meta, columns):
 def displacement_folder(tmp_path):
     t, f, y = signals(0)
     t2, f2, y2 = signals(1)
-    meta = {"sampling_rate_hz": FS, "response": "displacement",
-            "tests": [{"file": "low.csv", "role": "linear"},
-                      {"file": "high.csv", "role": "nonlinear", "level": "high", "note": 3}]}
-    return write_folder(tmp_path / "user", meta,
-                        {"low.csv": {"time": t, "force": f, "displacement": y},
-                         "high.csv": {"time": t2, "force": f2, "displacement": y2}}), (y, y2)
+    meta = {
+        "sampling_rate_hz": FS,
+        "response": "displacement",
+        "tests": [
+            {"file": "low.csv", "role": "linear"},
+            {"file": "high.csv", "role": "nonlinear", "level": "high", "note": 3},
+        ],
+    }
+    return write_folder(
+        tmp_path / "user",
+        meta,
+        {
+            "low.csv": {"time": t, "force": f, "displacement": y},
+            "high.csv": {"time": t2, "force": f2, "displacement": y2},
+        },
+    ), (y, y2)
 
 
 def two_sensor_dataset(rig=None):
@@ -65,10 +82,13 @@ def test_user_data_set_without_rig_with_displacement(tmp_path):
     assert low.response.shape == (N,)
     np.testing.assert_array_equal(low.response, y_low)
     np.testing.assert_array_equal(high.channel("displacement"), y_high)
-    assert (low.signal, low.level) == ("unknown", "unknown")         # optional keys' defaults
+    assert (low.signal, low.level) == ("unknown", "unknown")  # optional keys' defaults
     assert high.level == "high" and high.meta == {"note": 3}
-    with pytest.raises(SensorError, match=r"low.csv: Record.velocity is the response of a single "
-                                          r"velocity sensor.*use Record.response"):
+    with pytest.raises(
+        SensorError,
+        match=r"low.csv: Record.velocity is the response of a single "
+        r"velocity sensor.*use Record.response",
+    ):
         low.velocity
     with pytest.raises(SensorError, match="Record.response"):
         low.velocity = np.zeros(N)
@@ -102,8 +122,7 @@ def test_fingerprint_follows_the_response_and_its_kind(tmp_path):
         text = (folder / f).read_text().replace("displacement", "velocity", 1)
         (folder / f).write_text(text)
     as_velocity = read_dataset(folder)
-    np.testing.assert_array_equal(as_velocity.tests[0].velocity, read_dataset(
-        folder).tests[0].response)
+    np.testing.assert_array_equal(as_velocity.tests[0].velocity, read_dataset(folder).tests[0].response)
     assert as_velocity.fingerprint() != fp
 
 
@@ -119,8 +138,10 @@ def test_two_sensors_round_trip(tmp_path):
         ds.tests[0].velocity
     out = write_dataset(ds, tmp_path / "a")
     meta = json.loads((out / "dataset.json").read_text())
-    assert meta["sensors"] == [{"name": "tip_acc", "response": "acceleration"},
-                               {"name": "mid_disp", "response": "displacement"}]
+    assert meta["sensors"] == [
+        {"name": "tip_acc", "response": "acceleration"},
+        {"name": "mid_disp", "response": "displacement"},
+    ]
     assert "response" not in meta and "rig" not in meta and meta["truth"] == {"k": 1.0}
     assert (out / "high.csv").read_text().splitlines()[0] == "time,force,tip_acc,mid_disp"
     back = read_dataset(out)
@@ -129,7 +150,7 @@ def test_two_sensors_round_trip(tmp_path):
         assert y.response.shape == (N, 2)
         np.testing.assert_allclose(y.response, x.response, rtol=1e-9, atol=0)
         np.testing.assert_allclose(y.channel("mid_disp"), x.response[:, 1], rtol=1e-9, atol=0)
-    assert back.fingerprint() != ds.fingerprint()          # ten significant digits on disk
+    assert back.fingerprint() != ds.fingerprint()  # ten significant digits on disk
     assert read_dataset(out).fingerprint() == back.fingerprint()
     again = write_dataset(back, tmp_path / "b")
     for f in ("dataset.json", "low.csv", "high.csv"):
@@ -138,11 +159,15 @@ def test_two_sensors_round_trip(tmp_path):
 
 def test_sensor_columns_are_found_by_name_in_any_order(tmp_path):
     t, f, y = signals(0, k=2)
-    meta = {"sampling_rate_hz": FS, "response": "acceleration",
-            "sensors": [{"name": "a2"}, {"name": "a1", "response": "acceleration"}],
-            "tests": [{"file": "x.csv", "role": "linear"}]}
-    write_folder(tmp_path / "d", meta, {"x.csv": {"a1": y[:, 0], "force": f, "comment": f * 0,
-                                                  "time": t, "a2": y[:, 1]}})
+    meta = {
+        "sampling_rate_hz": FS,
+        "response": "acceleration",
+        "sensors": [{"name": "a2"}, {"name": "a1", "response": "acceleration"}],
+        "tests": [{"file": "x.csv", "role": "linear"}],
+    }
+    write_folder(
+        tmp_path / "d", meta, {"x.csv": {"a1": y[:, 0], "force": f, "comment": f * 0, "time": t, "a2": y[:, 1]}}
+    )
     ds = read_dataset(tmp_path / "d")
     assert ds.sensors == [("a2", "acceleration"), ("a1", "acceleration")]
     np.testing.assert_array_equal(ds.tests[0].response, y[:, ::-1])
@@ -153,22 +178,43 @@ def user_meta(**keys):
     return dict({"sampling_rate_hz": FS, "tests": [{"file": "x.csv", "role": "linear"}]}, **keys)
 
 
-@pytest.mark.parametrize("keys, error, message", [
-    ({"response": "strain"}, UnknownResponseError,
-     r"dataset.json: unknown response kind 'strain' \('response'\); kinds are"),
-    ({"sensors": [{"name": "a", "response": "jerk"}]}, UnknownResponseError,
-     r"dataset.json: sensor 'a' has unknown response kind 'jerk'"),
-    ({"sensors": [{"name": "a", "response": "velocity"}, {"name": "a", "response": "displacement"}]},
-     SensorError, r"dataset.json: duplicate sensor name\(s\) \['a'\]; give each sensor its own name"),
-    ({"response": "acceleration", "sensors": [{"name": "a"}, {"name": "b", "response": "displacement"}]},
-     SensorError, r"dataset.json: sensor 'b' has response 'displacement' but the top-level "
-                  r"'response' is 'acceleration'; drop the top-level 'response'"),
-    ({"sensors": [{"name": "time", "response": "velocity"}]}, SensorError,
-     r"dataset.json: sensor name 'time' is not usable as a CSV column"),
-    ({"sensors": []}, SensorError, r"dataset.json: 'sensors' must be a non-empty list"),
-    ({"sensors": [{"name": "a", "unit": "mm"}]}, SensorError,
-     r"dataset.json: sensor 'a' has unknown key\(s\) \['unit'\]"),
-])
+@pytest.mark.parametrize(
+    "keys, error, message",
+    [
+        (
+            {"response": "strain"},
+            UnknownResponseError,
+            r"dataset.json: unknown response kind 'strain' \('response'\); kinds are",
+        ),
+        (
+            {"sensors": [{"name": "a", "response": "jerk"}]},
+            UnknownResponseError,
+            r"dataset.json: sensor 'a' has unknown response kind 'jerk'",
+        ),
+        (
+            {"sensors": [{"name": "a", "response": "velocity"}, {"name": "a", "response": "displacement"}]},
+            SensorError,
+            r"dataset.json: duplicate sensor name\(s\) \['a'\]; give each sensor its own name",
+        ),
+        (
+            {"response": "acceleration", "sensors": [{"name": "a"}, {"name": "b", "response": "displacement"}]},
+            SensorError,
+            r"dataset.json: sensor 'b' has response 'displacement' but the top-level "
+            r"'response' is 'acceleration'; drop the top-level 'response'",
+        ),
+        (
+            {"sensors": [{"name": "time", "response": "velocity"}]},
+            SensorError,
+            r"dataset.json: sensor name 'time' is not usable as a CSV column",
+        ),
+        ({"sensors": []}, SensorError, r"dataset.json: 'sensors' must be a non-empty list"),
+        (
+            {"sensors": [{"name": "a", "unit": "mm"}]},
+            SensorError,
+            r"dataset.json: sensor 'a' has unknown key\(s\) \['unit'\]",
+        ),
+    ],
+)
 def test_bad_sensor_declarations(tmp_path, keys, error, message):
     t, f, y = signals()
     write_folder(tmp_path / "d", user_meta(**keys), {"x.csv": {"time": t, "force": f, "a": y}})
@@ -179,16 +225,17 @@ def test_bad_sensor_declarations(tmp_path, keys, error, message):
 
 def test_csv_lacking_a_sensor_column(tmp_path):
     t, f, y = signals()
-    meta = user_meta(sensors=[{"name": "tip", "response": "velocity"},
-                              {"name": "root", "response": "velocity"}])
+    meta = user_meta(sensors=[{"name": "tip", "response": "velocity"}, {"name": "root", "response": "velocity"}])
     write_folder(tmp_path / "d", meta, {"x.csv": {"time": t, "force": f, "tip": y}})
-    with pytest.raises(MissingColumnError, match=r"x.csv: missing column\(s\) \['root'\]; header is "
-                                                 r"\['time', 'force', 'tip'\]; .*dataset.json declares "
-                                                 r"the sensor\(s\).*name the response column\(s\) after "
-                                                 r"the sensors"):
+    with pytest.raises(
+        MissingColumnError,
+        match=r"x.csv: missing column\(s\) \['root'\]; header is "
+        r"\['time', 'force', 'tip'\]; .*dataset.json declares "
+        r"the sensor\(s\).*name the response column\(s\) after "
+        r"the sensors",
+    ):
         read_dataset(tmp_path / "d")
-    write_folder(tmp_path / "e", user_meta(response="acceleration"),
-                 {"x.csv": {"time": t, "force": f, "velocity": y}})
+    write_folder(tmp_path / "e", user_meta(response="acceleration"), {"x.csv": {"time": t, "force": f, "velocity": y}})
     with pytest.raises(MissingColumnError, match=r"x.csv: missing column\(s\) \['acceleration'\]"):
         read_dataset(tmp_path / "e")
 
@@ -201,14 +248,24 @@ def test_in_memory_checks():
         Record("x.csv", "s", "l", "linear", t, f, y, sensors=(("a", "velocity"), ("a", "velocity")))
     with pytest.raises(UnknownResponseError, match=r"x.csv: sensor 'a' has unknown response kind"):
         Record("x.csv", "s", "l", "linear", t, f, y[:, 0], sensors=(("a", "strain"),))
-    one = Record("x.csv", "s", "l", "linear", t, f, y[:, :1])          # (n, 1) is one sensor
+    one = Record("x.csv", "s", "l", "linear", t, f, y[:, :1])  # (n, 1) is one sensor
     assert one.response.shape == (N,)
-    one.velocity = 2 * one.velocity                                   # the beam's alias writes
+    one.velocity = 2 * one.velocity  # the beam's alias writes
     np.testing.assert_array_equal(one.response, 2 * y[:, 0])
-    mixed = Dataset("m", FS, None, [Record("a.csv", "s", "l", "linear", t, f, y, sensors=TWO),
-                                    Record("b.csv", "s", "l", "nonlinear", t, f, y[:, 0])])
-    with pytest.raises(SensorError, match=r"test b.csv has sensors .* every test of a data set has "
-                                          r"the same sensors"):
+    mixed = Dataset(
+        "m",
+        FS,
+        None,
+        [
+            Record("a.csv", "s", "l", "linear", t, f, y, sensors=TWO),
+            Record("b.csv", "s", "l", "nonlinear", t, f, y[:, 0]),
+        ],
+    )
+    with pytest.raises(
+        SensorError,
+        match=r"test b.csv has sensors .* every test of a data set has "
+        r"the same sensors",
+    ):
         mixed.validate()
     with pytest.raises(DatasetError, match=r"extra key\(s\) \['response'\]"):
         Dataset("m", FS, None, [one], extra={"response": "velocity"}).validate()
@@ -223,10 +280,14 @@ def test_uff_holds_a_single_velocity_only(tmp_path):
     beam = Dataset("b", FS, None, [Record("x.csv", "s", "l", "linear", t, f, y)])
     (tmp_path / "d").mkdir()
     write_uff(beam, tmp_path / "d" / "x.uff")
-    (tmp_path / "d" / "dataset.json").write_text(json.dumps(
-        {"sampling_rate_hz": FS, "response": "displacement", "tests": [{"file": "x.uff", "role": "linear"}]}))
-    with pytest.raises(SensorError, match=r"x.uff: a UFF test file holds force and velocity records "
-                                          r"only.*write this test as a CSV file"):
+    (tmp_path / "d" / "dataset.json").write_text(
+        json.dumps({"sampling_rate_hz": FS, "response": "displacement", "tests": [{"file": "x.uff", "role": "linear"}]})
+    )
+    with pytest.raises(
+        SensorError,
+        match=r"x.uff: a UFF test file holds force and velocity records "
+        r"only.*write this test as a CSV file",
+    ):
         read_dataset(tmp_path / "d")
 
 
@@ -236,21 +297,19 @@ def test_rig_block_is_kept_raw_and_read_by_the_beam_code(tmp_path):
     from bayes_update.models.beam.rig import rig_of
 
     folder, _ = displacement_folder(tmp_path)
-    assert rig_of(read_dataset(folder)) == fe.Rig()                    # absent block: the paper's rig
+    assert rig_of(read_dataset(folder)) == fe.Rig()  # absent block: the paper's rig
     meta = json.loads((folder / "dataset.json").read_text())
     meta["rig"] = {"sensor_position_m": 0.3, "length_m": 0.6}
     (folder / "dataset.json").write_text(json.dumps(meta))
     ds = read_dataset(folder)
-    assert ds.rig == {"sensor_position_m": 0.3, "length_m": 0.6}        # as written, key order too
-    assert rig_of(ds) == fe.Rig(length_m=0.6, sensor_position_m=0.3)    # factor 1.0 when absent
+    assert ds.rig == {"sensor_position_m": 0.3, "length_m": 0.6}  # as written, key order too
+    assert rig_of(ds) == fe.Rig(length_m=0.6, sensor_position_m=0.3)  # factor 1.0 when absent
     out = write_dataset(ds, tmp_path / "w")
-    assert json.loads((out / "dataset.json").read_text())["rig"] == {"sensor_position_m": 0.3,
-                                                                     "length_m": 0.6}
-    rig = fe.Rig(bending_stiffness_factor=1.24)                        # the beam builds with an fe.Rig
+    assert json.loads((out / "dataset.json").read_text())["rig"] == {"sensor_position_m": 0.3, "length_m": 0.6}
+    rig = fe.Rig(bending_stiffness_factor=1.24)  # the beam builds with an fe.Rig
     built = two_sensor_dataset(rig)
     assert built.rig is rig and rig_of(built) is rig
-    assert json.loads((write_dataset(built, tmp_path / "r") / "dataset.json").read_text())["rig"] == \
-        rig.to_dict()
+    assert json.loads((write_dataset(built, tmp_path / "r") / "dataset.json").read_text())["rig"] == rig.to_dict()
     with pytest.raises(DatasetError, match="rig must be None, the rig block"):
         two_sensor_dataset(rig=3.0).validate()
 

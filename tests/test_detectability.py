@@ -4,16 +4,21 @@ tests/test_user_discrepancy.py: a quadratic spring k2 and a quadratic damper c2)
 the detectability limit computed on records without any effect is checked by
 running the whole discrepancy workflow on records holding the effect at twice the
 limit (named) and at half of it (not named)."""
+
 import pytest
+from test_user_discrepancy import Duffing, make_dataset
 
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
-from test_user_discrepancy import Duffing, make_dataset
 
 
 def _run(hidden=None, detectability=False):
-    return find_discrepancy(make_dataset(hidden), Duffing(),
-                            settings=DiscrepancySettings.quick(detectability=detectability), workers=2,
-                            log=lambda *a: None)
+    return find_discrepancy(
+        make_dataset(hidden),
+        Duffing(),
+        settings=DiscrepancySettings.quick(detectability=detectability),
+        workers=2,
+        log=lambda *a: None,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -49,6 +54,6 @@ def test_a_limit_below_the_ladder_is_said_to_be_an_upper_bound():
     # 2 ln B = 6 * e^-1 at 1e-3 and 6 * e at 1e-2: the margin crosses zero half way (in log m)
     inside = [(1e-3, 6.0 / 2.718281828, 50.0), (1e-2, 6.0 * 2.718281828, 50.0)]
     rec = _limit(inside, p, [0.0], [2.0])
-    assert not rec["below_ladder"] and abs(rec["magnitude"] - 10 ** -2.5) < 1e-9
-    assert limit_text(rec) == f"c2 = {2 * 10 ** -2.5:.3g}"
+    assert not rec["below_ladder"] and abs(rec["magnitude"] - 10**-2.5) < 1e-9
+    assert limit_text(rec) == f"c2 = {2 * 10**-2.5:.3g}"
     assert limit_text(_limit([(1.0, 2.0, 0.1)], p, [0.0], [2.0])) == "not even at its prior's bound"

@@ -11,11 +11,12 @@ both, both (the rig with one of them: benchmarks/discrepancy_cases.py); every na
 within 2 sd of the rig's, each held-out test predicted better with each named
 effect, and the filters' gap reported in numbers.  The full-size runs are
 benchmarks/discrepancy_cases.py (CIRCUIT_CASES)."""
+
 from __future__ import annotations
 
+import circuit_kit
 import pytest
 
-import circuit_kit
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
 
 EFFECTS = {"k2": "quadratic_stiffness", "nu": "velocity_damping"}
@@ -23,12 +24,23 @@ EFFECTS = {"k2": "quadratic_stiffness", "nu": "velocity_damping"}
 
 # each case makes four records through the rig's DOP853 (about 30 s each): the case without
 # an effect, which the cantilever's and the beam's null cases check too, runs with -m slow
-@pytest.mark.parametrize("rig", [pytest.param({"k2": 0.0, "nu": 0.0}, marks=pytest.mark.slow, id="neither"),
-                                 pytest.param({"k2": -0.1, "nu": 2.0e-5}, id="both")])
+@pytest.mark.parametrize(
+    "rig",
+    [
+        pytest.param({"k2": 0.0, "nu": 0.0}, marks=pytest.mark.slow, id="neither"),
+        pytest.param({"k2": -0.1, "nu": 2.0e-5}, id="both"),
+    ],
+)
 def test_the_rigs_effects_are_named_and_the_filters_gap_reported(rig):
     data = circuit_kit.make_dataset(circuit_kit.SET_A + circuit_kit.HELD_OUT, **rig)
-    res = find_discrepancy(data, circuit_kit.OscillatorWithCandidates(), settings=DiscrepancySettings.quick(),
-                           workers=2, progress=False, log=lambda *a: None)
+    res = find_discrepancy(
+        data,
+        circuit_kit.OscillatorWithCandidates(),
+        settings=DiscrepancySettings.quick(),
+        workers=2,
+        progress=False,
+        log=lambda *a: None,
+    )
     hidden = sorted(EFFECTS[k] for k, v in rig.items() if v)
     assert sorted(res.named) == hidden, res.gap_sentence()
     effects = res.to_json()["final_mode"]["effects"]

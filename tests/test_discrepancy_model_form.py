@@ -12,21 +12,28 @@ evidence; without the spring nothing is decisive; either way a gap is reported a
 numbers, never hidden.  (With a front end that read one of the two modes the
 baseline predicted the held-out tests worse, 36.8 %, and the spring was named.)
 The full-size run is benchmarks/discrepancy_cases.py (FORM_CASES)."""
+
 from __future__ import annotations
 
 import math
 
+import cantilever_kit
 import pytest
 
-import cantilever_kit
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
 from bayes_update.core.effects import DECISIVE, evidence_table
 
 
 def _run(k3):
     data = cantilever_kit.make_dataset(k3=k3, seed=41)
-    return find_discrepancy(data, cantilever_kit.TwoModes(), settings=DiscrepancySettings.quick(), workers=1,
-                            progress=False, log=lambda *a: None)
+    return find_discrepancy(
+        data,
+        cantilever_kit.TwoModes(),
+        settings=DiscrepancySettings.quick(),
+        workers=1,
+        progress=False,
+        log=lambda *a: None,
+    )
 
 
 @pytest.fixture(scope="module")

@@ -3,14 +3,15 @@ independent: nested fits that are fits (a candidate with a prior so wide that a
 start a tenth of its range from the null is far from anything the data allow),
 the held-out gain's noise (Monte Carlo over noise realisations of a record), and
 "tests disagree" only where a prediction would show it."""
+
 import numpy as np
 import pytest
+from test_user_discrepancy import Duffing, make_dataset
 
 from bayes_update import Parameter
 from bayes_update.core.checks import test_disagreement as disagreement
 from bayes_update.core.effects import DECISIVE
 from bayes_update.core.held_out import describe, held_out_comparison
-from test_user_discrepancy import Duffing, make_dataset
 
 
 class WideDuffing(Duffing):
@@ -18,14 +19,16 @@ class WideDuffing(Duffing):
     any test could show: its fits start +-0.1 of that range from the null."""
 
     def candidate_effects(self):
-        return {"k2": [Parameter("k2", -2.0e4, 2.0e4, unit="1e5 N/m^2", null=0.0)],
-                "c2": [Parameter("c2", 0.0, 5.0, unit="N s^2/m^2", null=0.0)]}
+        return {
+            "k2": [Parameter("k2", -2.0e4, 2.0e4, unit="1e5 N/m^2", null=0.0)],
+            "c2": [Parameter("c2", 0.0, 5.0, unit="N s^2/m^2", null=0.0)],
+        }
 
     def simulate(self, theta, force, fs):
         from bayes_update import ModelError
 
         y = super().simulate(theta, force, fs)
-        if not np.all(np.isfinite(y)):                 # such a spring throws the oscillator off
+        if not np.all(np.isfinite(y)):  # such a spring throws the oscillator off
             raise ModelError("the response diverges")
         return y
 
@@ -33,8 +36,9 @@ class WideDuffing(Duffing):
 def test_a_far_start_never_gives_a_bayes_factor_below_a_failed_fit():
     from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
 
-    res = find_discrepancy(make_dataset(), WideDuffing(), settings=DiscrepancySettings.quick(), workers=2,
-                           log=lambda *a: None)
+    res = find_discrepancy(
+        make_dataset(), WideDuffing(), settings=DiscrepancySettings.quick(), workers=2, log=lambda *a: None
+    )
     for rnd in res.rounds:
         for row in rnd["candidates"]:
             # a nested fit ends no worse than the model without it (the null is one of its starts)
@@ -64,8 +68,8 @@ def test_the_held_out_gain_of_two_equal_models_is_noise_of_the_stated_sd():
     rng = np.random.default_rng(0)
     n, sigma = 3000, 0.2
     truth = np.sin(np.linspace(0, 60, n))
-    m0 = truth + 0.05 * np.cos(np.linspace(0, 17, n))        # two models as far from the truth,
-    m1 = truth - 0.05 * np.cos(np.linspace(0, 17, n))        # on either side of it
+    m0 = truth + 0.05 * np.cos(np.linspace(0, 17, n))  # two models as far from the truth,
+    m1 = truth - 0.05 * np.cos(np.linspace(0, 17, n))  # on either side of it
     z = []
     for _ in range(2000):
         y = truth + sigma * rng.standard_normal(n)
@@ -114,10 +118,10 @@ def test_tests_disagree_only_where_a_prediction_would_show_it():
     def case(n):
         J = rng.standard_normal((2 * n, 1))
         H = [float(J[:n, 0] @ J[:n, 0]), float(J[n:, 0] @ J[n:, 0])]
-        delta = 10.0 * np.sqrt(1.0 / H[0] + 1.0 / H[1])            # 10 combined sd
+        delta = 10.0 * np.sqrt(1.0 / H[0] + 1.0 / H[1])  # 10 combined sd
         r = np.concatenate([J[:n, 0] * delta / 2, -J[n:, 0] * delta / 2])
         return disagreement(J, r, {"low": slice(0, n), "high": slice(n, 2 * n)}, ["k"], np.array([1e3]))
 
-    found = case(20)                              # 3.2 noise sd: told
+    found = case(20)  # 3.2 noise sd: told
     assert found and found[0]["sd"] == pytest.approx(10.0, rel=1e-6) and found[0]["prediction_change_noise_sd"] > 2
-    assert case(20000) == []                      # 0.1 noise sd: not worth a warning
+    assert case(20000) == []  # 0.1 noise sd: not worth a warning

@@ -13,8 +13,9 @@ DOCS_API = Path(__file__).resolve().parents[1] / "docs" / "api"
 def test_api_reference_builds_without_warnings(tmp_path):
     os.environ.setdefault("MPLBACKEND", "Agg")  # autodoc imports every module (conf.py sets it too)
     warnings = tmp_path / "warnings.txt"
-    status = build_main(["-W", "--keep-going", "-q", "-E", "-b", "html", "-w", str(warnings),
-                         str(DOCS_API), str(tmp_path / "html")])
+    status = build_main(
+        ["-W", "--keep-going", "-q", "-E", "-b", "html", "-w", str(warnings), str(DOCS_API), str(tmp_path / "html")]
+    )
     text = warnings.read_text() if warnings.exists() else ""
     assert status == 0, f"sphinx-build failed ({status}):\n{text}"
     assert not text.strip(), text

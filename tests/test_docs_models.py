@@ -42,8 +42,9 @@ def test_the_example_model_is_right():
 
 
 def test_the_example_runs(tmp_path):
-    from bayes_update.data.folder import write_dataset
     from test_user_model import make_dataset
+
+    from bayes_update.data.folder import write_dataset
 
     model_code, use_code = _blocks("python")[:2]
     write_dataset(make_dataset(seed=5, truth={"gain": 1.0, "k2": 0.0}), tmp_path / "my_test")

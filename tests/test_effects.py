@@ -1,4 +1,5 @@
 """The effects catalogue (fe.effects) against independent results."""
+
 import numpy as np
 import pytest
 
@@ -9,8 +10,12 @@ P = fe.Parameters.from_paper_units(3, 15, 60, 180)
 
 
 def test_catalogue_has_the_four_names():
-    assert set(fe.EFFECTS) == {"initial_imperfection", "amplitude_dependent_damping", "shaker_attachment",
-                               "clamp_compliance"}
+    assert set(fe.EFFECTS) == {
+        "initial_imperfection",
+        "amplitude_dependent_damping",
+        "shaker_attachment",
+        "clamp_compliance",
+    }
 
 
 @pytest.mark.parametrize("kind", ["mass", "stiffness"])
@@ -22,9 +27,10 @@ def test_shaker_attachment_matches_first_order_perturbation(kind):
     node = int(np.argmin(np.abs(base.node_x - base.rig.shaker_position_m)))
     eff = ShakerAttachment(mass=1e-4) if kind == "mass" else ShakerAttachment(stiffness=20.0)
     changed = fe.BeamModel(n_elements=20, effects=(eff,)).modal_analysis(
-        fe.Parameters(eta=0.0, c=0.0, F=P.F, k_s=P.k_s), 3)
+        fe.Parameters(eta=0.0, c=0.0, F=P.F, k_s=P.k_s), 3
+    )
     for j in range(3):
-        phi = modes.shapes[:, j]                      # mass-normalised, all dofs
+        phi = modes.shapes[:, j]  # mass-normalised, all dofs
         w2 = (2 * np.pi * modes.frequencies_hz[j]) ** 2
         s = phi[3 * node + 1] ** 2
         expected = -w2 * 1e-4 * s if kind == "mass" else 20.0 * s
@@ -40,7 +46,7 @@ def test_clamp_compliance_limits_give_clamped_and_pinned_buckling():
     soft = fe.BeamModel(n_elements=24, effects=(ClampCompliance(1e-6 * ei / L),)).buckling_load()
     assert stiff == pytest.approx(clamped, rel=1e-4)
     # pinned at the bottom, clamped (sliding) at the top: P_cr = 20.19 EI / L^2
-    assert soft == pytest.approx(20.19073 * ei / L ** 2, rel=2e-3)
+    assert soft == pytest.approx(20.19073 * ei / L**2, rel=2e-3)
     assert fe.BeamModel(n_elements=24, effects=(ClampCompliance(10 * ei / L),)).buckling_load() < clamped
 
 
@@ -88,8 +94,9 @@ def free_decay_peaks(effects, substeps=4, amplitude=2e-3, n_samples=1024):
     modes = model.modal_analysis(FREE_TOP, 1)
     phi = modes.shapes[:, 0]
     mid = np.argmin(np.abs(model.node_x - model.rig.length_m / 2))
-    d = model.simulate(FREE_TOP, np.zeros(n_samples), 1024.0,
-                       initial_displacement=amplitude * phi / phi[3 * mid + 1]).sensor_displacement
+    d = model.simulate(
+        FREE_TOP, np.zeros(n_samples), 1024.0, initial_displacement=amplitude * phi / phi[3 * mid + 1]
+    ).sensor_displacement
     i = np.flatnonzero((d[1:-1] > d[:-2]) & (d[1:-1] >= d[2:])) + 1
     y0, y1, y2 = d[i - 1], d[i], d[i + 1]
     t = (i + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2)) / 1024.0
@@ -100,9 +107,8 @@ def free_decay_peaks(effects, substeps=4, amplitude=2e-3, n_samples=1024):
 
 def extra_decay(effect, substeps):
     """ln(A_without / A_with) along the decay: simulated, and from the energy balance."""
-    from scipy.integrate import solve_ivp
-
     from reference import first_mode_shape_integrals
+    from scipy.integrate import solve_ivp
 
     rig = fe.Rig()
     f1, alpha, M = first_mode_shape_integrals(rig.EI, rig.mass_per_length, rig.length_m, FREE_TOP.F)
@@ -112,16 +118,28 @@ def extra_decay(effect, substeps):
     def energy_per_period(A):
         V = alpha * A * A * w
         if effect.kind == "coulomb":
-            return 2 * np.pi / w * effect.friction_force * V * np.mean(
-                np.sin(th) * np.tanh(V * np.sin(th) / effect.velocity_scale))
-        return 2 * np.pi / w * effect.coefficient * V ** 3 * 4 / (3 * np.pi)
+            return (
+                2
+                * np.pi
+                / w
+                * effect.friction_force
+                * V
+                * np.mean(np.sin(th) * np.tanh(V * np.sin(th) / effect.velocity_scale))
+            )
+        return 2 * np.pi / w * effect.coefficient * V**3 * 4 / (3 * np.pi)
 
     t0, p0 = free_decay_peaks((), substeps)
     t, p = free_decay_peaks((effect,), substeps)
-    assert t.size == t0.size and np.max(np.abs(t - t0)) < 2e-3       # the same cycles
+    assert t.size == t0.size and np.max(np.abs(t - t0)) < 2e-3  # the same cycles
     sigma0 = -np.polyfit(t0, np.log(p0), 1)[0]
-    sol = solve_ivp(lambda tt, y: [-sigma0 - energy_per_period(np.exp(y[0])) / (2 * np.pi * M * w * np.exp(2 * y[0]))],
-                    (t[0], t[-1]), [np.log(p[0])], t_eval=t, rtol=1e-10, atol=1e-12)
+    sol = solve_ivp(
+        lambda tt, y: [-sigma0 - energy_per_period(np.exp(y[0])) / (2 * np.pi * M * w * np.exp(2 * y[0]))],
+        (t[0], t[-1]),
+        [np.log(p[0])],
+        t_eval=t,
+        rtol=1e-10,
+        atol=1e-12,
+    )
     expected = np.log(p[0]) - sigma0 * (t - t[0]) - sol.y[0]
     simulated = np.log(p0 / p) - np.log(p0[0] / p[0])
     return simulated, expected
@@ -171,16 +189,21 @@ def test_an_effect_at_its_null_or_on_a_bound_is_flagged_and_not_named():
 
     from bayes_update.core.fits import DECISIVE, effect_at_bound, effect_at_null, names_effect
 
-    def fit(x):   # one base coordinate, one effect coordinate on [0, 5] with null 0
-        space = SimpleNamespace(box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]), n_base=1,
-                                null_internal=lambda: np.array([0.0]))     # the added parameters' nulls
+    def fit(x):  # one base coordinate, one effect coordinate on [0, 5] with null 0
+        space = SimpleNamespace(
+            box=lambda: np.array([[0.0, 1.0], [0.0, 5.0]]), n_base=1, null_internal=lambda: np.array([0.0])
+        )  # the added parameters' nulls
         return SimpleNamespace(space=space, mode=SimpleNamespace(x=np.array([0.5, x])), covariance=np.eye(2) * 0.01)
 
     rows = {}
     for label, x in (("at null", 3e-32), ("on bound", 5.0), ("inside", 2.0)):
         f = fit(x)
-        rows[label] = {"two_ln_B": 10 * DECISIVE, "excludes_null": True, "at_null": effect_at_null(f, 1),
-                       "at_bound": effect_at_bound(f, 1)}
+        rows[label] = {
+            "two_ln_B": 10 * DECISIVE,
+            "excludes_null": True,
+            "at_null": effect_at_null(f, 1),
+            "at_bound": effect_at_bound(f, 1),
+        }
     assert rows["at null"]["at_null"] and not rows["at null"]["at_bound"]
     assert rows["on bound"]["at_bound"] and not rows["on bound"]["at_null"]
     assert not rows["inside"]["at_null"] and not rows["inside"]["at_bound"]
@@ -198,9 +221,12 @@ def test_a_pair_is_named_only_inside_its_priors_and_beyond_each_member_alone():
     assert names_pair(row, partner_alone=545.0, first_alone=600.0)
     # a partner that is nothing alone (masked by the other's missing share) is named with it
     assert names_pair(row, partner_alone=-7.0, first_alone=600.0)
-    assert not names_pair(row, partner_alone=900.0 - DECISIVE / 2, first_alone=600.0)  # the damper adds nothing decisive
-    assert not names_pair(row, partner_alone=-7.0, first_alone=900.0 - DECISIVE / 2)    # nor does the bow
+    assert not names_pair(
+        row, partner_alone=900.0 - DECISIVE / 2, first_alone=600.0
+    )  # the damper adds nothing decisive
+    assert not names_pair(row, partner_alone=-7.0, first_alone=900.0 - DECISIVE / 2)  # nor does the bow
     assert not names_pair({**row, "members": {"damper": {**inside, "at_bound": True}, "bow": inside}}, 545.0, 600.0)
-    assert not names_pair({**row, "members": {"damper": inside, "bow": {**inside, "excludes_null": False}}},
-                          545.0, 600.0)
+    assert not names_pair(
+        {**row, "members": {"damper": inside, "bow": {**inside, "excludes_null": False}}}, 545.0, 600.0
+    )
     assert not names_pair({**row, "two_ln_B": DECISIVE / 2}, partner_alone=-100.0, first_alone=-100.0)

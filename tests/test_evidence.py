@@ -1,4 +1,5 @@
 """The importance-sampling log evidence against closed forms."""
+
 import numpy as np
 import pytest
 
@@ -11,7 +12,7 @@ def _gaussian(d, seed):
     cov = A @ A.T + 0.3 * np.eye(d)
     mean = rng.normal(size=d)
     P = np.linalg.inv(cov)
-    c = -3.7                                    # an arbitrary constant in the log density
+    c = -3.7  # an arbitrary constant in the log density
 
     def logp(X):
         D = np.atleast_2d(X) - mean

@@ -1,4 +1,5 @@
 """The force between samples (fe.excitation)."""
+
 import numpy as np
 import pytest
 
@@ -23,7 +24,7 @@ def test_bandlimited_interpolation_recovers_the_sine_between_samples(f):
     x = sampled_sine(f)
     fine = upsample(x, 4)
     exact = sampled_sine(f, factor=4)
-    mid = slice(4 * 200, -4 * 200)          # away from the record's ends
+    mid = slice(4 * 200, -4 * 200)  # away from the record's ends
     assert np.max(np.abs(fine[mid] - exact[mid])) < 2e-5
     # the input's own samples come back (the filter is not an exact Nyquist filter)
     assert np.max(np.abs(fine[::4][200:-200] - x[200:-200])) < 2e-5
@@ -45,7 +46,7 @@ def test_bandlimited_interpolation_is_the_documented_fir(factor):
     stuffed = np.zeros((x.size - 1) * factor + 1)
     stuffed[::factor] = x
     delay = (n_taps - 1) // 2
-    reference = np.convolve(stuffed, factor * h)[delay:delay + stuffed.size]
+    reference = np.convolve(stuffed, factor * h)[delay : delay + stuffed.size]
     out = upsample(x, factor)
     assert out.shape == reference.shape
     assert np.max(np.abs(out - reference)) < 1e-12

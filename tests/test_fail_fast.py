@@ -7,18 +7,19 @@ them).  Each asserts the order instead: the model runs at most once (a model tha
 runs), and the long steps are never reached (each replaced by a stand-in that fails the test
 when it is called).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
 import pytest
+from new_user_kit import Spring, make_dataset
 
 import bayes_update as bu
 from bayes_update import DatasetError, ModelRunError, ModelSpecError, Parameter
 from bayes_update.cli import main
 from bayes_update.data.folder import write_dataset
-from new_user_kit import Spring, make_dataset
 
 HERE = __file__
 
@@ -75,12 +76,12 @@ class RefinedNone(Counting):
 
 
 class RefineMisspelt(Counting):
-    def refine(self):                   # meant as refined(): the framework would ignore it
+    def refine(self):  # meant as refined(): the framework would ignore it
         return Counting()
 
 
 class EffectMisspelt(Counting):
-    def candidate_effect(self):         # meant as candidate_effects()
+    def candidate_effect(self):  # meant as candidate_effects()
         return {"k2": [Parameter("k2", -1.0, 1.0, null=0.0)]}
 
 
@@ -114,7 +115,7 @@ def fresh_counts():
     Counting.runs, Counting.thetas = 0, []
     from bayes_update.core import preflight
 
-    preflight._PASSED.clear()                # each test checks from scratch
+    preflight._PASSED.clear()  # each test checks from scratch
     yield
 
 
@@ -128,13 +129,14 @@ def no_long_steps(monkeypatch):
     def reached(what):
         def stand_in(*args, **kwargs):
             raise LongStepReached(f"the error came after a long step began: {what}")
+
         return stand_in
 
     monkeypatch.setattr(commands, "_first_look", reached("the first look at the data"))
     monkeypatch.setattr(problem.Problem, "__init__", reached("the problem (basis fit, noise estimate)"))
     try:
         import distributed
-    except ImportError:              # a dev extra: without it --scheduler stops at its own check
+    except ImportError:  # a dev extra: without it --scheduler stops at its own check
         return
     monkeypatch.setattr(distributed, "Client", reached("Dask's client"))
 
@@ -153,8 +155,7 @@ def _roles(data, **roles):
     """``data`` with the given tests' roles changed ({test name: role})."""
     import dataclasses
 
-    return dataclasses.replace(data, tests=[dataclasses.replace(t, role=roles.get(t.name, t.role))
-                                            for t in data.tests])
+    return dataclasses.replace(data, tests=[dataclasses.replace(t, role=roles.get(t.name, t.role)) for t in data.tests])
 
 
 def _cli(capsys, *argv):
@@ -173,9 +174,11 @@ def _one_line(exc) -> str:
     return text
 
 
-API = {"calibrate": lambda d, m: bu.calibrate(d, m, workers=1, progress=False, n_start=8),
-       "sample": lambda d, m: bu.sample(d, m, bu.PosteriorSettings.quick(), workers=1, progress=False),
-       "discrepancy": lambda d, m: bu.find_discrepancy(d, m, workers=1)}
+API = {
+    "calibrate": lambda d, m: bu.calibrate(d, m, workers=1, progress=False, n_start=8),
+    "sample": lambda d, m: bu.sample(d, m, bu.PosteriorSettings.quick(), workers=1, progress=False),
+    "discrepancy": lambda d, m: bu.find_discrepancy(d, m, workers=1),
+}
 
 
 # ------------------------------------------------------------- the model's one check run
@@ -183,7 +186,7 @@ API = {"calibrate": lambda d, m: bu.calibrate(d, m, workers=1, progress=False, n
 def test_cli_a_response_one_sample_short_is_told_after_one_run(verb, folder, tmp_path, capsys, no_long_steps):
     line = _cli(capsys, verb, "--model", f"{HERE}:ShortByOne", "--data", str(folder), "--out", str(tmp_path / "o"))
     assert "ShortByOne.simulate returned shape (2047,) for a force of 2048 samples" in line, line
-    assert "fn = 25 Hz" in line and "one value per input sample" in line, line      # theta, remedy
+    assert "fn = 25 Hz" in line and "one value per input sample" in line, line  # theta, remedy
     assert Counting.runs == 1
     assert not (tmp_path / "o").exists()
 
@@ -207,7 +210,7 @@ def test_the_check_run_is_at_the_middle_of_the_prior_with_every_effect_at_its_nu
 def test_api_nan_in_the_response_is_told_after_one_run(data, no_long_steps):
     with pytest.raises(ModelRunError, match="NaNAtTheMiddle.simulate returned 1 non-finite") as info:
         API["sample"](data, NaNAtTheMiddle())
-    assert "ModelError" in _one_line(info.value)          # the remedy: raise ModelError, never NaN
+    assert "ModelError" in _one_line(info.value)  # the remedy: raise ModelError, never NaN
     assert Counting.runs == 1
 
 
@@ -228,8 +231,9 @@ def test_a_complex_response_is_refused_not_cast(data, no_long_steps):
 # -------------------------------------------------------------- the data set's structure
 def test_cli_two_tests_nonlinear_before_any_model_run(data, tmp_path, capsys, no_long_steps):
     two = write_dataset(_roles(data, medium_check="nonlinear"), tmp_path / "two")
-    line = _cli(capsys, "sample", "--quick", "--model", f"{HERE}:Counting", "--data", str(two), "--out",
-                str(tmp_path / "o"))
+    line = _cli(
+        capsys, "sample", "--quick", "--model", f"{HERE}:Counting", "--data", str(two), "--out", str(tmp_path / "o")
+    )
     assert "2 tests have role 'nonlinear'" in line and "'validation'" in line, line
     assert Counting.runs == 0
 
@@ -250,25 +254,56 @@ def test_cli_an_unreachable_scheduler_before_the_data_is_read(folder, tmp_path, 
     import bayes_update.cli.commands as commands
 
     monkeypatch.setattr(commands, "read_dataset", lambda *a: (_ for _ in ()).throw(LongStepReached("data read")))
-    line = _cli(capsys, "calibrate", "--model", f"{HERE}:Counting", "--data", str(folder), "--out",
-                str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:9")
+    line = _cli(
+        capsys,
+        "calibrate",
+        "--model",
+        f"{HERE}:Counting",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+        "--scheduler",
+        "tcp://127.0.0.1:9",
+    )
     assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answers there" in line and "start one" in line, line
     assert Counting.runs == 0
-    line = _cli(capsys, "sample", "--model", f"{HERE}:Counting", "--data", str(folder), "--out",
-                str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:port")
+    line = _cli(
+        capsys,
+        "sample",
+        "--model",
+        f"{HERE}:Counting",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+        "--scheduler",
+        "tcp://127.0.0.1:port",
+    )
     assert "expected tcp://HOST:PORT" in line, line
 
 
 # -------------------------------------------------------------- the optional members
 def test_cli_refined_none_is_told_in_one_line_before_any_run(folder, tmp_path, capsys, no_long_steps):
-    line = _cli(capsys, "sample", "--quick", "--model", f"{HERE}:RefinedNone", "--data", str(folder), "--out",
-                str(tmp_path / "o"))
+    line = _cli(
+        capsys,
+        "sample",
+        "--quick",
+        "--model",
+        f"{HERE}:RefinedNone",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+    )
     assert "RefinedNone.refined is None" in line and "not a method" in line and "delete it" in line, line
     assert Counting.runs == 0
 
 
-@pytest.mark.parametrize("cls, name, hook", [(RefineMisspelt, "refine", "refined"),
-                                             (EffectMisspelt, "candidate_effect", "candidate_effects")])
+@pytest.mark.parametrize(
+    "cls, name, hook",
+    [(RefineMisspelt, "refine", "refined"), (EffectMisspelt, "candidate_effect", "candidate_effects")],
+)
 @pytest.mark.parametrize("verb", ["calibrate", "sample"])
 def test_api_a_misspelt_hook_is_named_with_the_hook_it_is_close_to(verb, cls, name, hook, data, no_long_steps):
     with pytest.raises(ModelSpecError) as info:
@@ -279,8 +314,13 @@ def test_api_a_misspelt_hook_is_named_with_the_hook_it_is_close_to(verb, cls, na
     assert Counting.runs == 0
 
 
-@pytest.mark.parametrize("cls, what", [(EffectsNotCallable, "candidate_effects is {"),
-                                       (MetricsMisnamed, "default_metrics is 'ful'; it must be 'full' or 'paper'")])
+@pytest.mark.parametrize(
+    "cls, what",
+    [
+        (EffectsNotCallable, "candidate_effects is {"),
+        (MetricsMisnamed, "default_metrics is 'ful'; it must be 'full' or 'paper'"),
+    ],
+)
 def test_api_an_optional_member_of_the_wrong_type(cls, what, data, no_long_steps):
     with pytest.raises(ModelSpecError) as info:
         API["sample"](data, cls())
@@ -291,17 +331,19 @@ def test_api_an_optional_member_of_the_wrong_type(cls, what, data, no_long_steps
 def test_the_models_of_the_repository_are_not_taken_for_misspelt_ones():
     """The contract's check refuses no model this repository ships or tests with: the beam (all
     its hooks), the docs' Duffing, the lab chain, the OpenSeesPy frame's file, the new user's."""
-    from bayes_update import load_model
-    from bayes_update.core.model import check_contract
-    from bayes_update.models.beam.model import beam_model
     from test_measured_records import LabChain
     from test_user_model import Duffing
 
+    from bayes_update import load_model
+    from bayes_update.core.model import check_contract
+    from bayes_update.models.beam.model import beam_model
+
     models = [beam_model(None, "rom"), Duffing(), LabChain(), Spring(), Counting()]
     try:
-        models.append(load_model(str(Path(HERE).resolve().parents[1] / "notebooks" / "portal_frame.py")
-                                 + ":PortalFrame"))
-    except ModelSpecError:           # openseespy is a dev extra
+        models.append(
+            load_model(str(Path(HERE).resolve().parents[1] / "notebooks" / "portal_frame.py") + ":PortalFrame")
+        )
+    except ModelSpecError:  # openseespy is a dev extra
         pass
     for model in models:
         check_contract(model)
@@ -310,35 +352,64 @@ def test_the_models_of_the_repository_are_not_taken_for_misspelt_ones():
 def test_cli_parameters_that_are_not_parameter_objects_with_a_prior(folder, tmp_path, capsys, no_long_steps):
     """--prior read the declared parameters before any check: a tuple ended in an AttributeError's
     traceback."""
-    line = _cli(capsys, "calibrate", "--model", f"{HERE}:TupleParameters", "--data", str(folder), "--out",
-                str(tmp_path / "o"), "--prior", "fn=20:30")
+    line = _cli(
+        capsys,
+        "calibrate",
+        "--model",
+        f"{HERE}:TupleParameters",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+        "--prior",
+        "fn=20:30",
+    )
     assert "TupleParameters.parameters" in line and "bayes_update.Parameter" in line, line
     assert Counting.runs == 0
 
 
 # ------------------------------------------------------------------------ the settings
-def test_cli_an_unknown_calibrate_setting_before_the_data_is_read(folder, tmp_path, capsys, monkeypatch,
-                                                                   no_long_steps):
+def test_cli_an_unknown_calibrate_setting_before_the_data_is_read(folder, tmp_path, capsys, monkeypatch, no_long_steps):
     import bayes_update.cli.commands as commands
 
     monkeypatch.setattr(commands, "read_dataset", lambda *a: (_ for _ in ()).throw(LongStepReached("data read")))
     cfg = tmp_path / "c.toml"
     cfg.write_text("[calibrate]\nn_starts = 8\n")
-    line = _cli(capsys, "calibrate", "--model", f"{HERE}:Counting", "--data", str(folder), "--out",
-                str(tmp_path / "o"), "--config", str(cfg))
+    line = _cli(
+        capsys,
+        "calibrate",
+        "--model",
+        f"{HERE}:Counting",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+        "--config",
+        str(cfg),
+    )
     assert "unknown setting(s) ['n_starts']" in line and "n_start" in line, line
     cfg.write_text("[calibrate]\nn_start = 'many'\n")
-    line = _cli(capsys, "calibrate", "--model", f"{HERE}:Counting", "--data", str(folder), "--out",
-                str(tmp_path / "o"), "--config", str(cfg))
+    line = _cli(
+        capsys,
+        "calibrate",
+        "--model",
+        f"{HERE}:Counting",
+        "--data",
+        str(folder),
+        "--out",
+        str(tmp_path / "o"),
+        "--config",
+        str(cfg),
+    )
     assert "must be whole numbers" in line, line
 
 
 @pytest.mark.parametrize("verb", ["calibrate", "discrepancy"])
 def test_cli_prior_reaches_calibrate_and_discrepancy(verb, folder, tmp_path, capsys, monkeypatch):
     """--prior was read and then ignored for a model of your own in calibrate and discrepancy."""
+    import bayes_update.cli.commands as commands
     import bayes_update.core.calibrate as calibrate
     import bayes_update.core.discrepancy as discrepancy
-    import bayes_update.cli.commands as commands
 
     seen = {}
 
@@ -351,8 +422,21 @@ def test_cli_prior_reaches_calibrate_and_discrepancy(verb, folder, tmp_path, cap
     monkeypatch.setattr(commands, "_first_look", lambda *a: None)
     model = "Counting" if verb == "calibrate" else "WithEffects"
     with pytest.raises(LongStepReached):
-        main([verb, "--model", f"{HERE}:{model}", "--data", str(folder), "--out", str(tmp_path / "o"),
-              "--prior", "fn=20:24", "--workers", "1"])
+        main(
+            [
+                verb,
+                "--model",
+                f"{HERE}:{model}",
+                "--data",
+                str(folder),
+                "--out",
+                str(tmp_path / "o"),
+                "--prior",
+                "fn=20:24",
+                "--workers",
+                "1",
+            ]
+        )
     space = seen["space"]
     assert (space["fn"].low, space["fn"].high, space["fn"].unit) == (20.0, 24.0, "Hz")
     assert (space["k"].low, space["k"].high) == (2.0, 8.0)
@@ -361,8 +445,13 @@ def test_cli_prior_reaches_calibrate_and_discrepancy(verb, folder, tmp_path, cap
 def test_calibrate_keeps_to_the_prior_it_is_given(data):
     """The prior given (e.g. --prior) is the one searched: the result, the check run and every
     design point lie inside it."""
-    space = bu.ParameterSet([Parameter("fn", 20.0, 22.0, unit="Hz"), Parameter("zeta", 0.005, 0.1, log=True),
-                             Parameter("k", 2.0, 8.0, unit="kN/m")])
+    space = bu.ParameterSet(
+        [
+            Parameter("fn", 20.0, 22.0, unit="Hz"),
+            Parameter("zeta", 0.005, 0.1, log=True),
+            Parameter("k", 2.0, 8.0, unit="kN/m"),
+        ]
+    )
     cal = bu.calibrate(data, Counting(), space=space, n_start=8, workers=1, progress=False, log=lambda *a: None)
     assert 20.0 <= cal.theta["fn"] <= 22.0 and cal.problem.space is space
     assert Counting.thetas[0]["fn"] == pytest.approx(21.0)
@@ -407,8 +496,20 @@ def test_the_command_line_checks_once_before_its_first_look(folder, tmp_path, ca
 
     monkeypatch.setattr(problem.Problem, "__init__", built)
     with pytest.raises(LongStepReached):
-        main(["sample", "--quick", "--model", f"{HERE}:Counting", "--data", str(folder), "--out",
-              str(tmp_path / "o"), "--workers", "1"])
+        main(
+            [
+                "sample",
+                "--quick",
+                "--model",
+                f"{HERE}:Counting",
+                "--data",
+                str(folder),
+                "--out",
+                str(tmp_path / "o"),
+                "--workers",
+                "1",
+            ]
+        )
     assert order == [("first look", 1), ("problem", 1)]
 
 
@@ -419,6 +520,6 @@ def test_a_model_changed_since_its_check_is_checked_again(data, no_long_steps):
     preflight(data, model)
     preflight(data, model)
     assert Counting.runs == 1
-    model.kind = "velocity"                  # another state: checked again
+    model.kind = "velocity"  # another state: checked again
     preflight(data, model)
     assert Counting.runs == 2

@@ -1,12 +1,11 @@
 """fe: the generalized-alpha transient against closed forms and rates."""
 
-
 import numpy as np
 import pytest
+from reference import first_mode_shape_integrals
 from scipy.integrate import quad
 
 from fe import BeamModel, ConvergenceError, Parameters, Rig, generalized_alpha_coefficients
-from reference import first_mode_shape_integrals
 
 FS = 1024.0
 CONSERVATIVE = Parameters(eta=0.0, c=0.0, F=77.0, k_s=180e3)
@@ -43,8 +42,11 @@ def test_second_order_in_time(rho_inf):
     force = np.zeros(257)
 
     def run(m):
-        return BeamModel(n_elements=6, substeps=m, rho_inf=rho_inf).simulate(
-            params, force, FS, initial_displacement=u0).sensor_displacement
+        return (
+            BeamModel(n_elements=6, substeps=m, rho_inf=rho_inf)
+            .simulate(params, force, FS, initial_displacement=u0)
+            .sensor_displacement
+        )
 
     ref = run(128)
     steps = np.array([2, 4, 8])
@@ -69,13 +71,15 @@ def test_high_frequency_dissipation_and_spectral_radius(rho_inf):
     scheme's amplification matrix step by step; that matrix's spectral radius
     tends to rho_inf as omega dt -> infinity."""
     # a triple (defective) eigenvalue: eigvals resolves it to ~eps^(1/3)
-    assert max(abs(np.linalg.eigvals(sdof_amplification(rho_inf, 1e7)))) == pytest.approx(
-        rho_inf, abs=1e-4)
+    assert max(abs(np.linalg.eigvals(sdof_amplification(rho_inf, 1e7)))) == pytest.approx(rho_inf, abs=1e-4)
     params = Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
     model = BeamModel(n_elements=6, substeps=1, rho_inf=rho_inf)
     modes = model.modal_analysis(params, n_modes=model.n_dof - 5)
-    bending = [j for j in range(modes.shapes.shape[1])
-               if np.abs(modes.shapes[1::3, j]).max() > np.abs(modes.shapes[0::3, j]).max()]
+    bending = [
+        j
+        for j in range(modes.shapes.shape[1])
+        if np.abs(modes.shapes[1::3, j]).max() > np.abs(modes.shapes[0::3, j]).max()
+    ]
     j = bending[-1]
     phi_t = modes.shapes[1::3, j]
     omega = 2 * np.pi * modes.frequencies_hz[j]
@@ -83,11 +87,10 @@ def test_high_frequency_dissipation_and_spectral_radius(rho_inf):
     # small enough to stay linear (the first predictor moves (omega dt)^2/2 q0),
     # large enough for the Newton tolerance floor (~3e-8 N) to be negligible
     q0 = 1e-7 / np.abs(phi_t).max()
-    res = model.simulate(params, np.zeros(15), fs, positions=model.node_x,
-                         initial_displacement=q0 * modes.shapes[:, j])
+    res = model.simulate(params, np.zeros(15), fs, positions=model.node_x, initial_displacement=q0 * modes.shapes[:, j])
     q = res.displacement @ phi_t / (phi_t @ phi_t)
     amp = sdof_amplification(rho_inf, omega / fs)
-    state = np.array([q0, 0.0, -(omega / fs) ** 2 * q0])
+    state = np.array([q0, 0.0, -((omega / fs) ** 2) * q0])
     expected = [q0]
     for _ in range(14):
         state = amp @ state
@@ -183,12 +186,20 @@ def test_hardening_of_the_spring_held_top_is_the_duffing_backbone():
     k3 = 2 * alpha**2 * kb * k_s / (kb + k_s)
 
     def backbone(A):
-        T = 4 * quad(lambda th: 1 / np.sqrt((K + 0.5 * k3 * A * A * (1 + np.sin(th) ** 2)) / M),
-                     0, np.pi / 2, epsabs=0, epsrel=1e-12)[0]
+        T = (
+            4
+            * quad(
+                lambda th: 1 / np.sqrt((K + 0.5 * k3 * A * A * (1 + np.sin(th) ** 2)) / M),
+                0,
+                np.pi / 2,
+                epsabs=0,
+                epsrel=1e-12,
+            )[0]
+        )
         return 1 / T
 
     amplitudes = (1e-3, 2e-3, 3e-3)
-    expected = np.array([backbone(A) - backbone(1e-5) for A in amplitudes])   # 0.181 / 0.717 / 1.586 Hz
+    expected = np.array([backbone(A) - backbone(1e-5) for A in amplitudes])  # 0.181 / 0.717 / 1.586 Hz
     measured = hardening_shift(Parameters(eta=0.0, c=0.0, F=F, k_s=k_s), amplitudes, n_samples=1025)
     np.testing.assert_allclose(measured / expected, 1.0, atol=0.03)
 
@@ -206,10 +217,10 @@ def test_hardening_with_top_spring_or_damper():
     with_damper = hardening_shift(Parameters(c=15e3, k_s=0.0), (3e-3,))[0]
     paper = hardening_shift(Parameters(), (3e-3,))[0]
     free = hardening_shift(Parameters(c=0.0, k_s=0.0, F=74.06), (3e-3,))[0]
-    assert with_spring == pytest.approx(0.899, rel=0.2)   # Hz
+    assert with_spring == pytest.approx(0.899, rel=0.2)  # Hz
     assert with_damper == pytest.approx(0.691, rel=0.2)
     assert paper == pytest.approx(0.937, rel=0.2)
-    assert abs(free) < 0.05 * min(with_spring, with_damper)   # measured -0.0016 Hz
+    assert abs(free) < 0.05 * min(with_spring, with_damper)  # measured -0.0016 Hz
 
 
 def test_newton_failure_names_the_time_step():

@@ -39,11 +39,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from reference import require_reference  # noqa: E402
 
 import fe
 from bayes_update.data.signals import chirp
-
-from reference import require_reference  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import opensees_model as osm  # noqa: E402
@@ -51,8 +50,10 @@ import opensees_model as osm  # noqa: E402
 # The only comparison with an independent code: a missing openseespy (or its
 # system libraries) fails these tests unless BAYES_UPDATE_ALLOW_MISSING_REFERENCES=1.
 _requires_opensees = require_reference(
-    osm.IMPORT_ERROR, "openseespy (the independent code of this comparison)",
-    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3")
+    osm.IMPORT_ERROR,
+    "openseespy (the independent code of this comparison)",
+    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3",
+)
 
 FS = 1024.0
 N_ELEMENTS = 20
@@ -67,8 +68,9 @@ def rel_l2(a, b):
 
 def model(rho_inf=0.9, substeps=SUBSTEPS):
     # OpenSees' Path series interpolates the force linearly between samples
-    return fe.BeamModel(n_elements=N_ELEMENTS, substeps=substeps, rho_inf=rho_inf,
-                        formulation="linear", input_interpolation="linear")
+    return fe.BeamModel(
+        n_elements=N_ELEMENTS, substeps=substeps, rho_inf=rho_inf, formulation="linear", input_interpolation="linear"
+    )
 
 
 # (An earlier fe accepted a Newton predictor already within its tolerance,
@@ -78,8 +80,7 @@ def model(rho_inf=0.9, substeps=SUBSTEPS):
 
 
 # ----------------------------------------------------------------- frequencies
-@pytest.mark.parametrize("params", [fe.Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0), PAPER],
-                         ids=["unloaded", "paper"])
+@pytest.mark.parametrize("params", [fe.Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0), PAPER], ids=["unloaded", "paper"])
 def test_frequencies_agree(params):
     # Same discrete eigenproblem (same element, mass, boundaries, spring): the
     # only differences are round-off and the static Newton tolerances (~2e-9 of
@@ -139,18 +140,36 @@ def test_independent_element_has_fe_forces():
     u[-2:] = 0.0
     a = m._arrays(m.describe(PAPER), PAPER)
     ours = np.empty(beam.n)
-    K.internal_force(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"], a["beta"],
-                     a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"], u, v, ours)
+    K.internal_force(
+        a["X"],
+        a["Y"],
+        a["L0"],
+        a["c0"],
+        a["s0"],
+        a["t0"],
+        a["EA"],
+        a["EI"],
+        a["beta"],
+        a["shallow"],
+        a["d_dof"],
+        a["d_law"],
+        a["d_p1"],
+        a["d_p2"],
+        u,
+        v,
+        ours,
+    )
     theirs = beam.internal_force(u, v)
     assert np.max(np.abs(ours - theirs)) < 1e-12 * np.max(np.abs(theirs))
     k_t, _ = beam.tangents(u, v)
     h = 1e-7
-    fd = np.column_stack([(beam.internal_force(u + h * e, v) - beam.internal_force(u - h * e, v)) / (2 * h)
-                          for e in np.eye(beam.n)])[np.ix_(beam.free, beam.free)]
+    fd = np.column_stack(
+        [(beam.internal_force(u + h * e, v) - beam.internal_force(u - h * e, v)) / (2 * h) for e in np.eye(beam.n)]
+    )[np.ix_(beam.free, beam.free)]
     assert np.max(np.abs(k_t - fd)) < 2e-4 * np.max(np.abs(k_t))
 
 
-@pytest.mark.parametrize("rho_inf", [pytest.param(0.9, marks=pytest.mark.slow), 0.01])   # the budget
+@pytest.mark.parametrize("rho_inf", [pytest.param(0.9, marks=pytest.mark.slow), 0.01])  # the budget
 def test_low_level_chirp_agrees(rho_inf):
     ours, theirs, predicted = compare(LOW, rho_inf)
     # the codes agree far inside the issue's 0.5 %: measured 5.55e-5 (rho 0.9),

@@ -9,11 +9,11 @@ import math
 
 import numpy as np
 import pytest
+from reference import cantilever_elastica, clamped_clamped_frequencies
 
 import fe
-from fe import _kernels as K
 from fe import BeamModel, BucklingError, InitialImperfection, Parameters, Rig
-from reference import cantilever_elastica, clamped_clamped_frequencies
+from fe import _kernels as K
 
 RIG = Rig()
 NO_LOAD = Parameters(eta=0.0, c=0.0, F=0.0, k_s=0.0)
@@ -53,8 +53,7 @@ def test_frequencies_depend_on_f_and_k_s_only_through_p_eff():
     kb = RIG.axial_stiffness
     p_eff = 74.0
     pairs = [(p_eff * (kb + ks) / kb, ks) for ks in (0.0, 180e3, 540e3)]
-    freqs = [model.modal_analysis(Parameters(F=F, k_s=ks), n_modes=3).frequencies_hz
-             for F, ks in pairs]
+    freqs = [model.modal_analysis(Parameters(F=F, k_s=ks), n_modes=3).frequencies_hz for F, ks in pairs]
     for f in freqs[1:]:
         np.testing.assert_allclose(f, freqs[0], rtol=1e-7)
     # and they do depend on P_eff
@@ -86,8 +85,7 @@ def test_first_frequency_convergence_rate(formulation, expected_order):
 @pytest.mark.parametrize("formulation", ["shallow_arch", "linear"])
 def test_tangent_matches_finite_differences(formulation):
     """K = d f_int / d u and C = d f_int / d v against central differences."""
-    model = BeamModel(n_elements=5, formulation=formulation,
-                      effects=[InitialImperfection(amplitude=2e-3)])
+    model = BeamModel(n_elements=5, formulation=formulation, effects=[InitialImperfection(amplitude=2e-3)])
     params = Parameters(eta=5e6, c=2e3, F=50.0, k_s=1e5)
     rng = np.random.default_rng(1)
     n = model.n_dof
@@ -114,8 +112,10 @@ def test_fast_force_kernel_equals_assembly_force():
     a = model._arrays(model.describe(params), params)
     rng = np.random.default_rng(2)
     u, v = 1e-3 * rng.standard_normal(model.n_dof), rng.standard_normal(model.n_dof)
-    args = [a[k] for k in ("X", "Y", "L0", "c0", "s0", "t0", "EA", "EI", "beta", "shallow",
-                           "d_dof", "d_law", "d_p1", "d_p2")]
+    args = [
+        a[k]
+        for k in ("X", "Y", "L0", "c0", "s0", "t0", "EA", "EI", "beta", "shallow", "d_dof", "d_law", "d_p1", "d_p2")
+    ]
     f1, f2 = np.empty(model.n_dof), np.empty(model.n_dof)
     K.internal_force(*args, u, v, f1)
     K.assemble(*args, u, v, f2, False, 0.0, 0.0, np.empty((1, 1)), 5)
@@ -134,9 +134,28 @@ def test_cantilever_large_deflection_against_elastica(load_parameter):
     f_ext = np.zeros(model.n_dof)
     f_ext[tip + 1] = load_parameter * RIG.EI / RIG.length_m**2
     u = np.zeros(model.n_dof)
-    status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
-                                a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
-                                a["fixed"], f_ext, u, 5, 20, 1e-7, 50)
+    status, _ = K.static_newton(
+        a["X"],
+        a["Y"],
+        a["L0"],
+        a["c0"],
+        a["s0"],
+        a["t0"],
+        a["EA"],
+        a["EI"],
+        a["shallow"],
+        a["d_dof"],
+        a["d_law"],
+        a["d_p1"],
+        a["d_p2"],
+        a["fixed"],
+        f_ext,
+        u,
+        5,
+        20,
+        1e-7,
+        50,
+    )
     assert status == 0
     deflection, shortening = cantilever_elastica(load_parameter)
     assert u[tip + 1] / RIG.length_m == pytest.approx(deflection, rel=0.01)

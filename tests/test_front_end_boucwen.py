@@ -27,6 +27,7 @@ the generator's.  (With the force linear between the recorded samples, the
 model's response at the truth is 0.6 % of the high-level test's rms off the
 record, 34x the noise: docs/models.md, "What the samples of the force mean".)
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -41,15 +42,15 @@ import volterra
 from bayes_update.data.inspect import inspect_dataset
 from bayes_update.data.noise import dataset_noise
 
-FS = 1000.0                      # [Hz]
-N = 16384                        # samples per test
-BAND = (5.0, 60.0)               # [Hz]
-FINE = 8                         # the generator's grid: FINE x fs
-MASS = 1.7                       # [kg], known to the user
-TRUTH = {"fn": 25.0, "zeta": 0.02, "alpha": 0.35, "xy": 1.2}      # Hz, -, -, mm
+FS = 1000.0  # [Hz]
+N = 16384  # samples per test
+BAND = (5.0, 60.0)  # [Hz]
+FINE = 8  # the generator's grid: FINE x fs
+MASS = 1.7  # [kg], known to the user
+TRUTH = {"fn": 25.0, "zeta": 0.02, "alpha": 0.35, "xy": 1.2}  # Hz, -, -, mm
 LEVELS = {"low": ("linear", 0.003, 401), "high": ("nonlinear", 1.5, 402), "check": ("validation", 0.8, 403)}
-NOISE = 0.01                     # sd / the low-level test's rms, force and acceleration
-PARAMETER_TOL = 0.01             # the issue's bar: every parameter within 1 %
+NOISE = 0.01  # sd / the low-level test's rms, force and acceleration
+PARAMETER_TOL = 0.01  # the issue's bar: every parameter within 1 %
 
 
 def _physics(theta):
@@ -82,11 +83,11 @@ def generate(force_fine, theta):
         i = min(int(tt / h), last)
         d = tt - i * h
         f = ((c3[i] * d + c2[i]) * d + c1[i]) * d + c0[i]
-        return (v, (f - c * v - alpha * k * x - (1 - alpha) * k * z) / MASS,
-                v - beta * abs(v) * z - beta * v * abs(z))
+        return (v, (f - c * v - alpha * k * x - (1 - alpha) * k * z) / MASS, v - beta * abs(v) * z - beta * v * abs(z))
 
-    sol = solve_ivp(rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], method="DOP853", t_eval=t, rtol=1e-9,
-                    atol=[1e-12, 1e-10, 1e-12])
+    sol = solve_ivp(
+        rhs, (0.0, t[-1]), [0.0, 0.0, 0.0], method="DOP853", t_eval=t, rtol=1e-9, atol=[1e-12, 1e-10, 1e-12]
+    )
     assert sol.success, sol.message
     x, v, z = sol.y
     acc = (force_fine - c * v - alpha * k * x - (1 - alpha) * k * z) / MASS
@@ -105,17 +106,29 @@ def _rk4(f, fs, k, c, alpha, beta, m, substeps):
     for i in range(f.size - 1):
         f0, f1 = f[i], f[i + 1]
         fm = 0.5 * (f0 + f1)
-        kx, kv, kz = v, (f0 - c * v - alpha * k * x - (1 - alpha) * k * z) / m, \
-            v - beta * abs(v) * z - beta * v * abs(z)
+        kx, kv, kz = (
+            v,
+            (f0 - c * v - alpha * k * x - (1 - alpha) * k * z) / m,
+            v - beta * abs(v) * z - beta * v * abs(z),
+        )
         x2, v2, z2 = x + 0.5 * h * kx, v + 0.5 * h * kv, z + 0.5 * h * kz
-        lx, lv, lz = v2, (fm - c * v2 - alpha * k * x2 - (1 - alpha) * k * z2) / m, \
-            v2 - beta * abs(v2) * z2 - beta * v2 * abs(z2)
+        lx, lv, lz = (
+            v2,
+            (fm - c * v2 - alpha * k * x2 - (1 - alpha) * k * z2) / m,
+            v2 - beta * abs(v2) * z2 - beta * v2 * abs(z2),
+        )
         x3, v3, z3 = x + 0.5 * h * lx, v + 0.5 * h * lv, z + 0.5 * h * lz
-        mx, mv, mz = v3, (fm - c * v3 - alpha * k * x3 - (1 - alpha) * k * z3) / m, \
-            v3 - beta * abs(v3) * z3 - beta * v3 * abs(z3)
+        mx, mv, mz = (
+            v3,
+            (fm - c * v3 - alpha * k * x3 - (1 - alpha) * k * z3) / m,
+            v3 - beta * abs(v3) * z3 - beta * v3 * abs(z3),
+        )
         x4, v4, z4 = x + h * mx, v + h * mv, z + h * mz
-        nx, nv, nz = v4, (f1 - c * v4 - alpha * k * x4 - (1 - alpha) * k * z4) / m, \
-            v4 - beta * abs(v4) * z4 - beta * v4 * abs(z4)
+        nx, nv, nz = (
+            v4,
+            (f1 - c * v4 - alpha * k * x4 - (1 - alpha) * k * z4) / m,
+            v4 - beta * abs(v4) * z4 - beta * v4 * abs(z4),
+        )
         x += h * (kx + 2 * lx + 2 * mx + nx) / 6
         v += h * (kv + 2 * lv + 2 * mv + nv) / 6
         z += h * (kz + 2 * lz + 2 * mz + nz) / 6
@@ -127,8 +140,12 @@ def _rk4(f, fs, k, c, alpha, beta, m, substeps):
 class BoucWen:
     """The user's model: a Bouc-Wen oscillator of known mass, its acceleration [m/s^2]."""
 
-    parameters = [bu.Parameter("fn", 20.0, 30.0, unit="Hz"), bu.Parameter("zeta", 0.005, 0.08, log=True),
-                  bu.Parameter("alpha", 0.1, 0.7), bu.Parameter("xy", 0.3, 4.0, unit="mm", log=True)]
+    parameters = [
+        bu.Parameter("fn", 20.0, 30.0, unit="Hz"),
+        bu.Parameter("zeta", 0.005, 0.08, log=True),
+        bu.Parameter("alpha", 0.1, 0.7),
+        bu.Parameter("xy", 0.3, 4.0, unit="mm", log=True),
+    ]
 
     def simulate(self, theta, force, fs):
         k, c, alpha, beta = _physics(theta)
@@ -150,9 +167,18 @@ def make_dataset():
         f, acc, _ = generate(scale * u, TRUTH)
         if sd is None:
             sd = NOISE * np.array([np.std(f), np.std(acc)])
-        records.append(bu.Record(f"{name}.csv", "multisine", name, role, np.arange(N) / FS,
-                                 f + sd[0] * rng.standard_normal(N), acc + sd[1] * rng.standard_normal(N),
-                                 sensors=(("acc", "acceleration"),)))
+        records.append(
+            bu.Record(
+                f"{name}.csv",
+                "multisine",
+                name,
+                role,
+                np.arange(N) / FS,
+                f + sd[0] * rng.standard_normal(N),
+                acc + sd[1] * rng.standard_normal(N),
+                sensors=(("acc", "acceleration"),),
+            )
+        )
     return bu.Dataset("bouc-wen", FS, None, records), sd
 
 
@@ -169,8 +195,10 @@ def test_the_user_model_and_the_generator_agree_at_the_truth(data):
     t = ds.test("high")
     model = BoucWen().simulate(TRUTH, t.force, FS)
     err = np.std(model - t.response)
-    print(f"\nmodel - record at the truth: {err:.4g} m/s^2 rms (noise {sd[1]:.4g}, force noise through the "
-          "structure included)")
+    print(
+        f"\nmodel - record at the truth: {err:.4g} m/s^2 rms (noise {sd[1]:.4g}, force noise through the "
+        "structure included)"
+    )
     assert err < 0.05 * np.std(t.response)
 
 
@@ -184,8 +212,9 @@ def test_the_front_end_finds_one_mode_and_noise_that_is_noise(data):
     # the issue's spurious mode at the band's edge: none, whether the band is given or found
     low = ds.test("low")
     for f_range in (None, BAND):
-        est = volterra.estimate_modes(low.force - low.force.mean(), low.response - low.response.mean(), FS,
-                                      f_range=f_range)
+        est = volterra.estimate_modes(
+            low.force - low.force.mean(), low.response - low.response.mean(), FS, f_range=f_range
+        )
         assert [round(p.freq_hz) for p in est.poles] == [25], (f_range, est.poles)
     inspection = inspect_dataset(ds, noise)
     modes = inspection["modes"]
@@ -198,8 +227,10 @@ def test_calibrate_finds_the_truth_within_one_percent(data):
     ds, _ = data
     cal = bu.calibrate(ds, BoucWen(), workers=1, progress=False, log=lambda *a: None)
     modes = cal.problem.basis.modes(1)
-    print(f"\ncalibrate: {cal.theta}; {cal.n_model_runs} runs; basis modes "
-          f"{[(round(p.freq_hz, 3), round(p.damping_ratio, 5)) for p in modes]}; warnings {cal.fit_warnings}")
+    print(
+        f"\ncalibrate: {cal.theta}; {cal.n_model_runs} runs; basis modes "
+        f"{[(round(p.freq_hz, 3), round(p.damping_ratio, 5)) for p in modes]}; warnings {cal.fit_warnings}"
+    )
     assert len(modes) == 1 and modes[0].freq_hz == pytest.approx(TRUTH["fn"], rel=0.005)
     for name, value in TRUTH.items():
         assert cal.theta[name] == pytest.approx(value, rel=PARAMETER_TOL), (name, cal.theta[name])

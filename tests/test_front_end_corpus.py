@@ -18,13 +18,13 @@ of the noise estimates within 25 % of the truth or unknown with a reason; no
 record ends in an exception the front end does not document; every period
 of a periodic test is found, and none where the force does not repeat.
 """
+
 from __future__ import annotations
 
 import pathlib
 import sys
 
 import numpy as np
-import pytest
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -40,13 +40,16 @@ def test_the_front_end_on_42_records():
     print("\n" + corpus.table(rows))
     crashes = [(r["seed"], r.get("crash", r.get("noise_crash"))) for r in rows if "crash" in r or "noise_crash" in r]
     assert not crashes, crashes
-    failed = [(r["seed"], r["class"], r["modes_true"], r["modes_found"], r.get("error", ""))
-              for r in rows if r["resolvable"] and not r["success"]]
-    assert sum(r["resolvable"] for r in rows) >= 0.8 * len(rows)      # the corpus tests what it should
+    failed = [
+        (r["seed"], r["class"], r["modes_true"], r["modes_found"], r.get("error", ""))
+        for r in rows
+        if r["resolvable"] and not r["success"]
+    ]
+    assert sum(r["resolvable"] for r in rows) >= 0.8 * len(rows)  # the corpus tests what it should
     assert not failed, failed
     noise = [x for r in rows for x in r["noise"]]
     share = np.mean([corpus.noise_ok(x) for x in noise])
     bad = [(x["test"], x["channel"], x["true"], x["sd"], x["method"]) for x in noise if not corpus.noise_ok(x)]
     assert share >= NOISE_SHARE, (share, bad)
     periods = [(r["seed"], t, p) for r in rows for t, p in r["periods"].items() if p["found"] != p["true"]]
-    assert not periods, periods                   # every period found, none where the force does not repeat
+    assert not periods, periods  # every period found, none where the force does not repeat

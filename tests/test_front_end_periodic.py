@@ -27,6 +27,7 @@ mean over periods 2-9 of the period spectra's ratio (numpy), and the best
 span is the basis's order-1 functions (feed-through and two per mode) fitted
 to it by least squares at the true poles.
 """
+
 from __future__ import annotations
 
 import pathlib
@@ -44,14 +45,24 @@ from volterra import KautzBasis, KautzPole, estimate_modes, fit_volterra, gobf_f
 
 FS, PERIOD, N_PERIODS, FINE = 400.0, 8192, 9, 8
 BAND = (2.0, 12.0)
-FREQ = np.array([3.61, 4.12, 5.37, 6.88, 7.21, 8.95])          # [Hz], in the band
+FREQ = np.array([3.61, 4.12, 5.37, 6.88, 7.21, 8.95])  # [Hz], in the band
 ZETA = np.array([0.009, 0.008, 0.013, 0.009, 0.010, 0.012])
-OUTSIDE = np.array([1.27, 15.3]), np.array([0.02, 0.015])      # modes outside it: their tails in the band
+OUTSIDE = np.array([1.27, 15.3]), np.array([0.02, 0.015])  # modes outside it: their tails in the band
 FORCE_AT = np.array([0.9, -0.7, 0.8, 0.6, -0.5, 0.7, 0.6, 0.8])  # mass-normalised shapes at the force
-SENSORS_AT = np.array([[0.04, 0.02, -0.03], [0.025, -0.045, 0.015], [-0.4, 0.7, 0.8], [0.9, 0.5, -0.3],
-                       [0.6, -0.4, 0.9], [-0.3, 0.8, 0.5], [0.7, 0.7, 0.4], [-0.6, 0.5, 0.9]])
+SENSORS_AT = np.array(
+    [
+        [0.04, 0.02, -0.03],
+        [0.025, -0.045, 0.015],
+        [-0.4, 0.7, 0.8],
+        [0.9, 0.5, -0.3],
+        [0.6, -0.4, 0.9],
+        [-0.3, 0.8, 0.5],
+        [0.7, 0.7, 0.4],
+        [-0.6, 0.5, 0.9],
+    ]
+)
 NOISE = 0.03
-FREQ_TOL, SPAN_FACTOR = 0.005, 1.2                                # the issue's bars
+FREQ_TOL, SPAN_FACTOR = 0.005, 1.2  # the issue's bars
 
 
 @pytest.fixture(scope="module", autouse=True)
@@ -67,14 +78,19 @@ def record():
 
 def make_record(sensors_at=SENSORS_AT):
     """(u, y (n, 3), the system) of the module docstring."""
-    system = systems._real_modes(np.concatenate([FREQ, OUTSIDE[0]]), np.concatenate([ZETA, OUTSIDE[1]]),
-                                 FORCE_AT, sensors_at, ("acceleration",) * 3)
+    system = systems._real_modes(
+        np.concatenate([FREQ, OUTSIDE[0]]),
+        np.concatenate([ZETA, OUTSIDE[1]]),
+        FORCE_AT,
+        sensors_at,
+        ("acceleration",) * 3,
+    )
     rng = np.random.default_rng(8192)
     k = np.arange(int(np.ceil(BAND[0] * PERIOD / FS)), int(BAND[1] * PERIOD / FS) + 1)
     X = np.zeros(PERIOD * FINE // 2 + 1, complex)
     X[k] = np.exp(2j * np.pi * rng.random(k.size))
     one = np.fft.irfft(X, PERIOD * FINE)
-    u_fine = np.tile(one / one.std(), N_PERIODS + 1)                # one more period: the filter's edge
+    u_fine = np.tile(one / one.std(), N_PERIODS + 1)  # one more period: the filter's edge
     y_fine = system.respond(u_fine, 1.0 / (FS * FINE))
     both = signal.resample_poly(np.column_stack([u_fine, y_fine]), 1, FINE, axis=0)[: PERIOD * N_PERIODS]
     clean_u, clean_y = both[:, 0], both[:, 1:]
@@ -124,7 +140,9 @@ def test_from_data_defaults_find_every_mode_and_a_span_near_the_best(record):
         b1 = KautzBasis.from_modes(poles, (2,))
         H1 = np.stack([fit_volterra(u, y[:, s], b1, input_offset="mean").H1(f) for s in range(3)], axis=1)
         fit_err.append(float(np.linalg.norm(H1 - H) / np.linalg.norm(H)))
-    print(f"span error: from_data's poles {mine:.4f}, true poles {best:.4f} (ratio {mine / best:.3f}); "
-          f"time-domain fit {fit_err[0]:.4f} against {fit_err[1]:.4f} (ratio {fit_err[0] / fit_err[1]:.3f})")
+    print(
+        f"span error: from_data's poles {mine:.4f}, true poles {best:.4f} (ratio {mine / best:.3f}); "
+        f"time-domain fit {fit_err[0]:.4f} against {fit_err[1]:.4f} (ratio {fit_err[0] / fit_err[1]:.3f})"
+    )
     assert mine <= SPAN_FACTOR * best
     assert fit_err[0] <= SPAN_FACTOR * fit_err[1]

@@ -1,5 +1,6 @@
 """The GP fit in numpy (surrogates.gp_fit) against scikit-learn's: the same objective and
 gradient, and the same optimum from the same starts."""
+
 import numpy as np
 import pytest
 
@@ -32,7 +33,7 @@ def test_the_fast_fit_finds_scikit_learns_optimum():
     y = np.sin(3 * X).sum(axis=1) + 0.02 * rng.standard_normal(40)
     slow = GPSurrogate([[0, 1]] * 3, transform="none", n_restarts_optimizer=2, seed=4).fit(X, y)
     fast = GPSurrogate([[0, 1]] * 3, transform="none", n_restarts_optimizer=2, seed=4, fast=True).fit(X, y)
-    assert fast.gp_.log_marginal_likelihood_value_ == pytest.approx(slow.gp_.log_marginal_likelihood_value_,
-                                                                    abs=1e-5)
-    np.testing.assert_allclose(fast.hyperparameters()["length_scales"], slow.hyperparameters()["length_scales"],
-                               rtol=1e-3)
+    assert fast.gp_.log_marginal_likelihood_value_ == pytest.approx(slow.gp_.log_marginal_likelihood_value_, abs=1e-5)
+    np.testing.assert_allclose(
+        fast.hyperparameters()["length_scales"], slow.hyperparameters()["length_scales"], rtol=1e-3
+    )

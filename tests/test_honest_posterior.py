@@ -14,14 +14,15 @@ channel), the user's model with ``refined()``.
   ``az.compare`` ranks the model with the damper above the one without on the
   written posterior.nc files.
 """
+
 from __future__ import annotations
 
 import arviz as az
 import numpy as np
 import pytest
+import shear_frame_kit as kit
 
 import bayes_update as bu
-import shear_frame_kit as kit
 from bayes_update.reports.posterior import write_posterior
 
 #: the posterior sds of the model-right case before the model-form error (benchmarks/honest_posterior.py
@@ -31,8 +32,7 @@ HELD_OUT = ("middle", "high_b")
 
 
 def _sample(data, model, **settings):
-    return bu.sample(data, model, bu.PosteriorSettings(**settings), workers=2, progress=False,
-                     log=lambda *a: None)
+    return bu.sample(data, model, bu.PosteriorSettings(**settings), workers=2, progress=False, log=lambda *a: None)
 
 
 @pytest.fixture(scope="module")
@@ -49,8 +49,9 @@ def damper_posterior(damper_records):
 
 def _converged(res):
     d = res.diagnostics
-    assert d["max_r_hat"] < 1.01 and d["min_ess_bulk"] >= 400 and d["min_ess_tail"] >= 400, \
-        {k: d[k] for k in ("max_r_hat", "min_ess_bulk", "min_ess_tail")}
+    assert d["max_r_hat"] < 1.01 and d["min_ess_bulk"] >= 400 and d["min_ess_tail"] >= 400, {
+        k: d[k] for k in ("max_r_hat", "min_ess_bulk", "min_ess_tail")
+    }
 
 
 def test_a_missing_damper_is_covered_by_the_model_form_error(damper_posterior):
@@ -85,7 +86,7 @@ def test_loo_ranks_the_model_with_the_damper_first(damper_records, damper_poster
     for name, res in (("without the damper", damper_posterior), ("with the damper", complete)):
         write_posterior(res, tmp_path / name, figures=False)
         idatas[name] = az.from_netcdf(str(tmp_path / name / "posterior.nc"))
-        loo = az.loo(idatas[name])                        # no argument: every test's observations
+        loo = az.loo(idatas[name])  # no argument: every test's observations
         assert np.isfinite(loo.elpd_loo)
     ranking = az.compare(idatas)
     assert ranking.index[0] == "with the damper", ranking

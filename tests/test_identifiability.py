@@ -1,4 +1,5 @@
 """bayes_update.core.identifiability against closed forms."""
+
 import numpy as np
 
 from bayes_update.core.identifiability import gauss_newton_covariance, parameter_sd, unidentified_directions
@@ -13,10 +14,10 @@ def test_a_ridge_is_the_one_unidentified_direction_with_its_sd():
     third, well-pinned parameter is not."""
     w = np.array([2.0, 0.5, 1.0])
     J = np.zeros((5, 3))
-    J[:, 0] = J[:, 1] = 0.3 * np.arange(1, 6) / np.sqrt(55.0)    # column norm 0.3
-    J[:, 2] = 40.0 * np.array([2, -1, 0, 0, 0]) / np.sqrt(5.0)    # column norm 40, orthogonal to the others
+    J[:, 0] = J[:, 1] = 0.3 * np.arange(1, 6) / np.sqrt(55.0)  # column norm 0.3
+    J[:, 2] = 40.0 * np.array([2, -1, 0, 0, 0]) / np.sqrt(5.0)  # column norm 40, orthogonal to the others
     out = unidentified_directions(J, w, ["a", "b", "c"])
-    assert len(out) == 2                                          # the ridge and the sum's weak direction
+    assert len(out) == 2  # the ridge and the sum's weak direction
     along = np.array([w[0], w[1], 0.0]) / np.hypot(w[0], w[1])
     across = np.array([w[1], -w[0], 0.0]) / np.hypot(w[0], w[1])
     got = [np.array([d["direction"][n] for n in "abc"]) for d in out]
@@ -48,7 +49,7 @@ def test_parameter_sds_through_a_log_coordinate_are_the_delta_method():
     """A log-scale parameter: sd(theta) = theta sd(log theta); a linear one: its own sd."""
     space = ParameterSet([Parameter("k", 10.0, 1000.0, log=True), Parameter("m", 0.5, 2.0)])
     x = np.array([np.log(200.0), 1.2])
-    cov = np.array([[0.01 ** 2, 0.0], [0.0, 0.05 ** 2]])
+    cov = np.array([[0.01**2, 0.0], [0.0, 0.05**2]])
     sd = parameter_sd(space, x, cov)
     np.testing.assert_allclose(sd["k"], 200.0 * 0.01, rtol=1e-6)
     np.testing.assert_allclose(sd["m"], 0.05, rtol=1e-9)

@@ -23,8 +23,11 @@ SAMPLE = [sys.executable, "-m", "bayes_update", "sample", "--quick", "--model", 
 #: shorter chains and no extras (28 s a run instead of 41): the interruption falls in the design either way
 SMALL = "[sample]\nn_steps = 1000\nburn = 300\nn_linear = 0\nn_global = 0\nn_predictive = 0\nn_replicates = 8\n"
 # -m slow: three sample runs (170 s of the suite on a slow day, the 15-minute budget)
-pytestmark = [pytest.mark.skipif(os.name == "nt", reason="process groups and SIGINT are POSIX"), pytest.mark.slow,
-              pytest.mark.headline]
+pytestmark = [
+    pytest.mark.skipif(os.name == "nt", reason="process groups and SIGINT are POSIX"),
+    pytest.mark.slow,
+    pytest.mark.headline,
+]
 
 
 def _command(out):
@@ -59,15 +62,24 @@ def test_interrupted_sample_resumes_to_the_same_posterior(tmp_path, reference):
     out = tmp_path / "out"
     # Ctrl-C's SIGINT as a terminal delivers it: a pytest-xdist worker ignores SIGINT, and a child
     # inherits that (Python then installs no KeyboardInterrupt handler: the command ran to its end)
-    proc = subprocess.Popen(_command(out), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        _command(out),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
     deadline = time.monotonic() + 600
     # interrupt halfway through the surrogate design: the reference kept _made(reference) runs, the last
     # of them its design's and those of the steps after it
     steps = json.loads((reference / "run.json").read_text())["n_model_runs"]
     design = steps["design_and_gp"]
-    after = sum(v for k, v in steps.items() if k not in (
-        "total", "design_and_gp", "check_and_screen", "start", "likelihood_scales", "map_laplace"))
+    after = sum(
+        v
+        for k, v in steps.items()
+        if k not in ("total", "design_and_gp", "check_and_screen", "start", "likelihood_scales", "map_laplace")
+    )
     before = _made(reference) - design - after + design // 2
     assert design >= 16 and before > design // 2, steps
     while _made(out) < before:

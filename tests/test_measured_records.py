@@ -20,10 +20,12 @@ histories of both estimation tests, every sensor divided by the sd of the
 noise actually added, from several starts.  Every constant below is this
 file's own.
 """
+
 from __future__ import annotations
 
 import time
 
+import lab_records as lab
 import numpy as np
 import pytest
 from numba import njit
@@ -32,19 +34,18 @@ from scipy.optimize import least_squares
 from scipy.stats import qmc
 
 import bayes_update as bu
-import lab_records as lab
 
 SENSORS = ("acc1", "acc2", "acc3")
-MASSES = (1.2, 0.8, 0.5)                         # [kg], known to the user
-K2 = 60.0                                        # [kN/m], known to the user
-TRUTH = {"k1": 40.0, "k3": 40.0, "knl": 0.75, "zeta": 0.02}   # the generator's, in the model's units
-SUBSTEPS = 8                                     # the model's RK4 steps per sample (the generator: 16)
-LAYOUT = [("quiet", 2.0), ("multisine", 4), ("quiet", 3.0)]   # 4 periods of 5.12 s, the first a transient
-LOW_N, HIGH_N, HELD_OUT_N = 0.5, 6.0, 3.5         # force rms [N] of the three tests
+MASSES = (1.2, 0.8, 0.5)  # [kg], known to the user
+K2 = 60.0  # [kN/m], known to the user
+TRUTH = {"k1": 40.0, "k3": 40.0, "knl": 0.75, "zeta": 0.02}  # the generator's, in the model's units
+SUBSTEPS = 8  # the model's RK4 steps per sample (the generator: 16)
+LAYOUT = [("quiet", 2.0), ("multisine", 4), ("quiet", 3.0)]  # 4 periods of 5.12 s, the first a transient
+LOW_N, HIGH_N, HELD_OUT_N = 0.5, 6.0, 3.5  # force rms [N] of the three tests
 SEEDS = (101, 102, 103)
-QUADRATIC_DAMPER = 30.0                          # c2 [N s^2/m^2] of the records the model lacks
-DAMPING_APART = (0.02, 0.025)                    # modal damping of the low- and high-level tests apart
-N_STARTS = 4                                     # of the direct fit
+QUADRATIC_DAMPER = 30.0  # c2 [N s^2/m^2] of the records the model lacks
+DAMPING_APART = (0.02, 0.025)  # modal damping of the low- and high-level tests apart
+N_STARTS = 4  # of the direct fit
 # calibrate's (or the posterior mean's) held-out error / the direct fit's, at most: about twice the
 # excess over 1 measured (the model's physics 1.011, the posterior mean 1.008-1.009, the coarser
 # model 1.022; the damper the model lacks, a model-form case, 1.064)
@@ -111,8 +112,12 @@ class LabChain:
     the accelerations of the three masses.  ``candidate_effects``: a quadratic damper
     ``cq |v1| v1`` beside the ground spring."""
 
-    parameters = [bu.Parameter("k1", 30.0, 55.0, unit="kN/m"), bu.Parameter("k3", 30.0, 55.0, unit="kN/m"),
-                  bu.Parameter("knl", 0.0, 2.0, unit="GN/m^3"), bu.Parameter("zeta", 0.005, 0.08, log=True)]
+    parameters = [
+        bu.Parameter("k1", 30.0, 55.0, unit="kN/m"),
+        bu.Parameter("k3", 30.0, 55.0, unit="kN/m"),
+        bu.Parameter("knl", 0.0, 2.0, unit="GN/m^3"),
+        bu.Parameter("zeta", 0.005, 0.08, log=True),
+    ]
 
     def __init__(self, substeps=SUBSTEPS):
         self.substeps = substeps
@@ -131,15 +136,16 @@ class LabChain:
         K = np.array([[k1 + k2, -k2, 0.0], [-k2, k2 + k3, -k3], [0.0, -k3, k3]])
         s = 1.0 / np.sqrt(np.asarray(MASSES))
         w2, Q = np.linalg.eigh(s[:, None] * K * s[None, :])
-        V = s[:, None] * Q                                   # mass-normalised mode shapes
+        V = s[:, None] * Q  # mass-normalised mode shapes
         C = M @ V @ np.diag(2.0 * theta["zeta"] * np.sqrt(w2)) @ V.T @ M
         force = np.asarray(force, float)
         q = 2 * self.substeps
         # the force between samples: band-limited interpolation (the records are sampled at 2.5x
         # their band; a linear one put 20-30 % of error into the response at the truth)
-        fine = signal.resample_poly(np.concatenate([force, np.zeros(8)]), q, 1)[:(force.size - 1) * q + 1]
-        return _chain(fine, float(fs), np.linalg.inv(M), C, K, 1e9 * theta["knl"], float(theta.get("cq", 0.0)),
-                      self.substeps)
+        fine = signal.resample_poly(np.concatenate([force, np.zeros(8)]), q, 1)[: (force.size - 1) * q + 1]
+        return _chain(
+            fine, float(fs), np.linalg.inv(M), C, K, 1e9 * theta["knl"], float(theta.get("cq", 0.0)), self.substeps
+        )
 
 
 # ------------------------------------------------------------------ data and the direct fit
@@ -147,10 +153,11 @@ def lab_tests(**options):
     """(low, high, held-out) lab records; ``options`` go to every lab_record call, and
     ``high`` / ``low`` dicts to that test's only."""
     low, high = options.pop("low", {}), options.pop("high", {})
-    return [lab.lab_record("ms_low.csv", "linear", LOW_N, LAYOUT, seed=SEEDS[0], level="low", **options, **low),
-            lab.lab_record("ms_high.csv", "nonlinear", HIGH_N, LAYOUT, seed=SEEDS[1], level="high", **options,
-                           **high),
-            lab.lab_record("ms_mid.csv", "validation", HELD_OUT_N, LAYOUT, seed=SEEDS[2], level="mid", **options)]
+    return [
+        lab.lab_record("ms_low.csv", "linear", LOW_N, LAYOUT, seed=SEEDS[0], level="low", **options, **low),
+        lab.lab_record("ms_high.csv", "nonlinear", HIGH_N, LAYOUT, seed=SEEDS[1], level="high", **options, **high),
+        lab.lab_record("ms_mid.csv", "validation", HELD_OUT_N, LAYOUT, seed=SEEDS[2], level="mid", **options),
+    ]
 
 
 def read_back(records, folder):
@@ -167,8 +174,13 @@ def held_out_error(model, theta, rec, clean=False) -> float:
     """rms over the sensors of ||y - y_model|| / ||y|| on a record (means removed, as calibrate's)."""
     y = _centred(model.simulate(theta, _centred(rec.force), rec.fs))
     ref = _centred(rec.clean_response if clean else rec.response)
-    return float(np.sqrt(np.mean([(np.linalg.norm(ref[:, j] - y[:, j]) / np.linalg.norm(ref[:, j])) ** 2
-                                  for j in range(ref.shape[1])])))
+    return float(
+        np.sqrt(
+            np.mean(
+                [(np.linalg.norm(ref[:, j] - y[:, j]) / np.linalg.norm(ref[:, j])) ** 2 for j in range(ref.shape[1])]
+            )
+        )
+    )
 
 
 def direct_fit(records, model):
@@ -206,18 +218,27 @@ def compare(records, data, label):
     t_cal = time.perf_counter() - t0
     oe, oe_runs, t_oe = direct_fit(records[:2], model)
     held = records[2]
-    out = {"calibrate": held_out_error(model, cal.theta, held), "direct": held_out_error(model, oe, held),
-           "truth": held_out_error(model, TRUTH, held),
-           "calibrate_clean": held_out_error(model, cal.theta, held, clean=True),
-           "direct_clean": held_out_error(model, oe, held, clean=True),
-           "calibrate_runs": cal.n_model_runs, "direct_runs": oe_runs, "calibrate_s": t_cal, "direct_s": t_oe,
-           "theta": cal.theta, "theta_direct": oe}
+    out = {
+        "calibrate": held_out_error(model, cal.theta, held),
+        "direct": held_out_error(model, oe, held),
+        "truth": held_out_error(model, TRUTH, held),
+        "calibrate_clean": held_out_error(model, cal.theta, held, clean=True),
+        "direct_clean": held_out_error(model, oe, held, clean=True),
+        "calibrate_runs": cal.n_model_runs,
+        "direct_runs": oe_runs,
+        "calibrate_s": t_cal,
+        "direct_s": t_oe,
+        "theta": cal.theta,
+        "theta_direct": oe,
+    }
     out["ratio"] = out["calibrate"] / out["direct"]
-    print(f"\n[{label}] held-out error: calibrate {out['calibrate']:.5f}, direct fit {out['direct']:.5f} "
-          f"(ratio {out['ratio']:.4f}), truth {out['truth']:.5f}; against the noise-free record: calibrate "
-          f"{out['calibrate_clean']:.5f}, direct {out['direct_clean']:.5f}; model runs: calibrate "
-          f"{cal.n_model_runs} ({t_cal:.1f} s), direct {oe_runs} ({t_oe:.1f} s, {N_STARTS} starts)\n"
-          f"  calibrate {cal.theta}\n  direct    {oe}\n  warnings: {cal.fit_warnings}")
+    print(
+        f"\n[{label}] held-out error: calibrate {out['calibrate']:.5f}, direct fit {out['direct']:.5f} "
+        f"(ratio {out['ratio']:.4f}), truth {out['truth']:.5f}; against the noise-free record: calibrate "
+        f"{out['calibrate_clean']:.5f}, direct {out['direct_clean']:.5f}; model runs: calibrate "
+        f"{cal.n_model_runs} ({t_cal:.1f} s), direct {oe_runs} ({t_oe:.1f} s, {N_STARTS} starts)\n"
+        f"  calibrate {cal.theta}\n  direct    {oe}\n  warnings: {cal.fit_warnings}"
+    )
     return cal, out
 
 
@@ -285,9 +306,11 @@ def test_a_coarser_model_still_predicts_like_a_direct_fit(exact):
     cal = bu.calibrate(data, model, workers=1, progress=False, log=lambda *a: None)
     oe, oe_runs, _ = direct_fit(records[:2], model)
     e_cal, e_oe = held_out_error(model, cal.theta, records[2]), held_out_error(model, oe, records[2])
-    print(f"\n[4 substeps] held-out error: calibrate {e_cal:.5f}, direct {e_oe:.5f} (ratio {e_cal / e_oe:.4f}), "
-          f"truth {held_out_error(model, TRUTH, records[2]):.5f}; runs {cal.n_model_runs} / {oe_runs}; "
-          f"warnings {cal.fit_warnings}")
+    print(
+        f"\n[4 substeps] held-out error: calibrate {e_cal:.5f}, direct {e_oe:.5f} (ratio {e_cal / e_oe:.4f}), "
+        f"truth {held_out_error(model, TRUTH, records[2]):.5f}; runs {cal.n_model_runs} / {oe_runs}; "
+        f"warnings {cal.fit_warnings}"
+    )
     assert e_cal <= RATIO_COARSE * e_oe
     assert cal.disagreement == []
 
@@ -308,8 +331,10 @@ def test_tests_recorded_at_different_damping_disagree(tmp_path, exact):
     data = read_back(records, tmp_path / "apart")
     t0 = time.perf_counter()
     cal = bu.calibrate(data, LabChain(), workers=1, progress=False, log=lambda *a: None)
-    print(f"\n[damping {DAMPING_APART}] disagreement {cal.disagreement} ({cal.n_model_runs} runs, "
-          f"{time.perf_counter() - t0:.1f} s)")
+    print(
+        f"\n[damping {DAMPING_APART}] disagreement {cal.disagreement} ({cal.n_model_runs} runs, "
+        f"{time.perf_counter() - t0:.1f} s)"
+    )
     assert "zeta" in [d["parameter"] for d in cal.disagreement]
     assert any(w.startswith("the tests disagree on zeta") for w in cal.fit_warnings)
     # the same records at one damping (the `exact` data set): no disagreement
@@ -317,8 +342,18 @@ def test_tests_recorded_at_different_damping_disagree(tmp_path, exact):
 
 
 # ------------------------------------------------------------------ the posterior
-SMALL_POSTERIOR = dict(n_initial=24, n_rounds=1, batch=8, n_walkers=16, n_steps=1500, burn=500, n_global=0,
-                       n_linear=0, n_replicates=8, n_start=32)
+SMALL_POSTERIOR = dict(
+    n_initial=24,
+    n_rounds=1,
+    batch=8,
+    n_walkers=16,
+    n_steps=1500,
+    burn=500,
+    n_global=0,
+    n_linear=0,
+    n_replicates=8,
+    n_start=32,
+)
 
 
 def _posterior_check(exact, settings):
@@ -340,9 +375,11 @@ def _posterior_check(exact, settings):
         assert doc["likelihood"][stage]["noise_levels"] == scale.noise_levels
     mean = {name: post.summary[name]["mean"] for name in TRUTH}
     err = held_out_error(model, mean, records[2])
-    print(f"\n[sample] posterior mean {mean} (sd { {n: post.summary[n]['sd'] for n in TRUTH} }); held-out error "
-          f"{err:.5f}, direct fit {out['direct']:.5f} (ratio {err / out['direct']:.4f}); "
-          f"{post.n_model_runs['total']} model runs, {seconds:.1f} s")
+    print(
+        f"\n[sample] posterior mean {mean} (sd { {n: post.summary[n]['sd'] for n in TRUTH} }); held-out error "
+        f"{err:.5f}, direct fit {out['direct']:.5f} (ratio {err / out['direct']:.4f}); "
+        f"{post.n_model_runs['total']} model runs, {seconds:.1f} s"
+    )
     assert err <= RATIO * out["direct"], (err, out["direct"])
     assert doc["fit_warnings"] == []
 
@@ -365,16 +402,23 @@ def test_the_discrepancy_finds_the_quadratic_damper(damper):
     filters), so the verdict is asserted as measured and printed."""
     records, data, _, out = damper
     t0 = time.perf_counter()
-    res = bu.find_discrepancy(data, LabChain(), settings=bu.DiscrepancySettings.quick(n_start=16, n_replicates=4),
-                              workers=1, log=lambda *a: None)
+    res = bu.find_discrepancy(
+        data,
+        LabChain(),
+        settings=bu.DiscrepancySettings.quick(n_start=16, n_replicates=4),
+        workers=1,
+        log=lambda *a: None,
+    )
     doc = res.to_json()
     (cand,) = doc["rounds"][0]["candidates"]
     cq = cand["parameters"]["cq"]
-    print(f"\n[discrepancy] named {res.named}, explains the gap {res.explains_gap}, "
-          f"misfit / allowance {res.misfit_ratio}; evidence: 2 ln B {cand['two_ln_B']:.1f}, cq {cq['mode']:.2f} "
-          f"+- {cq['sd']:.2f} (records {QUADRATIC_DAMPER}), e_lin {cand['e_lin']:.5f}, e_nlin {cand['e_nlin']:.5f} "
-          f"with it; held-out {doc['gap_before']['held_out_tests']} -> {doc['gap_after']['held_out_tests']}; "
-          f"{res.n_model_runs['total']} runs, {time.perf_counter() - t0:.1f} s")
+    print(
+        f"\n[discrepancy] named {res.named}, explains the gap {res.explains_gap}, "
+        f"misfit / allowance {res.misfit_ratio}; evidence: 2 ln B {cand['two_ln_B']:.1f}, cq {cq['mode']:.2f} "
+        f"+- {cq['sd']:.2f} (records {QUADRATIC_DAMPER}), e_lin {cand['e_lin']:.5f}, e_nlin {cand['e_nlin']:.5f} "
+        f"with it; held-out {doc['gap_before']['held_out_tests']} -> {doc['gap_after']['held_out_tests']}; "
+        f"{res.n_model_runs['total']} runs, {time.perf_counter() - t0:.1f} s"
+    )
     assert cand["name"] == "quadratic_damper" and cand["excludes_null"] and not cand["at_bound"]
     assert cand["two_ln_B"] > 100
     assert cq["mode"] == pytest.approx(QUADRATIC_DAMPER, rel=0.01)

@@ -22,8 +22,8 @@ class Oscillator:
         out = np.empty(len(force))
         for i, f in enumerate(force):
             if i:
-                k_eff = w * w + 2 * z * w * 2 / dt + 4 / dt ** 2
-                rhs = f + (4 / dt ** 2) * x + (4 / dt) * v + a + 2 * z * w * ((2 / dt) * x + v)
+                k_eff = w * w + 2 * z * w * 2 / dt + 4 / dt**2
+                rhs = f + (4 / dt**2) * x + (4 / dt) * v + a + 2 * z * w * ((2 / dt) * x + v)
                 x_new = rhs / k_eff
                 v_new = 2 * (x_new - x) / dt - v
                 a = f - 2 * z * w * v_new - w * w * x_new
@@ -69,7 +69,7 @@ def test_log_uniform_prior_is_uniform_in_the_log():
     import emcee
 
     sampler = emcee.EnsembleSampler(32, 2, space.log_prior, vectorize=True)
-    sampler.random_state = np.random.RandomState(7).get_state()      # seeded: the same draws every run
+    sampler.random_state = np.random.RandomState(7).get_state()  # seeded: the same draws every run
     sampler.run_mcmc(space.sample_prior(32, seed=5), 12000, progress=False)
     # tau is about 45 steps here: every 200th draw is independent enough for a KS test
     chain = sampler.get_chain(discard=2000, thin=200, flat=True)
@@ -106,7 +106,7 @@ class Ridge:
 
     def log_jacobian(self, x):
         p, b = x
-        return np.log(b * b / (b - p) ** 2)     # |d a / d p| at fixed b
+        return np.log(b * b / (b - p) ** 2)  # |d a / d p| at fixed b
 
 
 def test_reparameterised_prior_matches_a_histogram_of_prior_draws():
@@ -139,7 +139,7 @@ def test_the_beams_array_transform_gives_the_per_point_prior():
     model = beam_model(load_default_dataset(), "rom")
     space = ParameterSet(model.parameters, model)
 
-    class PerPoint:                      # the same transform without its array methods
+    class PerPoint:  # the same transform without its array methods
         to_internal, from_internal, log_jacobian = model.to_internal, model.from_internal, model.log_jacobian
 
     slow = ParameterSet(model.parameters, PerPoint())
@@ -147,18 +147,19 @@ def test_the_beams_array_transform_gives_the_per_point_prior():
     X = box[:, 0] + (box[:, 1] - box[:, 0]) * np.random.default_rng(8).uniform(-0.2, 1.2, (3000, 4))
     X[7, 2], X[11, 3] = np.nan, np.inf
     fast, ref = space.log_prior(X), slow.log_prior(X)
-    assert 0.2 < np.isfinite(ref).mean() < 0.8                    # both sides of the support
+    assert 0.2 < np.isfinite(ref).mean() < 0.8  # both sides of the support
     np.testing.assert_array_equal(np.isfinite(fast), np.isfinite(ref))
     np.testing.assert_allclose(fast[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0, atol=1e-12)
-    rows = np.all(np.isfinite(X), axis=1)                         # an MCMC step's points: all finite
+    rows = np.all(np.isfinite(X), axis=1)  # an MCMC step's points: all finite
     np.testing.assert_array_equal(space.log_prior(X[rows]), fast[rows])
     # the reported draws (ParameterSet.report) alike, in the array and the per-point forms
     inside = X[np.isfinite(ref)]
     fast_report, slow_report = space.report(inside), slow.report(inside)
     for name in ("eta", "c", "F", "k_s"):
         np.testing.assert_allclose(fast_report[name], slow_report[name], rtol=1e-14, atol=0)
-        np.testing.assert_allclose(fast_report[name][:50], [model.from_internal(x)[name] for x in inside[:50]],
-                                   rtol=1e-14, atol=0)
+        np.testing.assert_allclose(
+            fast_report[name][:50], [model.from_internal(x)[name] for x in inside[:50]], rtol=1e-14, atol=0
+        )
 
 
 def test_a_plain_space_reports_its_draws_in_their_units():
@@ -176,7 +177,8 @@ def test_a_plain_space_reports_its_draws_in_their_units():
 
 def test_load_model_from_a_file_and_a_module(tmp_path):
     src = tmp_path / "my_model.py"
-    src.write_text(textwrap.dedent("""
+    src.write_text(
+        textwrap.dedent("""
         from bayes_update import Parameter
 
         class Gain:
@@ -186,7 +188,8 @@ def test_load_model_from_a_file_and_a_module(tmp_path):
 
         def make(): return Gain()
         def needs_args(k): return Gain()
-        """))
+        """)
+    )
     m = load_model(f"{src}:Gain")
     assert m.simulate({"g": 2.0}, np.ones(3), 100.0).tolist() == [2.0, 2.0, 2.0]
     assert type(load_model(f"{src}:make")).__name__ == "Gain"
@@ -249,7 +252,7 @@ def test_the_example_oscillator_is_right():
     fs, fn, zeta = 2000.0, 25.0, 0.05
     t = np.arange(int(4 * fs)) / fs
     v = Oscillator().simulate({"fn": fn, "zeta": zeta}, np.cos(2 * np.pi * fn * t), fs)
-    amp = np.abs(v[-int(fs):]).max()
+    amp = np.abs(v[-int(fs) :]).max()
     # Newmark's average acceleration: period error (w dt)^2 / 12 = 6e-4 -> |H| off by ~1e-3 here
     assert amp == pytest.approx(1 / (2 * zeta * 2 * np.pi * fn), rel=5e-3)
 

@@ -9,6 +9,7 @@ through the LPM's FRF alone the mode came out split in two or 0.5 % off in 23 of
 seeds of such a record (tests/new_user_kit.py's spring, 3.3 lines per band); fitted on the
 whole record's lines with its transient, in none.  Constants of this module only.
 """
+
 import numpy as np
 from scipy.signal import cont2discrete, lfilter
 
@@ -55,7 +56,6 @@ def test_a_long_record_keeps_the_local_polynomial_method():
     assert abs(est.poles[0].freq_hz / FN - 1) < 5e-6 and abs(est.poles[0].damping_ratio / ZETA - 1) < 6e-4
 
 
-
 def test_a_two_period_multisine_falls_back_on_the_lpm_where_the_whole_record_holds_no_mode():
     """Two 1-s periods of a multisine (too few to use as periods: the LPM reads the record)
     of an accelerometer on a mode about one line wide (11.1 Hz, 2.2 %: the OpenSees ridge
@@ -79,4 +79,4 @@ def test_a_two_period_multisine_falls_back_on_the_lpm_where_the_whole_record_hol
         y = y + 0.01 * np.std(y) * rng.standard_normal(y.size)
         est = volterra.estimate_modes(u, y, fs, f_range=(1.5, 40.5))
         assert est.method.startswith("local polynomial"), (seed, est)
-        assert abs(est.poles[0].freq_hz / fn - 1) < 0.04, (seed, est.poles)      # the strongest
+        assert abs(est.poles[0].freq_hz / fn - 1) < 0.04, (seed, est.poles)  # the strongest

@@ -1,19 +1,22 @@
 """A test whose force has no energy (zero, or constant, over the whole record) is refused where
 the framework builds its problem, with a DatasetError naming the file and the test; a record
 with quiet sections is not."""
+
 import numpy as np
 import pytest
-
 from new_user_kit import N_SAMPLES, Spring, band_noise, make_dataset
 
 from bayes_update import DatasetError, Problem
 
 
-@pytest.mark.parametrize("test, force, what", [
-    ("quiet_low", np.zeros(N_SAMPLES), "zero"),
-    ("medium_check", np.zeros(N_SAMPLES), "zero"),
-    ("loud_high", np.full(N_SAMPLES, 2.75), "constant"),
-])
+@pytest.mark.parametrize(
+    "test, force, what",
+    [
+        ("quiet_low", np.zeros(N_SAMPLES), "zero"),
+        ("medium_check", np.zeros(N_SAMPLES), "zero"),
+        ("loud_high", np.full(N_SAMPLES, 2.75), "constant"),
+    ],
+)
 def test_a_force_without_energy_is_refused_naming_file_and_test(test, force, what):
     data = make_dataset(forces={test: force})
     with pytest.raises(DatasetError) as info:
@@ -27,8 +30,20 @@ def test_the_command_line_refuses_a_dead_validation_force_in_one_line(tmp_path, 
     from bayes_update.data.folder import write_dataset
 
     write_dataset(make_dataset(forces={"medium_check": np.zeros(N_SAMPLES)}), tmp_path / "data")
-    rc = main(["calibrate", "--quick", "--workers", "1", "--model", "new_user_kit:Spring",
-               "--data", str(tmp_path / "data"), "--out", str(tmp_path / "out")])
+    rc = main(
+        [
+            "calibrate",
+            "--quick",
+            "--workers",
+            "1",
+            "--model",
+            "new_user_kit:Spring",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2, err
     line = [ln for ln in err.splitlines() if "error:" in ln]
@@ -37,8 +52,8 @@ def test_the_command_line_refuses_a_dead_validation_force_in_one_line(tmp_path, 
 
 def test_quiet_sections_are_fine():
     f = band_noise(N_SAMPLES, 0.4, 3)
-    f[: N_SAMPLES // 3] = 0.0                  # the shaker switched on late
+    f[: N_SAMPLES // 3] = 0.0  # the shaker switched on late
     g = band_noise(N_SAMPLES, 1.3, 4)
-    g[N_SAMPLES // 2:] = 0.0                   # and off early: a free decay
+    g[N_SAMPLES // 2 :] = 0.0  # and off early: a free decay
     problem = Problem(make_dataset(forces={"quiet_low": f, "medium_check": g}), Spring())
     assert set(problem.validation) == {"medium_check"}

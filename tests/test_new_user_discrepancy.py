@@ -6,14 +6,14 @@ The displacement-specific path: a record's mean is a sensor offset (removed from
 the model sees it and from the response, :class:`bayes_update.core.problem.Problem`), while a
 quadratic spring gives the model's displacement a mean of its own (here about 2 % of its RMS).
 The comparison must treat the model's output as it treats the record: both without their means."""
+
 import json
 
 import numpy as np
 import pytest
-
 from new_user_chain import FS, TRUTH, Chain, make_dataset
 
-HIDDEN = {"kq": 1.5}        # [MN/m^2]: about 10 % of the ground spring's force at the high level
+HIDDEN = {"kq": 1.5}  # [MN/m^2]: about 10 % of the ground spring's force at the high level
 
 
 def offset_free_error(model, theta, record) -> float:
@@ -30,8 +30,9 @@ def found(tmp_path_factory):
     from bayes_update import DiscrepancySettings, find_discrepancy, write_discrepancy
 
     data = make_dataset(HIDDEN)
-    res = find_discrepancy(data, Chain(), settings=DiscrepancySettings.quick(n_start=8, n_replicates=4), workers=1,
-                           log=lambda *a: None)
+    res = find_discrepancy(
+        data, Chain(), settings=DiscrepancySettings.quick(n_start=8, n_replicates=4), workers=1, log=lambda *a: None
+    )
     out = tmp_path_factory.mktemp("discrepancy")
     write_discrepancy(res, out)
     return data, res, json.loads((out / "discrepancy.json").read_text()), out

@@ -2,11 +2,11 @@
 the truth block only in the model's units (corner.png), every response labelled with the data
 set's sensor and unit (predictive.png, calibration_fit.png, the likelihood's noise levels), the
 spectra's axes labelled and limited to where the data are, the model's band visible under the data."""
+
 import json
 
 import numpy as np
 import pytest
-
 from new_user_kit import TRUTH, make_dataset
 
 FAST = """[sample]
@@ -41,9 +41,25 @@ def sampled(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(plots, "posterior_figures", spy)
-        rc = main(["sample", "--quick", "--direct", "--workers", "1", "--walkers", "8",
-                   "--config", str(tmp / "fast.toml"), "--model", "new_user_kit:Spring",
-                   "--data", str(tmp / "data"), "--out", str(tmp / "out")])
+        rc = main(
+            [
+                "sample",
+                "--quick",
+                "--direct",
+                "--workers",
+                "1",
+                "--walkers",
+                "8",
+                "--config",
+                str(tmp / "fast.toml"),
+                "--model",
+                "new_user_kit:Spring",
+                "--data",
+                str(tmp / "data"),
+                "--out",
+                str(tmp / "out"),
+            ]
+        )
     assert rc == 0
     return tmp / "out", seen
 
@@ -110,8 +126,9 @@ def test_the_likelihoods_noise_levels_name_the_sensor_and_its_unit(sampled):
 def test_each_sensor_has_a_key_with_its_name_and_unit():
     from types import SimpleNamespace
 
-    from bayes_update import Problem
     from new_user_kit import AccelerationSpring
+
+    from bayes_update import Problem
 
     data = make_dataset(kind="acceleration", sensor_name="tip_acc", seed=12)
     assert Problem(data, AccelerationSpring()).sensor_keys == ("tip_acc_m_s2",)
@@ -151,9 +168,14 @@ def test_predictive_draws_a_row_per_sensor_of_a_several_sensor_data_set():
     t = np.arange(2 * n) / 100.0
     ref = np.sin(7 * t)
     band = {"reference": ref, "low": ref - 0.1, "high": ref + 0.1, "median": ref + 0.01}
-    fig = predictive_bands({"linear": band, "nonlinear": band}, 100.0, {"linear": "a", "nonlinear": "b"},
-                           sensors=[("tip", "acceleration"), ("mid", "displacement")], unit="noise sd",
-                           metrics="paper")
+    fig = predictive_bands(
+        {"linear": band, "nonlinear": band},
+        100.0,
+        {"linear": "a", "nonlinear": "b"},
+        sensors=[("tip", "acceleration"), ("mid", "displacement")],
+        unit="noise sd",
+        metrics="paper",
+    )
     left = [ax for ax in fig.axes if "model - data" not in ax.get_title()]
     assert [ax.get_ylabel() for ax in left] == ["tip (acceleration) [noise sd]", "mid (displacement) [noise sd]"] * 2
     assert [ax.get_title() for ax in left] == ["y1, a, tip", "y1, a, mid", "y2 + y3, b, tip", "y2 + y3, b, mid"]

@@ -6,6 +6,7 @@ numba's cache, which ``NUMBA_CACHE_DIR`` puts in a temporary folder), run in a w
 process started by *spawn*, and then imported by the user's own script under its own name
 from the same cache.
 """
+
 import json
 import os
 import subprocess
@@ -31,7 +32,7 @@ def hop(f, dt, wn, zeta, k3):
     return out
 '''
 
-MODEL = '''
+MODEL = """
 import numpy as np
 from numba import njit
 
@@ -50,10 +51,10 @@ class Pogo:
     def simulate(self, theta, force, fs):
         y = hop(np.asarray(force, float), 1.0 / fs, 2 * np.pi * theta["fn"], theta["zeta"], 0.0)
         return _gain(y, 3.0)
-'''
+"""
 
 # what --model does: load, check, and a run (in a worker process started by spawn, or here)
-TOOL = '''
+TOOL = """
 import json, multiprocessing, sys
 from concurrent.futures import ProcessPoolExecutor
 import numpy as np
@@ -70,21 +71,22 @@ else:
 mod = sys.modules[type(model).__module__]
 print(json.dumps({"module": type(model).__module__, "hits": sum(mod._gain.stats.cache_hits.values()),
                   "y": float(np.abs(y).sum())}))
-'''
+"""
 
 # the user's own script, importing the file by its name, from the same numba cache
-USER = '''
+USER = """
 import json
 import numpy as np
 import pogo
 y = pogo.Pogo().simulate({"fn": 14.2, "zeta": 0.05}, np.sin(np.arange(600) * 0.11), 250.0)
 print(json.dumps({"hits": sum(pogo._gain.stats.cache_hits.values()), "y": float(np.abs(y).sum())}))
-'''
+"""
 
 
 def _run(code, cwd, env, *args):
-    res = subprocess.run([sys.executable, "-c", code, *args], cwd=cwd, env=env, capture_output=True, text=True,
-                         timeout=300)
+    res = subprocess.run(
+        [sys.executable, "-c", code, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=300
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     return json.loads(res.stdout.strip().splitlines()[-1])
 
@@ -127,16 +129,16 @@ def test_a_model_file_whose_name_is_taken_loads_under_another_and_keeps_numba_ca
     repo = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "numba_cache")
     env["PYTHONPATH"] = repo
-    env["TMPDIR"] = str(tmp_path / "tmp")       # where the synthetic name's own cache goes
+    env["TMPDIR"] = str(tmp_path / "tmp")  # where the synthetic name's own cache goes
     (tmp_path / "tmp").mkdir()
-    code = textwrap.dedent('''
+    code = textwrap.dedent("""
         import json, sys
         import numpy as np
         from bayes_update import check_model, load_model
         model = load_model(sys.argv[1])
         check_model(model, np.sin(np.arange(600) * 0.11), 250.0)
         print(json.dumps({"module": type(model).__module__}))
-    ''')
+    """)
     out = _run(code, tmp_path, env, f"{project / 'json.py'}:Pogo")
     assert out["module"] != "json" and out["module"].startswith("_bayes_update_user_model_"), out
     # nothing of the synthetic module went to the user's cache folder

@@ -1,6 +1,7 @@
 """A model that passes the first check run and then fails at some theta: the error names the
 model, the theta (each parameter with its unit) and the remedy, pickles (it is raised in worker
 processes) and reaches the command line as one line with exit status 2."""
+
 import pickle
 import subprocess
 import sys
@@ -9,12 +10,11 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 import pytest
-
 from new_user_kit import TRUTH, Spring, make_dataset
 
 from bayes_update import ModelError, Problem
 
-BAD = {"fn": 33.4, "zeta": 0.0271, "k": 5.15}       # beyond fn = 31 Hz every model below fails
+BAD = {"fn": 33.4, "zeta": 0.0271, "k": 5.15}  # beyond fn = 31 Hz every model below fails
 
 
 class NanAboveSpring(Spring):
@@ -32,7 +32,7 @@ class ShortAboveSpring(Spring):
 class BuggySpring(Spring):
     def simulate(self, theta, force, fs):
         if theta["fn"] > 31.0:
-            return {"table": 1}["tabel"]          # a typo: a bug, not a region of the parameters
+            return {"table": 1}["tabel"]  # a typo: a bug, not a region of the parameters
         return super().simulate(theta, force, fs)
 
 
@@ -57,9 +57,14 @@ def _check_message(text, kind, *what):
     assert "\n" not in text
 
 
-@pytest.mark.parametrize("cls, what", [(NanAboveSpring, ("NaN", "ModelError")),
-                                       (ShortAboveSpring, ("(2047,)", "(2048,)")),
-                                       (BuggySpring, ("KeyError", "tabel", "ModelError"))])
+@pytest.mark.parametrize(
+    "cls, what",
+    [
+        (NanAboveSpring, ("NaN", "ModelError")),
+        (ShortAboveSpring, ("(2047,)", "(2048,)")),
+        (BuggySpring, ("KeyError", "tabel", "ModelError")),
+    ],
+)
 def test_a_run_error_names_the_model_the_theta_and_the_remedy(data, cls, what):
     problem = Problem(data, cls())
     assert problem.evaluate(TRUTH)["error"] is None
@@ -90,7 +95,7 @@ def test_model_error_still_means_this_point_cannot_run(data):
     assert np.isnan(problem.prediction_errors(BAD)["medium_check"])
 
 
-MODEL_FILE = '''
+MODEL_FILE = """
 import numpy as np
 from scipy import signal
 from bayes_update import Parameter
@@ -108,7 +113,7 @@ class LateNaN:
         if theta["fn"] > 31.0:
             y[::2] = {how}
         return y
-'''
+"""
 
 
 @pytest.mark.parametrize("how, what", [("np.nan", "NaN"), ("1 / 0", "ZeroDivisionError")])
@@ -117,10 +122,27 @@ def test_cli_reports_a_run_error_in_one_line_with_status_2(tmp_path, data, how, 
 
     write_dataset(data, tmp_path / "data")
     (tmp_path / "late_nan.py").write_text(textwrap.dedent(MODEL_FILE.replace("{how}", how)))
-    res = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--quick", "--workers", "1",
-                          "--model", f"{tmp_path / 'late_nan.py'}:LateNaN", "--data", str(tmp_path / "data"),
-                          "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300,
-                         cwd=tmp_path)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bayes_update",
+            "calibrate",
+            "--quick",
+            "--workers",
+            "1",
+            "--model",
+            f"{tmp_path / 'late_nan.py'}:LateNaN",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(tmp_path / "out"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=tmp_path,
+    )
     assert res.returncode == 2, res.stderr[-3000:]
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("bayes-update calibrate: error:")]
     assert len(lines) == 1 and "Traceback" not in res.stderr, res.stderr[-3000:]

@@ -12,23 +12,24 @@ forces at three levels, displacement recorded, 1 % noise on the response and
 1 / (b + g) and the oscillator is nearly linear; at the high level it yields.
 Every constant is this file's own.
 """
+
 from __future__ import annotations
 
 import re
 
 import numpy as np
 import pytest
+from new_user_kit import FS, Spring, band_noise
 from numba import njit
 
 import bayes_update as bu
 from bayes_update.core.checks import ModelFitError
-from new_user_kit import FS, Spring, band_noise
 
-MASS = 0.224                                 # [kg]: 24 Hz on the elastic stiffness
-K = 5.1e3                                    # [N/m]
-C = 6.0                                      # [N s/m]
-ALPHA = 0.08                                 # post-yield stiffness ratio
-BETA, GAMMA = 2.2e3, 1.4e3                   # [1/m]: z's ceiling 1 / (b + g) = 0.28 mm
+MASS = 0.224  # [kg]: 24 Hz on the elastic stiffness
+K = 5.1e3  # [N/m]
+C = 6.0  # [N s/m]
+ALPHA = 0.08  # post-yield stiffness ratio
+BETA, GAMMA = 2.2e3, 1.4e3  # [1/m]: z's ceiling 1 / (b + g) = 0.28 mm
 SUBSTEPS = 16
 N = 4096
 LEVELS = (("weak", "linear", 0.08), ("strong", "nonlinear", 6.0), ("middle", "validation", 3.0))
@@ -72,10 +73,18 @@ def hysteretic_data():
     for i, (name, role, level) in enumerate(LEVELS):
         f = band_noise(N, level, 31 + i)
         y = bouc_wen(f, FS)
-        tests.append(Record(f"{name}.csv", "noise", name, role, t,
-                            f + 0.005 * np.std(f) * rng.standard_normal(N),
-                            y + 0.01 * np.std(y) * rng.standard_normal(N),
-                            sensors=(("displacement", "displacement"),)))
+        tests.append(
+            Record(
+                f"{name}.csv",
+                "noise",
+                name,
+                role,
+                t,
+                f + 0.005 * np.std(f) * rng.standard_normal(N),
+                y + 0.01 * np.std(y) * rng.standard_normal(N),
+                sensors=(("displacement", "displacement"),),
+            )
+        )
     return Dataset("bouc_wen", FS, None, tests)
 
 
@@ -97,8 +106,14 @@ def test_sample_stops_after_its_start_with_a_message(hysteretic_data):
     # the full start (every parameter fitted, coarse_start off): the check runs right after it,
     # before any MAP; the message gives each test's miss against what noise allows, and the remedy
     with pytest.raises(ModelFitError, match="strong") as info:
-        bu.sample(hysteretic_data, Spring(), bu.PosteriorSettings.quick(coarse_start=False), workers=1,
-                  progress=False, log=lambda *a: None)
+        bu.sample(
+            hysteretic_data,
+            Spring(),
+            bu.PosteriorSettings.quick(coarse_start=False),
+            workers=1,
+            progress=False,
+            log=lambda *a: None,
+        )
     msg = str(info.value)
     print(f"\n[wrong form] sample: {msg}")
     for test in ("weak", "strong"):
@@ -118,8 +133,20 @@ def test_the_command_line_ends_in_one_line_with_status_2(hysteretic_data, tmp_pa
     from bayes_update.data.folder import write_dataset
 
     write_dataset(hysteretic_data, tmp_path / "data")
-    rc = main(["sample", "--quick", "--workers", "1", "--model", "new_user_kit:Spring", "--data",
-               str(tmp_path / "data"), "--out", str(tmp_path / "out")])
+    rc = main(
+        [
+            "sample",
+            "--quick",
+            "--workers",
+            "1",
+            "--model",
+            "new_user_kit:Spring",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(tmp_path / "out"),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2, err[-3000:]
     assert "Traceback" not in err

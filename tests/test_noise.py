@@ -1,10 +1,11 @@
 """The noise estimators of bayes_update.data.noise against the noise really added
 to laboratory-like records (tests/lab_records.py): every estimate within 15 % of
 the sd of the added noise sequence, over the whole record."""
+
+import lab_records as lab
 import numpy as np
 import pytest
 
-import lab_records as lab
 from bayes_update.data.lpm import lpm_noise
 from bayes_update.data.noise import NoiseEstimationError, dataset_noise, from_fit_residual, record_noise
 from bayes_update.data.periodic import find_periods, period_noise
@@ -46,16 +47,16 @@ def test_the_generator_adds_exactly_the_noise_it_returns_and_integrates_accurate
     assert np.allclose(measured - clean - rec.offsets - rec.drift, noise, rtol=0, atol=1e-12)
     # a middle period of the steady state against the chain's analytic FRF (acceleration / force)
     N, (a, _) = rec.period_samples, rec.section("multisine")[0]
-    Y = np.fft.rfft(rec.clean_response[a + 3 * N:a + 4 * N], axis=0)
-    U = np.fft.rfft(rec.clean_force[a + 3 * N:a + 4 * N])
+    Y = np.fft.rfft(rec.clean_response[a + 3 * N : a + 4 * N], axis=0)
+    U = np.fft.rfft(rec.clean_force[a + 3 * N : a + 4 * N])
     f = np.fft.rfftfreq(N, 1 / rec.fs)
     k = np.flatnonzero(np.abs(U) > 0.1 * np.abs(U).max())
     M, K, C, b = np.diag(lab.LAB_MASSES_KG), lab._stiffness(), lab._damping(), np.array([0.0, 0.0, 1.0])
-    exact = np.array([-(w ** 2) * np.linalg.solve(K - w ** 2 * M + 1j * w * C, b) for w in 2 * np.pi * f[k]])
+    exact = np.array([-(w**2) * np.linalg.solve(K - w**2 * M + 1j * w * C, b) for w in 2 * np.pi * f[k]])
     assert np.max(np.abs(Y[k] / U[k, None] - exact) / np.abs(exact)) < 1e-3
     assert f[k].min() < 2.5 and f[k].max() > 79.0 and rec.fs == 2.5 * lab.LAB_BAND_HZ[1]
     # the steady state repeats exactly (what the periods estimator relies on)
-    P = rec.clean_response[a + 2 * N:a + 5 * N].reshape(3, N, 3)
+    P = rec.clean_response[a + 2 * N : a + 5 * N].reshape(3, N, 3)
     assert np.max(np.abs(np.diff(P, axis=0))) < 1e-9 * np.max(np.abs(P))
 
 
@@ -66,8 +67,8 @@ def test_periods_give_every_channel_within_15_percent(periodic):
     print("periods:", {k: f"{v:+.3f}" for k, v in err.items()})
     assert all(est[ch].method == "periods" for ch in CHANNELS)
     assert all(abs(e) < TOL for e in err.values()), err
-    assert est["acc1"].detail.startswith("periods 2-")            # the first period is dropped
-    (a, b), = est["acc1"].spans
+    assert est["acc1"].detail.startswith("periods 2-")  # the first period is dropped
+    ((a, b),) = est["acc1"].spans
     assert a >= periodic.section("multisine")[0][0] + periodic.period_samples
 
 
@@ -108,8 +109,7 @@ def test_drift_and_offsets_do_not_spoil_the_periods():
 # ------------------------------------------------------------------ zero-input sections
 @pytest.fixture(scope="module")
 def with_pauses():
-    return lab.lab_record("pauses.csv", "validation", 2.0, [("quiet", 3.0), ("random", 20.0), ("quiet", 8.0)],
-                          seed=31)
+    return lab.lab_record("pauses.csv", "validation", 2.0, [("quiet", 3.0), ("random", 20.0), ("quiet", 8.0)], seed=31)
 
 
 def test_zero_input_sections_skip_the_free_decay(with_pauses):
@@ -122,7 +122,7 @@ def test_zero_input_sections_skip_the_free_decay(with_pauses):
     stop = rec.section("random")[0][1]
     for ch in SENSORS:
         tail = [a for a, _ in est[ch].spans if a >= stop]
-        assert tail and tail[0] - stop > 1.0 * rec.fs                # the decay (tau 0.44 s) is skipped
+        assert tail and tail[0] - stop > 1.0 * rec.fs  # the decay (tau 0.44 s) is skipped
         # a free decay is not noise: the whole quiet tail would be many times the noise
         assert np.std(channel(rec, ch)[stop:]) > 5 * rec.noise_sd[ch]
 
@@ -186,13 +186,13 @@ def test_a_fit_residual_given_by_the_caller_takes_the_place_of_the_lpm(random_pa
 # ------------------------------------------------------------------ declared noise, force
 def test_declared_noise_wins(periodic, random_pair):
     ds = lab.lab_dataset([periodic, random_pair[1]], noise_sd={"acc2": 0.123, "force": 0.01})
-    ds.tests[0].noise_sd = {"force": 0.02}                         # one test's own, overriding
+    ds.tests[0].noise_sd = {"force": 0.02}  # one test's own, overriding
     noise = dataset_noise(ds)
     first, second = noise["multisine_low"], noise["random_high"]
     assert (first["acc2"].sd, first["acc2"].method) == (0.123, "declared")
     assert (first["force"].sd, first["force"].method) == (0.02, "declared")
     assert (second["force"].sd, second["acc2"].sd) == (0.01, 0.123)
-    assert first["acc1"].method == "periods"                      # not declared: estimated
+    assert first["acc1"].method == "periods"  # not declared: estimated
 
 
 def test_force_noise_from_periods_and_from_zero_input(periodic, with_pauses):
@@ -204,7 +204,7 @@ def test_force_noise_from_periods_and_from_zero_input(periodic, with_pauses):
 
 # ------------------------------------------------------------------ nothing available
 def test_a_data_set_with_no_source_of_noise_says_what_to_add(random_pair):
-    ds = lab.lab_dataset([random_pair[1]])                        # high level only, no linear test
+    ds = lab.lab_dataset([random_pair[1]])  # high level only, no linear test
     with pytest.raises(NoiseEstimationError) as info:
         dataset_noise(ds)
     msg = str(info.value)
@@ -223,11 +223,14 @@ def test_a_data_set_with_no_source_of_noise_says_what_to_add(random_pair):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", range(100, 110))
 def test_every_estimator_over_seeds(seed):
-    cases = [(lab.periodic_test(seed=seed), "periods"),
-             (lab.lab_record("p.csv", "validation", 2.0, [("quiet", 3.0), ("random", 20.0), ("quiet", 8.0)],
-                             seed=seed), "zero_input"),
-             (lab.lab_record("f.csv", "validation", 2.0, lab.RANDOM_LAYOUT, seed=seed, fs=1000.0, white=True),
-              "quiet_band")]
+    cases = [
+        (lab.periodic_test(seed=seed), "periods"),
+        (
+            lab.lab_record("p.csv", "validation", 2.0, [("quiet", 3.0), ("random", 20.0), ("quiet", 8.0)], seed=seed),
+            "zero_input",
+        ),
+        (lab.lab_record("f.csv", "validation", 2.0, lab.RANDOM_LAYOUT, seed=seed, fs=1000.0, white=True), "quiet_band"),
+    ]
     for rec, method in cases:
         est = record_noise(rec.record())
         err = errors(est, rec)
@@ -275,7 +278,7 @@ def test_the_lpm_on_a_record_short_against_a_mode_bandwidth():
     print(est.detail)
     assert abs(est.sd / noise.std() - 1) < TOL, est.sd / noise.std()
     lo, hi = (float(v) for v in est.detail.split(" Hz) unresolved")[0].split("(")[-1].split("-"))
-    assert 9.0 < lo < 13.1 and 31.7 < hi < 36.0, (lo, hi)          # around the two modes, not beyond
+    assert 9.0 < lo < 13.1 and 31.7 < hi < 36.0, (lo, hi)  # around the two modes, not beyond
     # the raw residual without the guard: several times the noise (what the frame's records gave)
     from bayes_update.data import lpm
 
@@ -288,7 +291,7 @@ def test_the_lpm_on_a_record_short_against_a_mode_bandwidth():
 
 def test_the_lpm_refuses_a_record_whose_lines_are_mostly_unresolved():
     fs = 97.0
-    modes = [(fn, 0.002) for fn in np.linspace(4.0, 44.0, 6)]        # a mode every 8 Hz, bandwidth 0.04 Hz
+    modes = [(fn, 0.002) for fn in np.linspace(4.0, 44.0, 6)]  # a mode every 8 Hz, bandwidth 0.04 Hz
     force, y, _ = _resonant_record(fs, 194, 2, modes, 0.01, seed=404)
     with pytest.raises(ValueError, match="cannot follow the FRF on .* record longer or declare noise_sd"):
         lpm_noise(force, y, fs)

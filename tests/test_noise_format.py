@@ -1,11 +1,12 @@
 """The dataset.json keys of the noise (noise_sd, period_samples): read, carried on
 Dataset/Record, written back, validated with messages naming the file and the key."""
+
 import json
 
+import lab_records as lab
 import numpy as np
 import pytest
 
-import lab_records as lab
 from bayes_update.data.dataset import Dataset, DatasetError, Record
 from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.data.noise import dataset_noise
@@ -65,18 +66,21 @@ def _folder(tmp_path, rec, **keys):
     return folder
 
 
-@pytest.mark.parametrize("keys, words", [
-    ({"noise_sd": [0.1]}, ["'noise_sd' must be an object"]),
-    ({"noise_sd": {"acc9": 0.1}}, ["channel 'acc9'", "'force'", "'acc1'"]),
-    ({"noise_sd": {"acc1": -1.0}}, ["'acc1' must be a positive number"]),
-    ({"noise_sd": {"force": "0.1"}}, ["'force' must be a positive number"]),
-    ({"noise_sd": {"force": 0}}, ["'force' must be a positive number"]),
-    ({"test_noise_sd": {"velocity": 1.0}}, ["test multisine_low.csv", "channel 'velocity'"]),
-    ({"test_period_samples": 1024.5}, ["test multisine_low.csv", "'period_samples' must be an integer"]),
-    ({"test_period_samples": True}, ["'period_samples' must be an integer"]),
-    ({"test_period_samples": 1}, ["'period_samples' must be at least 2"]),
-    ({"test_period_samples": 5000}, ["'period_samples' is 5000", "at least two periods"]),
-])
+@pytest.mark.parametrize(
+    "keys, words",
+    [
+        ({"noise_sd": [0.1]}, ["'noise_sd' must be an object"]),
+        ({"noise_sd": {"acc9": 0.1}}, ["channel 'acc9'", "'force'", "'acc1'"]),
+        ({"noise_sd": {"acc1": -1.0}}, ["'acc1' must be a positive number"]),
+        ({"noise_sd": {"force": "0.1"}}, ["'force' must be a positive number"]),
+        ({"noise_sd": {"force": 0}}, ["'force' must be a positive number"]),
+        ({"test_noise_sd": {"velocity": 1.0}}, ["test multisine_low.csv", "channel 'velocity'"]),
+        ({"test_period_samples": 1024.5}, ["test multisine_low.csv", "'period_samples' must be an integer"]),
+        ({"test_period_samples": True}, ["'period_samples' must be an integer"]),
+        ({"test_period_samples": 1}, ["'period_samples' must be at least 2"]),
+        ({"test_period_samples": 5000}, ["'period_samples' is 5000", "at least two periods"]),
+    ],
+)
 def test_bad_keys_are_refused_naming_the_file_and_the_key(records, tmp_path, keys, words):
     folder = _folder(tmp_path, records[0], **keys)
     with pytest.raises(DatasetError) as info:
@@ -99,4 +103,5 @@ def test_records_and_data_sets_in_memory_are_validated_too(records):
 
 def _fields(record) -> dict:
     import dataclasses
+
     return {f.name: getattr(record, f.name) for f in dataclasses.fields(record)}

@@ -1,12 +1,13 @@
 """The inspection report's data side (bayes_update.data.inspect) and its figures
 (bayes_update.reports.inspection), on lab records with known truth and on the
 embedded default data set."""
+
 import json
 
+import lab_records as lab
 import numpy as np
 import pytest
 
-import lab_records as lab
 from bayes_update.data import checks
 from bayes_update.data.inspect import find_modes, inspect_dataset
 from bayes_update.data.noise import dataset_noise
@@ -35,7 +36,7 @@ def default_set():
 
 def test_the_inspection_of_lab_records_holds_the_truth(lab_set):
     records, ds, noise, out = lab_set
-    json.dumps(out, allow_nan=False)                                  # JSON-ready
+    json.dumps(out, allow_nan=False)  # JSON-ready
     for rec in records:
         entry = out["tests"][rec.file]
         assert set(entry["noise"]) == set(CHANNELS)
@@ -90,7 +91,7 @@ def test_clipping_and_coherence_loss_are_reported():
     noisy.file = "noisy.csv"
     rng = np.random.default_rng(5)
     r = noisy.response.copy()
-    r[:, 2] += 5.0 * rng.standard_normal(r.shape[0])                 # 2x the response's rms
+    r[:, 2] += 5.0 * rng.standard_normal(r.shape[0])  # 2x the response's rms
     noisy.response = r
     ds = lab.lab_dataset([rec])
     ds.tests = [clipped, noisy]
@@ -111,18 +112,18 @@ def test_the_default_data_set(default_set):
         for ch, x in (("force", t.force), ("velocity", t.response)):
             est = noise[t.name][ch]
             # noise added at 40 dB below each channel's rms: sd = rms / 100 (of the clean channel)
-            expected = np.sqrt(np.mean(x ** 2) / (1 + 1e-4)) / 100
+            expected = np.sqrt(np.mean(x**2) / (1 + 1e-4)) / 100
             assert abs(est.sd / expected - 1) < 0.15, (t.name, ch, est.method, est.sd / expected)
             methods[(t.name, ch)] = est.method
     print(methods)
     assert {methods[(t, "velocity")] for t in ("sine_low", "sine_medium", "sine_high")} == {"periods"}
     assert methods[("chirp_low", "force")] == "zero_input"
-    assert out["tests"]["sine_low.csv"]["period_samples"] == 1024      # 35 Hz repeats every 1024 samples
+    assert out["tests"]["sine_low.csv"]["period_samples"] == 1024  # 35 Hz repeats every 1024 samples
     lin = truth["linearised"]
     assert out["modes"][0]["freq_hz"] == pytest.approx(lin["f1_hz"], rel=0.01)
     assert out["modes"][0]["damping_ratio"] == pytest.approx(lin["zeta1"], rel=0.15)
     dep = out["level_dependence"][0]["freq_hz"]
-    assert set(dep) == {"chirp_low.csv", "chirp_medium.csv", "chirp_high.csv"}   # the sines miss the mode
+    assert set(dep) == {"chirp_low.csv", "chirp_medium.csv", "chirp_high.csv"}  # the sines miss the mode
     assert dep["chirp_low.csv"] < dep["chirp_high.csv"]
     # this virtual data set's noise is proportional to each test's level: the report says so
     assert any("sensor 'velocity': its noise differs" in w for w in out["warnings"])
@@ -146,10 +147,13 @@ def test_find_modes_is_one_small_function():
 
 @pytest.mark.parametrize("which", ["lab", "default"])
 def test_the_figures_are_written(which, lab_set, default_set, tmp_path):
-    ds, noise, out = (lab_set[1:] if which == "lab" else default_set)
+    ds, noise, out = lab_set[1:] if which == "lab" else default_set
     paths = write_inspection(ds, tmp_path, out, noise)
-    names = {"inspection.json", "modes.png", "noise_force.png"} | {f"frf_{n}.png" for n, _ in ds.sensors} \
+    names = (
+        {"inspection.json", "modes.png", "noise_force.png"}
+        | {f"frf_{n}.png" for n, _ in ds.sensors}
         | {f"noise_{n}.png" for n, _ in ds.sensors}
+    )
     assert set(paths) == names
     assert all(p.stat().st_size > 10_000 for n, p in paths.items() if n.endswith(".png"))
     assert json.loads(paths["inspection.json"].read_text())["tests"].keys() == out["tests"].keys()
@@ -165,18 +169,19 @@ def _multisine(fs, n, band, seed):
     return x / x.std()
 
 
-@pytest.mark.parametrize("fs, seconds, band", [(512.0, 2.0, (2.0, 40.0)), (1024.0, 2.0, (2.0, 110.0)),
-                                               (200.0, 8.0, (0.5, 60.0))])
+@pytest.mark.parametrize(
+    "fs, seconds, band", [(512.0, 2.0, (2.0, 40.0)), (1024.0, 2.0, (2.0, 110.0)), (200.0, 8.0, (0.5, 60.0))]
+)
 def test_low_multisine_lines_are_not_a_drift(fs, seconds, band):
     """Records of a few seconds whose lowest excited line has a few cycles in them (a
     portal frame's 2-s multisines from 2 Hz): windows of 1/8 of the record read
     40-65 % of the rms as a drift there; windows over two cycles of the lowest line
     do not, and a drift added is still measured."""
     n = int(fs * seconds)
-    x = np.tile(_multisine(fs, n // 2, band, seed=31), 2)        # two periods
-    assert checks.drift(x) > 0.1                                   # what the fixed windows said
+    x = np.tile(_multisine(fs, n // 2, band, seed=31), 2)  # two periods
+    assert checks.drift(x) > 0.1  # what the fixed windows said
     assert checks.drift(x, fs, band[0]) < 0.02
-    ramp = 0.3 * np.linspace(-0.5, 0.5, n)                          # a drift of 30 % of the rms
+    ramp = 0.3 * np.linspace(-0.5, 0.5, n)  # a drift of 30 % of the rms
     got = checks.drift(x + ramp, fs, band[0])
     truth_span = np.ptp(checks.trend(ramp, int(np.ceil(2 * fs / band[0])))) / np.std(x + ramp)
     assert got == pytest.approx(truth_span, rel=0.1) and got > 0.1

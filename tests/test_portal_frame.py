@@ -22,6 +22,7 @@ checked against things it does not share code with.
 
 About 15 s on one core (the OpenSees runs dominate).
 """
+
 import math
 import pickle
 import sys
@@ -29,16 +30,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from scipy import linalg  # noqa: E402
-
 from reference import require_reference  # noqa: E402
+from scipy import linalg  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "notebooks"))
 try:
     import openseespy.opensees as ops
     import portal_frame as pf
-except Exception as exc:    # ImportError, or the library's own load error (a missing liblapack)
+except Exception as exc:  # ImportError, or the library's own load error (a missing liblapack)
     ops = pf = None
     IMPORT_ERROR = f"{type(exc).__name__}: {exc}"
 else:
@@ -46,8 +45,10 @@ else:
 
 # a missing openseespy fails these tests (tests/reference.py), as it fails notebook 06
 _requires_opensees = require_reference(
-    IMPORT_ERROR, "openseespy (the OpenSees example model's library)",
-    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3")
+    IMPORT_ERROR,
+    "openseespy (the OpenSees example model's library)",
+    "pip install openseespy (the dev extra); it needs the system libraries libblas3 and liblapack3",
+)
 
 import bayes_update as bu  # noqa: E402
 
@@ -56,7 +57,7 @@ LINEAR = {"k_j": 0.5, "k3": 0.0, "zeta": 0.03, "m_top": 1.0}
 
 # ----------------------------------------------------------------------------- numpy frame
 def _section(b, t, rho=7850.0):
-    return b * t, b * t ** 3 / 12.0, rho * b * t
+    return b * t, b * t**3 / 12.0, rho * b * t
 
 
 def _element(x1, y1, x2, y2, E, A, I, m, phi=0.0):
@@ -65,20 +66,35 @@ def _element(x1, y1, x2, y2, E, A, I, m, phi=0.0):
     bending (the exact stiffness for end loads)."""
     L = math.hypot(x2 - x1, y2 - y1)
     c, s = (x2 - x1) / L, (y2 - y1) / L
-    kb = E * I / ((1 + phi) * L ** 3)
+    kb = E * I / ((1 + phi) * L**3)
     k = np.zeros((6, 6))
     k[np.ix_([0, 3], [0, 3])] = E * A / L * np.array([[1, -1], [-1, 1]])
-    k[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = kb * np.array([
-        [12, 6 * L, -12, 6 * L], [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
-        [-12, -6 * L, 12, -6 * L], [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L]])
+    k[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = kb * np.array(
+        [
+            [12, 6 * L, -12, 6 * L],
+            [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
+            [-12, -6 * L, 12, -6 * L],
+            [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L],
+        ]
+    )
     mm = np.zeros((6, 6))
     mm[np.ix_([0, 3], [0, 3])] = m * L / 6 * np.array([[2, 1], [1, 2]])
-    mm[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = m * L / 420 * np.array([
-        [156, 22 * L, 54, -13 * L], [22 * L, 4 * L * L, 13 * L, -3 * L * L],
-        [54, 13 * L, 156, -22 * L], [-13 * L, -3 * L * L, -22 * L, 4 * L * L]])
+    mm[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = (
+        m
+        * L
+        / 420
+        * np.array(
+            [
+                [156, 22 * L, 54, -13 * L],
+                [22 * L, 4 * L * L, 13 * L, -3 * L * L],
+                [54, 13 * L, 156, -22 * L],
+                [-13 * L, -3 * L * L, -22 * L, 4 * L * L],
+            ]
+        )
+    )
     T = np.zeros((6, 6))
     for i in (0, 3):
-        T[i:i + 3, i:i + 3] = [[c, s, 0], [-s, c, 0], [0, 0, 1]]
+        T[i : i + 3, i : i + 3] = [[c, s, 0], [-s, c, 0], [0, 0, 1]]
     return T.T @ k @ T, T.T @ mm @ T
 
 
@@ -118,7 +134,11 @@ def numpy_frame(n, k_j, m_top, timoshenko=False):
 
     def add(a, b, sec):
         A, I, m = sec
-        phi = 12 * E * I / (E / (2 * (1 + nu)) * 5 / 6 * A * (math.dist(coords[a], coords[b]) ** 2)) if timoshenko else 0.0
+        phi = (
+            12 * E * I / (E / (2 * (1 + nu)) * 5 / 6 * A * (math.dist(coords[a], coords[b]) ** 2))
+            if timoshenko
+            else 0.0
+        )
         ke, me = _element(*coords[a], *coords[b], E, A, I, m, phi)
         idx = list(dof[a]) + list(dof[b])
         for i, gi in enumerate(idx):
@@ -161,7 +181,7 @@ def _static(model, theta, loads, steps=1):
     for _ in range(steps):
         assert ops.analyze(1) == 0
         rot = ops.nodeDisp(nodes["joint"], 3) - ops.nodeDisp(nodes["tl"], 3)
-        moment = ops.eleResponse(nodes["spring"], "force")[5]        # on the joint node: k (t_joint - t_tl)
+        moment = ops.eleResponse(nodes["spring"], "force")[5]  # on the joint node: k (t_joint - t_tl)
         out.append(({k: ops.nodeDisp(nodes[k], 1) for k in ("tl", "tr", "mid")}, rot, moment))
     ops.wipe()
     return out
@@ -173,17 +193,19 @@ def test_static_lateral_stiffness_against_the_stiffness_method(element, timoshen
     """(a) P / u_x at the loaded corner, k3 = 0, a 1 N load: OpenSees against numpy (one element
     per member, exact for end loads), and the joint's effect itself (k_j against a rigid joint)."""
     theta = {**LINEAR, "k_j": k_j}
-    (disp, _, _), = _static(pf.PortalFrame(element=element), theta, {"tr": (1.0, 0.0, 0.0)})
+    ((disp, _, _),) = _static(pf.PortalFrame(element=element), theta, {"tr": (1.0, 0.0, 0.0)})
     k_os = 1.0 / disp["tr"]
     K, _, d = numpy_frame(1, 1e3 * k_j, 1.0, timoshenko=timoshenko)
     k_np = 1.0 / np.linalg.solve(K, np.eye(K.shape[0])[d["tr"]])[d["tr"]]
     K_rigid, _, _ = numpy_frame(1, 1e12, 1.0, timoshenko=timoshenko)
     k_rigid = 1.0 / np.linalg.solve(K_rigid, np.eye(K.shape[0])[d["tr"]])[d["tr"]]
-    print(f"{element} k_j {k_j}: OpenSees {k_os:.2f} N/m, numpy {k_np:.2f} N/m "
-          f"({100 * (k_os / k_np - 1):+.2e} %), rigid joint {k_rigid:.2f} N/m")
-    assert abs(k_os / k_np - 1) < 5e-3          # the brief's 0.5 %
-    assert abs(k_os / k_np - 1) < 1e-5          # measured 2e-6: PDelta with the load's own column forces
-    assert k_rigid / k_np - 1 > (0.05 if k_j < 1 else 0.01)     # the joint matters
+    print(
+        f"{element} k_j {k_j}: OpenSees {k_os:.2f} N/m, numpy {k_np:.2f} N/m "
+        f"({100 * (k_os / k_np - 1):+.2e} %), rigid joint {k_rigid:.2f} N/m"
+    )
+    assert abs(k_os / k_np - 1) < 5e-3  # the brief's 0.5 %
+    assert abs(k_os / k_np - 1) < 1e-5  # measured 2e-6: PDelta with the load's own column forces
+    assert k_rigid / k_np - 1 > (0.05 if k_j < 1 else 0.01)  # the joint matters
 
 
 def test_joint_moment_rotation_between_table_points():
@@ -195,20 +217,22 @@ def test_joint_moment_rotation_between_table_points():
     table, _ = model.joint_table(theta)
     delta = table[1] - table[0]
     kj, k2, k3 = 1e3 * theta["k_j"], 1e3 * theta["k2"], 1e6 * theta["k3"]
-    law = lambda t: kj * t + k2 * t * t + k3 * t ** 3     # noqa: E731
+    law = lambda t: kj * t + k2 * t * t + k3 * t**3  # noqa: E731
     rows = []
     for sign in (1.0, -1.0):
         rows += _static(model, theta, {"joint": (0.0, 0.0, sign * 12.0)}, steps=24)
     rot = np.array([r[1] for r in rows])
     moment = np.array([r[2] for r in rows])
     frac = np.abs(rot / delta - np.round(rot / delta))
-    bound = delta ** 2 / 8 * (2 * abs(k2) + 6 * k3 * np.abs(rot).max())
+    bound = delta**2 / 8 * (2 * abs(k2) + 6 * k3 * np.abs(rot).max())
     err = np.abs(moment - law(rot))
-    nonlinear = np.abs(k2 * rot ** 2 + k3 * rot ** 3)
-    print(f"rotations {rot.min():.3g} .. {rot.max():.3g} rad, table step {delta:.3g} rad; max |M - law| "
-          f"{err.max():.3g} N m (bound {bound:.3g}), {100 * (err / nonlinear).max():.3f} % of the nonlinear "
-          f"moment, {100 * (err / np.abs(law(rot))).max():.4f} % of the moment")
-    assert np.abs(rot).max() > 2e-3 and (frac > 0.2).sum() > 20     # the data's range, between points
+    nonlinear = np.abs(k2 * rot**2 + k3 * rot**3)
+    print(
+        f"rotations {rot.min():.3g} .. {rot.max():.3g} rad, table step {delta:.3g} rad; max |M - law| "
+        f"{err.max():.3g} N m (bound {bound:.3g}), {100 * (err / nonlinear).max():.3f} % of the nonlinear "
+        f"moment, {100 * (err / np.abs(law(rot))).max():.4f} % of the moment"
+    )
+    assert np.abs(rot).max() > 2e-3 and (frac > 0.2).sum() > 20  # the data's range, between points
     assert np.all(err <= bound * 1.01 + 1e-9)
     # negligible: 0.03 % of the moment at most (a joint stiffness change of 2e-4 of k_j), and
     # below 1 % of the law's nonlinear part beyond 1 mrad (measured 0.25 %)
@@ -233,18 +257,20 @@ def test_natural_frequencies_against_a_numpy_frame_fe(k_j):
     theta = {**LINEAR, "k_j": k_j}
     same = _frequencies_numpy(4, theta)
     converged = _frequencies_numpy(32, theta)
-    assert abs(_frequencies_numpy(16, theta)[1] / converged[1] - 1) < 1e-5       # converged indeed
+    assert abs(_frequencies_numpy(16, theta)[1] / converged[1] - 1) < 1e-5  # converged indeed
     ebc = pf.PortalFrame(4, element="elasticBeamColumn").frequencies(theta, 2)
     ebc_fine = pf.PortalFrame(8, element="elasticBeamColumn").frequencies(theta, 2)
     default = pf.PortalFrame().frequencies(theta, 2)
-    print(f"k_j {k_j}: numpy n=32 {converged} Hz; Euler-Bernoulli n=4 {100 * (ebc / converged - 1)} %, "
-          f"n=8 {100 * (ebc_fine / converged - 1)} %, numpy n=4 {100 * (same / converged - 1)} %; "
-          f"default (Timoshenko, n=4) {100 * (default / converged - 1)} %")
+    print(
+        f"k_j {k_j}: numpy n=32 {converged} Hz; Euler-Bernoulli n=4 {100 * (ebc / converged - 1)} %, "
+        f"n=8 {100 * (ebc_fine / converged - 1)} %, numpy n=4 {100 * (same / converged - 1)} %; "
+        f"default (Timoshenko, n=4) {100 * (default / converged - 1)} %"
+    )
     assert np.allclose(ebc, same, rtol=1e-7)
-    assert np.all(np.abs(ebc / converged - 1) < [1e-5, 1e-3])          # n = 4: 0.06 % on mode 2
-    assert np.all(np.abs(ebc_fine / converged - 1) < np.abs(ebc / converged - 1) / 4 + 1e-7)   # h^4
+    assert np.all(np.abs(ebc / converged - 1) < [1e-5, 1e-3])  # n = 4: 0.06 % on mode 2
+    assert np.all(np.abs(ebc_fine / converged - 1) < np.abs(ebc / converged - 1) / 4 + 1e-7)  # h^4
     assert np.all(np.abs(default / converged - 1) < 1e-3)
-    assert 8 < default[0] < 20 and 60 < default[1] < 110                           # the design's band
+    assert 8 < default[0] < 20 and 60 < default[1] < 110  # the design's band
 
 
 def _rayleigh(K, M, zeta):
@@ -273,7 +299,7 @@ def _linear_numpy_response(n, theta, fine_force, h, stride, discrete=True, pad_s
     beta z)) a / p^2 in M w_I a + w_F (C v + K x) = w_F f.  Else the continuous FRF (s = i w)."""
     K, M, d = numpy_frame(n, 1e3 * theta["k_j"], theta["m_top"])
     a, b = _rayleigh(K, M, theta["zeta"])
-    w2, phi = linalg.eigh(K, M)                       # phi^T M phi = I
+    w2, phi = linalg.eigh(K, M)  # phi^T M phi = I
     n_fft = fine_force.size + int(pad_s / h)
     F = np.fft.rfft(fine_force, n_fft)
     w = 2 * np.pi * np.fft.rfftfreq(n_fft, h)
@@ -283,8 +309,8 @@ def _linear_numpy_response(n, theta, fine_force, h, stride, discrete=True, pad_s
         z = np.exp(1j * w * h)[:, None]
         p = z - 1
         wI, wF = aI * z + 1 - aI, aF * z + 1 - aF
-        gv = h * ((1 - gamma) + gamma * z)                       # v p / a
-        gx = h * h * (((1 - gamma) + gamma * z) + p * ((1 / 2 - beta) + beta * z))   # x p^2 / a
+        gv = h * ((1 - gamma) + gamma * z)  # v p / a
+        gx = h * h * (((1 - gamma) + gamma * z) + p * ((1 / 2 - beta) + beta * z))  # x p^2 / a
         den = wI * p * p + wF * (c * gv * p + k * gx)
         acc, disp = wF * p * p / den, wF * gx / den
     else:
@@ -292,9 +318,13 @@ def _linear_numpy_response(n, theta, fine_force, h, stride, discrete=True, pad_s
         disp = 1.0 / (s * s + c * s + k)
         acc = s * s * disp
     gain = phi[d["tr"], :] * F[:, None]
-    y = np.column_stack([np.fft.irfft(np.sum(acc * phi[d["tl"], :] * gain, axis=1), n_fft),
-                         np.fft.irfft(np.sum(disp * phi[d["mid"], :] * gain, axis=1), n_fft)])
-    return y[:fine_force.size:stride]
+    y = np.column_stack(
+        [
+            np.fft.irfft(np.sum(acc * phi[d["tl"], :] * gain, axis=1), n_fft),
+            np.fft.irfft(np.sum(disp * phi[d["mid"], :] * gain, axis=1), n_fft),
+        ]
+    )
+    return y[: fine_force.size : stride]
 
 
 def test_low_level_transient_against_the_linear_numpy_response():
@@ -309,18 +339,20 @@ def test_low_level_transient_against_the_linear_numpy_response():
     theta = dict(LINEAR)
     ebc = pf.PortalFrame(4, element="elasticBeamColumn").respond(theta, fine, fs * q, q)
     ref = _linear_numpy_response(4, theta, fine, h, q)
-    rms = np.sqrt(np.mean(ref ** 2, axis=0))
+    rms = np.sqrt(np.mean(ref**2, axis=0))
     err = np.sqrt(np.mean((ebc - ref) ** 2, axis=0)) / rms
     default = pf.PortalFrame().simulate(theta, fine[::q], fs)
     cont = _linear_numpy_response(16, theta, fine, h, q, discrete=False)
     err_default = np.sqrt(np.mean((default - cont) ** 2, axis=0)) / rms
     err_scheme = np.sqrt(np.mean((ref - cont) ** 2, axis=0)) / rms
     noise = np.array([pf.RIG_NOISE_SD["acc_top"], pf.RIG_NOISE_SD["disp_mid"]]) / rms
-    print(f"[acc_top, disp_mid]: same mesh and scheme {err} of rms; the scheme on n = 4 against the "
-          f"continuous FRF on n = 16: {err_scheme}; the default model against it: {err_default}; the rig's "
-          f"noise at this level: {noise}")
+    print(
+        f"[acc_top, disp_mid]: same mesh and scheme {err} of rms; the scheme on n = 4 against the "
+        f"continuous FRF on n = 16: {err_scheme}; the default model against it: {err_default}; the rig's "
+        f"noise at this level: {noise}"
+    )
     assert ebc.shape == (n, 2) and np.all(err < 1e-4)
-    assert err_scheme[0] > 1e-3                      # the comparison sees the scheme's error
+    assert err_scheme[0] > 1e-3  # the comparison sees the scheme's error
     assert np.all(err_default < 2 * err_scheme + 5e-3) and np.all(err_default < 0.3 * noise)
 
 
@@ -404,15 +436,22 @@ def test_refined_model_against_the_default_at_the_rig_truth():
     # at 83 and 91 Hz in the accelerometer are what costs time steps.  Below the noise at the low
     # level, within 2 noise sd at the high one: a model error the likelihood budgets, not a misfit
     assert np.all(out["low"] < 0.2) and np.all(out["high"] < 2.0)
-    assert out["high"][0] > 0.5                          # and measurably different: really finer
+    assert out["high"][0] > 0.5  # and measurably different: really finer
 
 
 def test_virtual_rig_writes_a_seeded_data_folder(tmp_path):
     """make_dataset: a folder read_dataset takes (two sensors of two kinds, the three roles, the
     period declared, the truth with its units), the same files from the same seed, the noise and
     offsets in the records (a small rig here: the folder's form, not its physics)."""
-    kw = dict(hidden={"k2": 40.0}, period=128, n_periods=2, fs=256.0, band_hz=(2.0, 40.0),
-              rig=pf.PortalFrame(2, 4, 201), log=None)
+    kw = dict(
+        hidden={"k2": 40.0},
+        period=128,
+        n_periods=2,
+        fs=256.0,
+        band_hz=(2.0, 40.0),
+        rig=pf.PortalFrame(2, 4, 201),
+        log=None,
+    )
     summary = pf.make_dataset(tmp_path / "a", seed=3, **kw)
     pf.make_dataset(tmp_path / "b", seed=3, **kw)
     data = bu.read_dataset(tmp_path / "a")
@@ -424,14 +463,17 @@ def test_virtual_rig_writes_a_seeded_data_folder(tmp_path):
         assert (tmp_path / "a" / f).read_bytes() == (tmp_path / "b" / f).read_bytes()
     assert summary["nonlinear_share"]["acc_top"] > 0.01
     low = next(t for t in data.tests if t.role == "linear")
-    assert abs(low.force[0]) > 0 and abs(low.force.mean()) > 1e-4      # noise and an offset from t = 0
+    assert abs(low.force[0]) > 0 and abs(low.force.mean()) > 1e-4  # noise and an offset from t = 0
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed, truth", [
-    (11, None),                                                 # the rig's own truth, pf.RIG_TRUTH
-    (12, {"k_j": 0.8, "k3": 90.0, "zeta": 0.015, "m_top": 1.3}),
-])
+@pytest.mark.parametrize(
+    "seed, truth",
+    [
+        (11, None),  # the rig's own truth, pf.RIG_TRUTH
+        (12, {"k_j": 0.8, "k3": 90.0, "zeta": 0.015, "m_top": 1.3}),
+    ],
+)
 def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
     """(g) ``sample`` at its default sizes and seed, from its own start (as the command
     line runs it), on the notebook's QUICK rig (the sway mode, 2-40 Hz at 512 Hz; a
@@ -440,19 +482,31 @@ def test_the_posterior_covers_the_rigs_truth(tmp_path, seed, truth):
     model runs (measured 221 and 235, docs/models.md)."""
     truth = truth or pf.RIG_TRUTH
     data_dir = tmp_path / "rig"
-    pf.make_dataset(data_dir, seed=seed, truth=truth, fs=512.0, period=512, band_hz=(2.0, 40.0),
-                    levels={"low": 0.25, "medium": 2.0, "high": 4.0}, rig=pf.PortalFrame(4, 12, 4001),
-                    measure_share=False, log=lambda *a: None)
+    pf.make_dataset(
+        data_dir,
+        seed=seed,
+        truth=truth,
+        fs=512.0,
+        period=512,
+        band_hz=(2.0, 40.0),
+        levels={"low": 0.25, "medium": 2.0, "high": 4.0},
+        rig=pf.PortalFrame(4, 12, 4001),
+        measure_share=False,
+        log=lambda *a: None,
+    )
     model = pf.PortalFrame(n_elements=2, substeps=4)
-    post = bu.sample(bu.read_dataset(data_dir), model, bu.PosteriorSettings(seed=0), workers=2, progress=False,
-                     log=lambda *a: None)
+    post = bu.sample(
+        bu.read_dataset(data_dir), model, bu.PosteriorSettings(seed=0), workers=2, progress=False, log=lambda *a: None
+    )
     print("runs:", post.n_model_runs)
     assert post.n_model_runs["total"] <= 250, post.n_model_runs
     for p in model.parameters:
         x = post.idata.posterior[p.name].values.ravel()
         lo, hi = np.quantile(x, [0.05, 0.95])
-        print(f"{p.name}: {x.mean():.5g} +- {x.std():.2g}, truth {truth[p.name]:g} "
-              f"({(x.mean() - truth[p.name]) / x.std():+.2f} sd)")
+        print(
+            f"{p.name}: {x.mean():.5g} +- {x.std():.2g}, truth {truth[p.name]:g} "
+            f"({(x.mean() - truth[p.name]) / x.std():+.2f} sd)"
+        )
         assert lo <= truth[p.name] <= hi, (p.name, lo, hi, truth[p.name])
     # a default posterior converges: R-hat < 1.01, bulk and tail ESS >= 400 (the chain is extended until so)
     d = post.diagnostics

@@ -1,5 +1,6 @@
 """The likelihood, the prior box and the posterior pipeline (bayes_update.core.likelihood,
 bayes_update.core.posterior)."""
+
 import json
 import math
 
@@ -11,9 +12,9 @@ import fe
 import volterra
 from bayes_update.core.likelihood import Likelihood, StageScale, noise_scale_from_replicates
 from bayes_update.core.parameters import ParameterSet
-from bayes_update.models.beam.model import Beam, beam_model
 from bayes_update.core.posterior import PosteriorSettings, sample
 from bayes_update.core.posterior.mcmc import run_emcee
+from bayes_update.models.beam.model import Beam, beam_model
 from bayes_update.models.beam.virtual_rig import load_default_dataset
 
 TRUTH = {"eta": 3.0, "c": 15.0, "F": 77.0, "k_s": 180.0}
@@ -65,8 +66,10 @@ def test_bad_prior_and_parameters_outside_it_are_named(data):
 
 # ---------------------------------------------------------------- likelihood
 def test_z_transform_round_trip_and_likelihood_agree():
-    sc = {st: StageScale(st, noise_mean_square=4e-6, noise_dof=2.0, model_error=3e-3, n_regressors=2,
-                         n_replicates=8) for st in ("linear", "nonlinear")}
+    sc = {
+        st: StageScale(st, noise_mean_square=4e-6, noise_dof=2.0, model_error=3e-3, n_regressors=2, n_replicates=8)
+        for st in ("linear", "nonlinear")
+    }
     lik = Likelihood(sc)
     e = np.array([0.0, 1e-3, 0.01, 0.3])
     assert np.allclose(lik.from_z("linear", lik.to_z("linear", e)), e, rtol=1e-9, atol=1e-15)
@@ -188,12 +191,12 @@ def _sbc_truth(args):
     above and the surrogate-against-direct test cover those).  None when the
     data's Kautz pole cannot be identified (the data set is unusable, not the
     likelihood wrong)."""
-    from bayes_update.data import signals
-    from bayes_update.data.dataset import Dataset, Record
     from bayes_update.core.adjustment import curvature_adjustment
     from bayes_update.core.likelihood import estimate_likelihood
     from bayes_update.core.mode import ResidualFunction, find_mode
     from bayes_update.core.problem import Problem
+    from bayes_update.data import signals
+    from bayes_update.data.dataset import Dataset, Record
     from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
 
     k, x, seed, generator, snr_db = args
@@ -209,16 +212,24 @@ def _sbc_truth(args):
     for name, (amp, role) in SBC_CHIRPS.items():
         f = signals.chirp(amp)
         v = gen.simulate(params, f, 1024.0)
-        tests.append(Record(f"{name}.csv", "chirp", name.split("_")[1], role, np.arange(f.size) / 1024.0,
-                            signals.add_noise(f, snr_db, rng), signals.add_noise(v, snr_db, rng)))
+        tests.append(
+            Record(
+                f"{name}.csv",
+                "chirp",
+                name.split("_")[1],
+                role,
+                np.arange(f.size) / 1024.0,
+                signals.add_noise(f, snr_db, rng),
+                signals.add_noise(v, snr_db, rng),
+            )
+        )
     try:
         problem = Problem(Dataset("sbc", 1024.0, rig, tests), rom)
-    except ValueError as exc:          # volterra.PoleEstimationError is one
+    except ValueError as exc:  # volterra.PoleEstimationError is one
         if isinstance(exc, volterra.PoleEstimationError) or "Kautz pole" in str(exc):
             return None
         raise
-    lik = estimate_likelihood(problem, params, model_error=generator != "rom", n_replicates=96, seed=k,
-                              space=space)
+    lik = estimate_likelihood(problem, params, model_error=generator != "rom", n_replicates=96, seed=k, space=space)
     stages = lik.stages
     fun = ResidualFunction(problem, stages, tuple(lik.scales[st].sd for st in stages), _RomPoint(space, rom))
     mode = find_mode(fun, [x], box[:, 0], box[:, 1], 1e-4 * widths, None, max_iterations=40)
@@ -233,14 +244,19 @@ def _sbc_truth(args):
 
 
 def _sbc_z(n_truths, seed, generator, snr_db):
-    from surrogates.evaluation import default_executor, evaluate_many
     from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG
+    from surrogates.evaluation import default_executor, evaluate_many
 
     truths = beam_space(Beam(fe.ModalROM(PAPER_EQUIVALENT_RIG))).sample_prior(n_truths, seed=seed)
     pool = default_executor(2)
     try:
-        out = evaluate_many(_sbc_truth, [(k, x, seed, generator, snr_db) for k, x in enumerate(truths)], pool,
-                            batch_size=1, progress=False)
+        out = evaluate_many(
+            _sbc_truth,
+            [(k, x, seed, generator, snr_db) for k, x in enumerate(truths)],
+            pool,
+            batch_size=1,
+            progress=False,
+        )
     finally:
         pool.shutdown()
     return out
@@ -281,13 +297,15 @@ def _check_sbc(n_truths, band_50, band_90):
     assert failed <= 0.05 * n_truths, f"{failed} of {n_truths} data sets without an identifiable Kautz pole"
     Z = np.array([r for r in z if r is not None])[:, :4]
     cover50, cover90 = np.mean(np.abs(Z) < 0.6745), np.mean(np.abs(Z) < 1.6449)
-    per_parameter = {"50": np.mean(np.abs(Z) < 0.6745, axis=0).round(3),
-                     "90": np.mean(np.abs(Z) < 1.6449, axis=0).round(3)}
+    per_parameter = {
+        "50": np.mean(np.abs(Z) < 0.6745, axis=0).round(3),
+        "90": np.mean(np.abs(Z) < 1.6449, axis=0).round(3),
+    }
     assert band_50[0] <= cover50 <= band_50[1], (cover50, per_parameter)
     assert band_90[0] <= cover90 <= band_90[1], (cover90, per_parameter)
 
 
-@pytest.mark.slow   # 120-160 s: the 15-minute budget; benchmarks/sbc.py (200 truths) is the measurement
+@pytest.mark.slow  # 120-160 s: the 15-minute budget; benchmarks/sbc.py (200 truths) is the measurement
 @pytest.mark.headline
 def test_simulation_based_calibration_of_the_likelihood_on_the_rom():
     """SBC of the likelihood the pipeline builds (estimate_likelihood's noise
@@ -303,7 +321,7 @@ def test_simulation_based_calibration_of_the_likelihood_on_the_rom():
     _check_sbc(**SBC_DEFAULT)
 
 
-@pytest.mark.slow   # 170 s on 2 quiet cores: the test above with 200 truths
+@pytest.mark.slow  # 170 s on 2 quiet cores: the test above with 200 truths
 def test_simulation_based_calibration_of_the_likelihood_on_the_rom_full():
     _check_sbc(**SBC_FULL)
 
@@ -336,7 +354,7 @@ def test_the_model_error_budget_moves_no_parameter_by_more_than_one_sd():
 
 def test_emcee_is_reproducible_with_a_seed():
     def log_prob(X):
-        return -0.5 * np.sum(X ** 2, axis=1)
+        return -0.5 * np.sum(X**2, axis=1)
 
     x0 = np.random.default_rng(0).standard_normal((8, 2))
     a = run_emcee(log_prob, x0, 8, 50, seed=5, vectorize=True, progress=False).get_chain()
@@ -368,13 +386,14 @@ def test_the_vectorised_stretch_move_is_emcees():
     ref.run_mcmc(x0, 400, progress=False)
     ours = stretch_sample(log_prob, x0, 400, np.random.RandomState(77))
     assert np.array_equal(ours.get_chain(), ref.get_chain())
-    assert np.array_equal(ours.get_log_prob(discard=50, thin=7, flat=True), ref.get_log_prob(discard=50, thin=7, flat=True))
+    assert np.array_equal(
+        ours.get_log_prob(discard=50, thin=7, flat=True), ref.get_log_prob(discard=50, thin=7, flat=True)
+    )
     assert np.array_equal(ours.get_chain(discard=13, thin=3, flat=True), ref.get_chain(discard=13, thin=3, flat=True))
     np.testing.assert_array_equal(ours.acceptance_fraction, ref.acceptance_fraction)
-    np.testing.assert_array_equal(ours.get_autocorr_time(discard=100, tol=0),
-                                  ref.get_autocorr_time(discard=100, tol=0))
+    np.testing.assert_array_equal(ours.get_autocorr_time(discard=100, tol=0), ref.get_autocorr_time(discard=100, tol=0))
     assert np.array_equal(ours.get_last_sample().coords, ref.get_last_sample().coords)
-    assert 0.1 < ours.acceptance_fraction.mean() < 0.9         # it moved, and not every time
+    assert 0.1 < ours.acceptance_fraction.mean() < 0.9  # it moved, and not every time
 
 
 # ------------------------------------------------------------- the pipeline
@@ -386,8 +405,7 @@ def rom_posterior(data):
 
     start = {"eta": 3.05, "c": 12.0, "F": 77.5, "k_s": 200.0}
     settings = PosteriorSettings.quick(n_linear=24, n_global=0, n_predictive=8)
-    post = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, progress=False,
-                  log=lambda *a: None)
+    post = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, progress=False, log=lambda *a: None)
     add_linear_only(post, 2, None, progress=False, log=lambda *a: None)
     return post
 
@@ -425,22 +443,25 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
     assert set(idata.posterior.data_vars) >= {"eta", "c", "F", "k_s", "P_eff"}
     # the groups ArviZ's checks need (az.plot_ppc: observed_data and posterior_predictive), one
     # variable per test, and every variable's unit
-    assert {"posterior", "sample_stats", "observed_data", "posterior_predictive",
-            "log_likelihood"} <= set(idata.groups())
+    assert {"posterior", "sample_stats", "observed_data", "posterior_predictive", "log_likelihood"} <= set(
+        idata.groups()
+    )
     # the pointwise log-likelihood of every observation (named by test), the records of every test
     names = [str(v) for v in idata.log_likelihood["observation"].values]
     assert {n.split("[")[0] for n in names} == {"chirp_low", "chirp_high"}
     assert set(idata.observed_data.data_vars) == {t.name for t in rom_posterior.problem.tests.values()} | set(
-        rom_posterior.problem.validation)
+        rom_posterior.problem.validation
+    )
     assert idata.posterior["k_s"].attrs["units"] == "N/mm" and idata.observed_data["chirp_low"].attrs["units"] == "m/s"
     assert idata.posterior_predictive["chirp_high"].shape[-1] == idata.observed_data["chirp_high"].shape[-1]
     # one value per direction of the compared output (y1: J1 = 2 functions; y2 + y3 of the paper's set)
     problem = rom_posterior.problem
     assert sum(n.startswith("chirp_low[") for n in names) == problem.n_regressors("linear")
     assert sum(n.startswith("chirp_high[") for n in names) == problem.n_regressors("nonlinear")
-    loo = az.loo(idata)                       # without an argument: every test's observations
+    loo = az.loo(idata)  # without an argument: every test's observations
     assert np.isfinite(loo.elpd_loo) and loo.n_data_points == problem.n_regressors("linear") + problem.n_regressors(
-        "nonlinear")
+        "nonlinear"
+    )
     az.plot_ppc(idata, data_pairs={"chirp_high": "chirp_high"}, num_pp_samples=4)
     summary = json.loads((tmp_path / "posterior_summary.json").read_text())
     for name in ("eta", "c", "F", "k_s", "P_eff"):
@@ -450,8 +471,14 @@ def test_posterior_result_is_written_as_arviz_and_json(rom_posterior, tmp_path):
 
 def test_sample_refuses_a_start_outside_the_prior(data):
     with pytest.raises(ValueError, match="outside the prior"):
-        sample(data, beam_model(data, "rom"), PosteriorSettings.quick(), workers=1,
-               start={"eta": 9.0, "c": 15.0, "F": 77.0, "k_s": 180.0}, progress=False)
+        sample(
+            data,
+            beam_model(data, "rom"),
+            PosteriorSettings.quick(),
+            workers=1,
+            start={"eta": 9.0, "c": 15.0, "F": 77.0, "k_s": 180.0},
+            progress=False,
+        )
 
 
 def test_settings_are_validated():
@@ -461,7 +488,7 @@ def test_settings_are_validated():
         PosteriorSettings(n_initial=-1)
 
 
-@pytest.mark.slow   # 360-430 s (the direct chain): benchmarks/posterior_comparison.py is the measurement
+@pytest.mark.slow  # 360-430 s (the direct chain): benchmarks/posterior_comparison.py is the measurement
 @pytest.mark.headline
 def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior, data):
     """Reduced version of benchmarks/posterior_comparison.py at docs/posterior.md's
@@ -479,10 +506,20 @@ def test_surrogate_posterior_agrees_with_the_direct_one_on_the_rom(rom_posterior
     from scipy import stats
 
     start = rom_posterior.space.to_parameters(rom_posterior.map.x)
-    settings = PosteriorSettings.quick(direct_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0,
-                                       n_global=0, n_predictive=0)
-    direct = sample(data, beam_model(data, "rom"), settings, workers=2, start=start, direct=True,
-                    likelihood=rom_posterior.likelihood, progress=False, log=lambda *a: None)
+    settings = PosteriorSettings.quick(
+        direct_walkers=24, direct_steps=1500, direct_burn=500, n_linear=0, n_global=0, n_predictive=0
+    )
+    direct = sample(
+        data,
+        beam_model(data, "rom"),
+        settings,
+        workers=2,
+        start=start,
+        direct=True,
+        likelihood=rom_posterior.likelihood,
+        progress=False,
+        log=lambda *a: None,
+    )
     a = rom_posterior.space.report(rom_posterior.draws)
     b = direct.space.report(direct.draws)
     for name in ("eta", "c", "F", "k_s", "P_eff"):
@@ -502,8 +539,24 @@ def cli_sample(tmp_path_factory):
     # the predictive runs are opt-in (--quick changes sizes, not steps): asked for, for predictive.png
     config = out.parent / "sample.toml"
     config.write_text("[sample]\nn_predictive = 8\n")
-    assert main(["sample", "--model", "rom", "--quick", "--config", str(config), "--out", str(out), "--workers", "2",
-                 "--no-cache"]) == 0
+    assert (
+        main(
+            [
+                "sample",
+                "--model",
+                "rom",
+                "--quick",
+                "--config",
+                str(config),
+                "--out",
+                str(out),
+                "--workers",
+                "2",
+                "--no-cache",
+            ]
+        )
+        == 0
+    )
     return out
 
 
@@ -525,11 +578,16 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
     for name in ("eta", "c", "F", "k_s", "P_eff"):
         got = summary["parameters"][name]
         assert {"mean", "sd", "hdi_3%", "hdi_97%", "r_hat", "ess_bulk"} <= set(got), (name, got)
-        draws = idata.posterior[name].values                 # (walker, draw), the parameter's unit
+        draws = idata.posterior[name].values  # (walker, draw), the parameter's unit
         lo, hi = az.hdi(draws.ravel(), hdi_prob=0.94)
-        for key, ref in (("mean", draws.mean()), ("sd", draws.std(ddof=1)), ("hdi_3%", lo), ("hdi_97%", hi),
-                         ("r_hat", float(az.rhat(idata, var_names=[name])[name])),
-                         ("ess_bulk", float(az.ess(idata, var_names=[name], method="bulk")[name]))):
+        for key, ref in (
+            ("mean", draws.mean()),
+            ("sd", draws.std(ddof=1)),
+            ("hdi_3%", lo),
+            ("hdi_97%", hi),
+            ("r_hat", float(az.rhat(idata, var_names=[name])[name])),
+            ("ess_bulk", float(az.ess(idata, var_names=[name], method="bulk")[name])),
+        ):
             assert got[key] == pytest.approx(float(ref), rel=1e-9, abs=1e-12 * abs(got["mean"])), (name, key)
         assert got["hdi_3%"] < got["mean"] < got["hdi_97%"]
         # |mean - truth| / sd measured 0.43 (eta), 0.86-0.87 (c, F, k_s), 0.90 (P_eff); 3 sd
@@ -538,14 +596,14 @@ def test_cli_sample_writes_posterior_files(cli_sample, tmp_path):
     for name in ("corner.png", "traces.png", "predictive.png", "gp_diagnostics.png"):
         head = (out / name).read_bytes()[:8]
         assert head == b"\x89PNG\r\n\x1a\n" and (out / name).stat().st_size > 10_000, name
-    assert main(["sample", "--modes", "4", "--quick", "--out", str(tmp_path)]) == 2   # --modes needs --model rom
+    assert main(["sample", "--modes", "4", "--quick", "--out", str(tmp_path)]) == 2  # --modes needs --model rom
     assert main(["sample", "--prior", "G=1:2", "--quick", "--out", str(tmp_path)]) == 2
     assert main(["sample", "--prior", "F=95:20", "--quick", "--out", str(tmp_path)]) == 2
 
 
 def test_whitening_round_trip_and_box_cut_fraction(data):
-    from bayes_update.core.posterior.target import Whitening
     from bayes_update.core.posterior.mcmc import fraction_outside_box
+    from bayes_update.core.posterior.target import Whitening
 
     space = beam_space(beam_model(data, "rom"))
     cov = np.diag([0.03, 2.0, 0.03, 150.0]) ** 2
@@ -558,6 +616,6 @@ def test_whitening_round_trip_and_box_cut_fraction(data):
     assert np.all(np.abs(emp - cov) < 0.02 * scale)
     # draws at the u box's edge count as cut only where the prior goes on beyond it
     U = np.zeros((4, 4))
-    U[0, 0] = 3.9                                  # eta direction, inside the prior beyond: cut
+    U[0, 0] = 3.9  # eta direction, inside the prior beyond: cut
     assert fraction_outside_box(U, 4.0, w, space) == pytest.approx(0.25)
     assert fraction_outside_box(np.zeros((4, 4)), 4.0, w, space) == 0.0

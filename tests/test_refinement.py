@@ -1,6 +1,7 @@
 """The model at twice the sampling rate as the refinement of a model without ``refined()``
 (bayes_update.core.refinement), checked against an exact solution: for a time-stepping
 model its difference from the model is the model's own discretisation error."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -9,7 +10,7 @@ from scipy import signal
 
 from bayes_update.core.refinement import AtTwiceTheRate, twice_the_rate
 
-FN_HZ, ZETA, FS_HZ = 23.0, 0.03, 230.0     # ten samples a period: RK4's error is well above round-off
+FN_HZ, ZETA, FS_HZ = 23.0, 0.03, 230.0  # ten samples a period: RK4's error is well above round-off
 
 
 def _force(n=4096, seed=3):
@@ -48,7 +49,7 @@ def _exact(force, fs, dense=16):
     """The oscillator's response to the band-limited force the samples stand for: scipy's lsim on
     the force resampled 16x (exact for a force linear between those points, which it nearly is)."""
     w = 2 * np.pi * FN_HZ
-    fine = signal.resample_poly(force, dense, 1)[:(len(force) - 1) * dense + 1]
+    fine = signal.resample_poly(force, dense, 1)[: (len(force) - 1) * dense + 1]
     t = np.arange(fine.size) / (dense * fs)
     return signal.lsim(([1.0], [1.0, 2 * ZETA * w, w * w]), fine, t)[1][::dense]
 
@@ -67,7 +68,7 @@ def test_twice_the_rate_measures_a_time_steppers_discretisation_error():
 
 
 def test_a_model_of_the_samples_is_not_refined_by_another_rate():
-    class FixedFilter:               # a discrete-time model: its coefficients ignore fs
+    class FixedFilter:  # a discrete-time model: its coefficients ignore fs
         parameters = ()
 
         def simulate(self, theta, force, fs):
@@ -93,8 +94,9 @@ def test_a_model_that_runs_at_its_own_rate_only_says_so():
 
 @pytest.mark.parametrize("has_refined", [True, False])
 def test_the_problem_takes_the_models_own_refined_first(has_refined):
-    from bayes_update.core.problem import Problem
     from test_user_model import Duffing, make_dataset
+
+    from bayes_update.core.problem import Problem
 
     class NoRefined(Duffing):
         refined = property(lambda self: (_ for _ in ()).throw(AttributeError("refined")))

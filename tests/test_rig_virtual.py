@@ -9,13 +9,14 @@ import json
 
 import numpy as np
 import pytest
+from reference import clamped_clamped_frequencies
 
 import fe
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.data import signals, spectral
-from reference import clamped_clamped_frequencies
 from bayes_update.cli import main
+from bayes_update.data import signals, spectral
 from bayes_update.data.folder import read_dataset
+from bayes_update.models.beam.levels import linear_departure, nonlinear_shares
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import (
     CHIRP_LEVELS_N,
     PAPER_TESTS,
@@ -26,7 +27,6 @@ from bayes_update.models.beam.virtual_rig import (
     load_default_dataset,
     make_dataset,
 )
-from bayes_update.models.beam.levels import linear_departure, nonlinear_shares
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_SUBSTEPS
 
 SHIPPED = default_dataset_path()
@@ -46,8 +46,15 @@ def regenerated(tmp_path_factory):
 def test_regeneration_is_bit_identical_to_the_shipped_data_set(regenerated):
     shipped = sorted(p.name for p in SHIPPED.iterdir() if p.is_file())
     assert shipped == sorted(p.name for p in regenerated.iterdir())
-    assert shipped == ["chirp_high.csv", "chirp_low.csv", "chirp_medium.csv", "dataset.json",
-                       "sine_high.csv", "sine_low.csv", "sine_medium.csv"]
+    assert shipped == [
+        "chirp_high.csv",
+        "chirp_low.csv",
+        "chirp_medium.csv",
+        "dataset.json",
+        "sine_high.csv",
+        "sine_low.csv",
+        "sine_medium.csv",
+    ]
     for name in shipped:
         assert (regenerated / name).read_bytes() == (SHIPPED / name).read_bytes(), name
 
@@ -75,8 +82,13 @@ def test_default_data_set_structure():
     meta = json.loads((SHIPPED / "dataset.json").read_text())
     assert meta["rig"]["bending_stiffness_factor"] == 1.24
     assert [(t.name, t.role) for t in ds.tests] == [
-        ("chirp_low", "linear"), ("chirp_medium", "validation"), ("chirp_high", "nonlinear"),
-        ("sine_low", "validation"), ("sine_medium", "validation"), ("sine_high", "validation")]
+        ("chirp_low", "linear"),
+        ("chirp_medium", "validation"),
+        ("chirp_high", "nonlinear"),
+        ("sine_low", "validation"),
+        ("sine_medium", "validation"),
+        ("sine_high", "validation"),
+    ]
     for t in ds.tests:
         assert t.n_samples == 4096 and t.duration_s == 4.0
         amp = (CHIRP_LEVELS_N if t.signal == "chirp" else SINE_LEVELS_N)[t.level]
@@ -93,11 +105,14 @@ def test_default_data_set_structure():
     # 20-element model, 4 decimals) is 5.7e-5 above it: 2e-4 allowed (3.5x)
     kb = rig_of(ds).axial_stiffness
     p_eff = truth["parameters_si"]["F"] * kb / (kb + truth["parameters_si"]["k_s"])
-    f1 = clamped_clamped_frequencies(rig_of(ds).EI, rig_of(ds).mass_per_length, rig_of(ds).length_m, P=p_eff, n_modes=1)[0]
+    f1 = clamped_clamped_frequencies(
+        rig_of(ds).EI, rig_of(ds).mass_per_length, rig_of(ds).length_m, P=p_eff, n_modes=1
+    )[0]
     assert truth["linearised"]["f1_hz"] == pytest.approx(f1, rel=2e-4)
     assert truth["linearised"]["p_eff_n"] == pytest.approx(p_eff, rel=1e-5)
-    assert truth["linearised"]["euler_load_n"] == pytest.approx(4 * np.pi**2 * rig_of(ds).EI / rig_of(ds).length_m**2,
-                                                                rel=1e-5)
+    assert truth["linearised"]["euler_load_n"] == pytest.approx(
+        4 * np.pi**2 * rig_of(ds).EI / rig_of(ds).length_m ** 2, rel=1e-5
+    )
     assert truth["linearised"]["sine_frequency_over_f1"] == pytest.approx(35.0 / f1, rel=2e-4)
     size = sum(p.stat().st_size for p in SHIPPED.iterdir())
     assert size < 2e6
@@ -117,8 +132,7 @@ def test_decimation_is_zero_phase_and_noise_has_the_stated_snr():
     # the decimated true force is the chirp sampled at 1024 Hz (no delay, flat passband),
     # except within the filter's half length of the kinks at 0 s and 2 s (sweep on/off)
     away = (np.abs(t - 0.0) > 0.03) & (np.abs(t - 2.0) > 0.03)
-    np.testing.assert_allclose(f[away], signals.chirp(s.amplitude_n)[away], rtol=0,
-                               atol=1e-5 * s.amplitude_n)
+    np.testing.assert_allclose(f[away], signals.chirp(s.amplitude_n)[away], rtol=0, atol=1e-5 * s.amplitude_n)
     ds = load_default_dataset()
     rec = ds.test("chirp_low")
     for clean, noisy in ((f, rec.force), (v, rec.velocity)):
@@ -169,8 +183,7 @@ def test_imperfection_is_hidden_in_the_truth_and_shows_as_y2(tmp_path):
     vrig = VirtualRig()
     modes = vrig.modes(1)
     rec = read.tests[0]
-    bowed = nonlinear_shares(rec.force, rec.velocity, modes.frequencies_hz[0],
-                             modes.damping_ratios[0], vrig.fs)
+    bowed = nonlinear_shares(rec.force, rec.velocity, modes.frequencies_hz[0], modes.damping_ratios[0], vrig.fs)
     assert bowed["y2_over_y1"] > 1e-3  # straight beam: ~6e-6
 
 
@@ -192,8 +205,7 @@ def test_plot_data_writes_the_figures(tmp_path, capsys):
     names = {p.name for p in out.iterdir()}
     for t in ("chirp_low", "chirp_medium", "chirp_high", "sine_low", "sine_medium", "sine_high"):
         assert f"{t}.png" in names
-    assert {"chirp_low_frf.png", "chirp_high_frf.png", "chirp_frf.png", "sine_high_psd.png",
-            "sine_psd.png"} <= names
+    assert {"chirp_low_frf.png", "chirp_high_frf.png", "chirp_frf.png", "sine_high_psd.png", "sine_psd.png"} <= names
     assert "wrote 14 figure(s)" in capsys.readouterr().out
 
 

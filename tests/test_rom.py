@@ -11,11 +11,11 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 import fe
+from bayes_update.models.beam.rig import rig_of
+from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
 from fe import _kernels as K
 from fe.model import KD, _beam_axial_force, hermite_weights
 from fe.rom import ModalROM
-from bayes_update.models.beam.rig import rig_of
-from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
 
 RIG = PAPER_EQUIVALENT_RIG
 KB = RIG.axial_stiffness
@@ -123,9 +123,28 @@ def fe_static(model, params, shaker_force):
     a = model._arrays(system, params)
     u = np.zeros(model.n_dof)
     f_ext = a["f_const"] + shaker_force * a["b_load"]
-    status, _ = K.static_newton(a["X"], a["Y"], a["L0"], a["c0"], a["s0"], a["t0"], a["EA"], a["EI"],
-                                a["shallow"], a["d_dof"], a["d_law"], a["d_p1"], a["d_p2"],
-                                a["fixed"], f_ext, u, KD, 10, 1e-10 * params.F, 50)
+    status, _ = K.static_newton(
+        a["X"],
+        a["Y"],
+        a["L0"],
+        a["c0"],
+        a["s0"],
+        a["t0"],
+        a["EA"],
+        a["EI"],
+        a["shallow"],
+        a["d_dof"],
+        a["d_law"],
+        a["d_p1"],
+        a["d_p2"],
+        a["fixed"],
+        f_ext,
+        u,
+        KD,
+        10,
+        1e-10 * params.F,
+        50,
+    )
     assert status == 0
     return u, a
 
@@ -137,8 +156,7 @@ def static_reference():
     the stiffest spring of the prior box (k_s = 600 N/mm, same P_eff)."""
     out = {}
     model = fe.BeamModel(rig=RIG, n_elements=N_REF)
-    for label, params in (("paper", PAPER),
-                          ("k_s=600", fe.Parameters(k_s=600e3, F=P_EFF * (KB + 600e3) / KB))):
+    for label, params in (("paper", PAPER), ("k_s=600", fe.Parameters(k_s=600e3, F=P_EFF * (KB + 600e3) / KB))):
         u0, _ = fe_static(model, params, 0.0)
         for load in (1.0, 4.0):
             u, a = fe_static(model, params, load)
@@ -146,18 +164,32 @@ def static_reference():
             compression = params.F + params.k_s * top  # the top's balance
             # the top's displacement = elastic shortening P/K_b + the shortening s
             out[label, load] = dict(
-                params=params, load=load, shortening=-top - compression / KB,
+                params=params,
+                load=load,
+                shortening=-top - compression / KB,
                 drop=compression - (params.F + params.k_s * u0[model.top_axial_dof]),
-                chord_force=_beam_axial_force(model, u, a), compression=compression)
+                chord_force=_beam_axial_force(model, u, a),
+                compression=compression,
+            )
     return out
 
 
-@pytest.mark.parametrize("n_modes", [
-    pytest.param(3, marks=pytest.mark.xfail(
-        strict=True, reason="measured 2.6 %: a static point load needs the modal series' "
-                            "tail (residual flexibility); 3 modes give w at mid-span 1.2 % "
-                            "low and the shortening 2.6 % high")),
-    5, 7])
+@pytest.mark.parametrize(
+    "n_modes",
+    [
+        pytest.param(
+            3,
+            marks=pytest.mark.xfail(
+                strict=True,
+                reason="measured 2.6 %: a static point load needs the modal series' "
+                "tail (residual flexibility); 3 modes give w at mid-span 1.2 % "
+                "low and the shortening 2.6 % high",
+            ),
+        ),
+        5,
+        7,
+    ],
+)
 def test_static_shortening_and_axial_force(static_reference, n_modes):
     """End shortening and the drop of the beam's compression within 1 % of the
     full FE (measured 0.42 % with 5 modes, 0.15 % with 7)."""
@@ -213,7 +245,8 @@ def test_transient_against_full_fe(dataset, label, params, effects, test):
     rec = record(dataset, test)
     settings = FE_REFERENCE_BOW if effects else FE_REFERENCE
     ref = fe.BeamModel(rig=rig_of(dataset), effects=effects, **settings).simulate(
-        params, rec.force, dataset.sampling_rate_hz)
+        params, rec.force, dataset.sampling_rate_hz
+    )
     rom = ModalROM(rig=rig_of(dataset), effects=effects)
     res = fe.simulate(rom, params, rec.force, dataset.sampling_rate_hz)
     err = rel_l2(res.sensor_velocity, ref.sensor_velocity)
@@ -249,8 +282,7 @@ def test_outputs_at_several_positions(dataset):
 def test_rk4_order_and_automatic_substeps(dataset):
     force = record(dataset, "chirp_high").force
     ref = ModalROM(rig=RIG, substeps=32).simulate(PAPER, force).sensor_velocity
-    err = [rel_l2(ModalROM(rig=RIG, substeps=m).simulate(PAPER, force).sensor_velocity, ref)
-           for m in (1, 2, 4)]
+    err = [rel_l2(ModalROM(rig=RIG, substeps=m).simulate(PAPER, force).sensor_velocity, ref) for m in (1, 2, 4)]
     order = -np.polyfit(np.log([1, 2, 4]), np.log(err), 1)[0]
     assert order == pytest.approx(4.0, abs=0.3)
     assert err[0] < 2e-3  # one substep per sample is enough with 3 modes
@@ -295,8 +327,7 @@ def test_top_weights_exact_for_quadratic_drive(damping):
         if damping == 0.0:
             return drive(theta) / stiffness
         tau = damping / stiffness
-        integral = quad(lambda t: np.exp(-(theta - t) / tau) * drive(t), 0, theta,
-                        epsabs=0, epsrel=1e-13, limit=200)[0]
+        integral = quad(lambda t: np.exp(-(theta - t) / tau) * drive(t), 0, theta, epsabs=0, epsrel=1e-13, limit=200)[0]
         return np.exp(-theta / tau) * u0 + integral / damping
 
     line = np.polynomial.Polynomial.fit([0, h / 2], [r(0), r(h / 2)], 1, domain=[0, h])
@@ -312,8 +343,7 @@ def test_static_state_near_buckling():
     rom = ModalROM(rig=RIG, effects=(BOW,))
     p = 0.995 * rom.buckling_load()
     st = rom.static_equilibrium(fe.Parameters(F=p, k_s=0.0))
-    w = rom._output_weights(rom.reduced(fe.Parameters(F=p, k_s=0.0)),
-                            np.array([RIG.sensor_position_m]))[0] @ st.q
+    w = rom._output_weights(rom.reduced(fe.Parameters(F=p, k_s=0.0)), np.array([RIG.sensor_position_m]))[0] @ st.q
     assert w == pytest.approx(BOW.amplitude * p / (rom.buckling_load() - p), rel=0.02)
 
 
@@ -338,6 +368,7 @@ class _TopFriction(fe.Effect):
 
     def apply(self, system, rig, params):
         from fe.model import DiscreteElement
+
         system.discrete.append(DiscreteElement(system.n_dof - 3, "coulomb", 0.1, 1e-3))
 
 

@@ -1,6 +1,7 @@
 """The posterior's run budget (the runs-per-posterior issue): the likelihood
 scales' control variate, the design's stopping rule and the count of model
 runs each step reports."""
+
 import tempfile
 from pathlib import Path
 
@@ -43,7 +44,7 @@ def test_the_lti_estimate_is_the_linear_models_response(linear_problem):
     stage = "linear"
     force = problem.tests[stage].force
     v0 = problem.simulate(theta, stage)
-    sig = 0.01 * np.sqrt(np.mean(force ** 2))
+    sig = 0.01 * np.sqrt(np.mean(force**2))
     rng = np.random.default_rng(5)
     lti = lti_response(problem, theta, stage, v0, sig, rng)
     du = sig * rng.standard_normal(force.size)
@@ -51,7 +52,7 @@ def test_the_lti_estimate_is_the_linear_models_response(linear_problem):
     dv_lti = lti(du)
     # the metric sees the projection on the regressors: compare there
     out = [problem.output(stage, problem.components(stage, v)) for v in (dv_model, dv_lti)]
-    assert np.linalg.norm(out[1] - out[0]) <= 0.01 * np.linalg.norm(out[0])     # measured: 0.1 %
+    assert np.linalg.norm(out[1] - out[0]) <= 0.01 * np.linalg.norm(out[0])  # measured: 0.1 %
 
 
 def test_the_control_variate_counts_and_agrees_with_model_replicates(linear_problem):
@@ -65,8 +66,9 @@ def test_the_control_variate_counts_and_agrees_with_model_replicates(linear_prob
     got = {}
     for key, k in (("model", None), ("control_variate", 16)):
         model.runs = 0
-        lik = estimate_likelihood(problem, theta, n_replicates=96, seed=3, space=space, model_replicates=k,
-                                  model_error=False)
+        lik = estimate_likelihood(
+            problem, theta, n_replicates=96, seed=3, space=space, model_replicates=k, model_error=False
+        )
         assert model.runs == likelihood_runs(problem, 96, space, model_error=False, model_replicates=k)
         got[key] = {st: sc.noise_sd for st, sc in lik.scales.items()}
     for st in got["model"]:
@@ -93,7 +95,7 @@ def test_refine_stops_when_asked():
 
     box = np.array([[0.0, 1.0], [0.0, 1.0]])
     X = surrogates.design(box, 12, "sobol", seed=1)
-    f = lambda x: float(np.sum((np.asarray(x) - 0.3) ** 2))     # noqa: E731
+    f = lambda x: float(np.sum((np.asarray(x) - 0.3) ** 2))  # noqa: E731
     y = np.array([f(x) for x in X])
     calls = []
 
@@ -101,8 +103,17 @@ def test_refine_stops_when_asked():
         calls.append(len(rounds))
         return len(calls) >= 2
 
-    ref = surrogates.refine(f, lambda: surrogates.GPSurrogate(box, transform="none"), X, y,
-                            lambda s: (lambda Z: np.ones(len(Z))), n_rounds=5, batch=3, until=until, progress=False)
+    ref = surrogates.refine(
+        f,
+        lambda: surrogates.GPSurrogate(box, transform="none"),
+        X,
+        y,
+        lambda s: lambda Z: np.ones(len(Z)),
+        n_rounds=5,
+        batch=3,
+        until=until,
+        progress=False,
+    )
     assert len(ref.rounds) == 2 and len(ref.X) == 15 and calls == [1, 2]
     # each round holds what the surrogate before it predicted at its points: an independent check, f itself
     last = ref.rounds[1]
@@ -111,9 +122,17 @@ def test_refine_stops_when_asked():
     assert np.allclose(last["y_new"], [f(x) for x in last["X_new"]])
     # an ``until`` of the surrogate alone (the older form) is asked the same way
     alone = []
-    ref = surrogates.refine(f, lambda: surrogates.GPSurrogate(box, transform="none"), X, y,
-                            lambda s: (lambda Z: np.ones(len(Z))), n_rounds=5, batch=3,
-                            until=lambda sur: alone.append(sur) or len(alone) >= 3, progress=False)
+    ref = surrogates.refine(
+        f,
+        lambda: surrogates.GPSurrogate(box, transform="none"),
+        X,
+        y,
+        lambda s: lambda Z: np.ones(len(Z)),
+        n_rounds=5,
+        batch=3,
+        until=lambda sur: alone.append(sur) or len(alone) >= 3,
+        progress=False,
+    )
     assert len(ref.rounds) == 3 and len(alone) == 3
 
 
@@ -132,7 +151,7 @@ def test_the_beams_coarse_start_finds_the_preload_of_the_paper_calibration():
     assert abs(p_eff - 74.03) < 0.1 and abs(theta["eta"] - 3.007) < 0.05, theta
 
 
-@pytest.mark.slow   # about 60 s; benchmarks/runs_per_posterior.py measures the budget against a direct chain
+@pytest.mark.slow  # about 60 s; benchmarks/runs_per_posterior.py measures the budget against a direct chain
 @pytest.mark.headline
 def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
     """The default sizes on the Duffing oscillator of test_user_model (fn, zeta, k3
@@ -144,8 +163,7 @@ def test_the_budget_posterior_of_a_user_model_covers_its_truth_in_few_runs():
 
     free = ("fn", "zeta", "k3")
     model = Duffing(free, fixed={k: v for k, v in TRUTH.items() if k not in free})
-    res = sample(make_dataset(seed=11), model, PosteriorSettings(), workers=2, progress=False,
-                 log=lambda *a: None)
+    res = sample(make_dataset(seed=11), model, PosteriorSettings(), workers=2, progress=False, log=lambda *a: None)
     assert res.n_model_runs["total"] <= 250, res.n_model_runs
     for name in free:
         s = res.summary[name]
@@ -169,10 +187,10 @@ def test_a_forward_difference_mode_reuses_the_searchs_last_jacobian():
 
     t = np.linspace(0.0, 1.0, 40)
     truth = np.array([1.3, -0.7, 2.1])
-    y = truth[0] * np.exp(truth[1] * t) + truth[2] * t ** 2
+    y = truth[0] * np.exp(truth[1] * t) + truth[2] * t**2
 
     def fun(x):
-        return (x[0] * np.exp(x[1] * t) + x[2] * t ** 2 - y) / 0.01
+        return (x[0] * np.exp(x[1] * t) + x[2] * t**2 - y) / 0.01
 
     lower, upper = np.array([0.0, -3.0, 0.0]), np.array([3.0, 1.0, 4.0])
     steps = 1e-4 * (upper - lower)
@@ -186,7 +204,7 @@ def test_a_forward_difference_mode_reuses_the_searchs_last_jacobian():
     assert cen.n_evaluations - fwd.n_evaluations == 1 + 2 * len(truth)
 
 
-@pytest.mark.slow   # 1-3 minutes (a 5 ms model, some 300-450 runs)
+@pytest.mark.slow  # 1-3 minutes (a 5 ms model, some 300-450 runs)
 def test_a_posterior_on_lab_records_covers_the_truth_without_a_refined_model():
     """The lab records of test_measured_records (drifting sensors, coloured noise, a noisy
     force; the user's chain has no refined()): the default posterior covers the truth.  (Here
@@ -205,12 +223,16 @@ def test_a_posterior_on_lab_records_covers_the_truth_without_a_refined_model():
     print({st: (sc.model_error, sc.model_error_source) for st, sc in res.likelihood.scales.items()})
 
 
-@pytest.mark.slow   # 2-5 minutes: two ROM posteriors
-@pytest.mark.parametrize("truth", [
-    # two SBC truths with k_s near its upper bound: the coarse start (c and k_s at the prior's
-    # centre) missed the high level by 55-73 % there, and a search from the best start ended at k_s = 0
-    {"eta": 1.0735, "c": 25.909, "F": 94.342, "k_s": 574.33},
-    {"eta": 3.3999, "c": 6.9712, "F": 88.066, "k_s": 554.12}])
+@pytest.mark.slow  # 2-5 minutes: two ROM posteriors
+@pytest.mark.parametrize(
+    "truth",
+    [
+        # two SBC truths with k_s near its upper bound: the coarse start (c and k_s at the prior's
+        # centre) missed the high level by 55-73 % there, and a search from the best start ended at k_s = 0
+        {"eta": 1.0735, "c": 25.909, "F": 94.342, "k_s": 574.33},
+        {"eta": 3.3999, "c": 6.9712, "F": 88.066, "k_s": 554.12},
+    ],
+)
 def test_the_default_posterior_finds_the_valley_near_the_k_s_bound(truth):
     import fe
     from bayes_update.core.posterior import PosteriorSettings, sample
@@ -225,15 +247,25 @@ def test_the_default_posterior_finds_the_valley_near_the_k_s_bound(truth):
     for name, amp, role in (("chirp_low", 0.02, "linear"), ("chirp_high", 0.2, "nonlinear")):
         f = signals.chirp(amp)
         v = model.simulate(truth, f, 1024.0)
-        tests.append(Record(f"{name}.csv", "chirp", name.split("_")[1], role, np.arange(f.size) / 1024.0,
-                            signals.add_noise(f, 40.0, rng), signals.add_noise(v, 40.0, rng)))
+        tests.append(
+            Record(
+                f"{name}.csv",
+                "chirp",
+                name.split("_")[1],
+                role,
+                np.arange(f.size) / 1024.0,
+                signals.add_noise(f, 40.0, rng),
+                signals.add_noise(v, 40.0, rng),
+            )
+        )
     data = Dataset("near-bound", 1024.0, model.rig, tests)
-    res = sample(data, model, PosteriorSettings(n_linear=0, model_error=False), workers=2, progress=False,
-                 log=lambda *a: None)
+    res = sample(
+        data, model, PosteriorSettings(n_linear=0, model_error=False), workers=2, progress=False, log=lambda *a: None
+    )
     for name in ("eta", "c", "F", "k_s"):
         s = res.summary[name]
         assert s["hdi_3%"] <= truth[name] <= s["hdi_97%"], (name, truth[name], s)
-    print(res.n_model_runs)     # 271-371 measured (a second search where the first ends on a bound)
+    print(res.n_model_runs)  # 271-371 measured (a second search where the first ends on a bound)
 
 
 def _rosenbrock(x):
@@ -252,10 +284,11 @@ def test_an_absolute_cost_tolerance_stops_the_search_within_it():
     lower, upper, steps = np.array([-2.0, -1.0]), np.array([2.0, 3.0]), np.array([1e-7, 1e-7])
     start = [np.array([-1.5, 2.5])]
     full = find_mode(_rosenbrock, start, lower, upper, steps, max_iterations=200, central=False)
-    assert full.cost == pytest.approx(50.0, abs=1e-8)                     # the closed-form minimum
+    assert full.cost == pytest.approx(50.0, abs=1e-8)  # the closed-form minimum
     for tol in (1e-1, 1e-3):
-        frugal = find_mode(_rosenbrock, start, lower, upper, steps, max_iterations=200, cost_tolerance=tol,
-                           central=False)
+        frugal = find_mode(
+            _rosenbrock, start, lower, upper, steps, max_iterations=200, cost_tolerance=tol, central=False
+        )
         print(tol, frugal.cost - full.cost, frugal.n_evaluations, full.n_evaluations)
         assert frugal.cost - full.cost < 10 * tol
         assert frugal.n_evaluations < full.n_evaluations
@@ -269,11 +302,27 @@ def test_first_inside_searches_from_the_next_start_only_after_a_bound():
 
     steps = np.array([1e-7, 1e-7])
     starts = [np.array([1.6, 2.0]), np.array([-1.5, 2.5])]
-    inside = find_mode(_rosenbrock, starts, np.array([-2.0, -1.0]), np.array([2.0, 3.0]), steps,
-                       cost_tolerance=1e-3, central=False, first_inside=True)
+    inside = find_mode(
+        _rosenbrock,
+        starts,
+        np.array([-2.0, -1.0]),
+        np.array([2.0, 3.0]),
+        steps,
+        cost_tolerance=1e-3,
+        central=False,
+        first_inside=True,
+    )
     assert len(inside.starts) == 1 and not on_bound(inside.x, [-2.0, -1.0], [2.0, 3.0])
-    both = find_mode(_rosenbrock, starts, np.array([-2.0, -1.0]), np.array([0.5, 3.0]), steps,
-                     cost_tolerance=1e-3, central=False, first_inside=True)
+    both = find_mode(
+        _rosenbrock,
+        starts,
+        np.array([-2.0, -1.0]),
+        np.array([0.5, 3.0]),
+        steps,
+        cost_tolerance=1e-3,
+        central=False,
+        first_inside=True,
+    )
     assert len(both.starts) == 2 and on_bound(both.x, [-2.0, -1.0], [0.5, 3.0])
     assert on_bound([0.5, 1.0], [0.0, 0.0], [0.5, 2.0]) and not on_bound([0.25, 1.0], [0.0, 0.0], [0.5, 2.0])
 
@@ -302,8 +351,9 @@ def test_the_map_search_takes_the_likelihoods_span_at_the_start_as_its_first_jac
     x0 = space.to_internal(start)
     box = space.box()
     steps = 1e-4 * (box[:, 1] - box[:, 0])
-    fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
-                           SpacePoint(space, problem.model))
+    fun = ResidualFunction(
+        problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages), SpacePoint(space, problem.model)
+    )
     x, r, J = known_point(fun, lik.sensitivities, x0, steps)
     J_fresh, _ = _jacobian(fun, x0, fun(x0), steps, box[:, 0], box[:, 1], None, central=False)
     np.testing.assert_allclose(r, fun(x0), rtol=0, atol=1e-12 * np.abs(r).max())
@@ -311,8 +361,10 @@ def test_the_map_search_takes_the_likelihoods_span_at_the_start_as_its_first_jac
     # elsewhere, with other steps or another model: nothing known
     assert known_point(fun, lik.sensitivities, x0 + steps, steps) is None
     assert known_point(fun, lik.sensitivities, x0, 2 * steps) is None
-    assert known_point(dataclasses.replace(fun, point_map=SpacePoint(space, Duffing(free))), lik.sensitivities,
-                       x0, steps) is None
+    assert (
+        known_point(dataclasses.replace(fun, point_map=SpacePoint(space, Duffing(free))), lik.sensitivities, x0, steps)
+        is None
+    )
 
     ev = Evaluate(problem, space, problem.stages)
     with_known = find_map(ev, lik, x0, frugal=True)
@@ -343,8 +395,9 @@ def test_the_scales_runs_in_worker_processes_give_the_same_numbers(linear_proble
         # 1000 times below its truncation error
         J = serial.sensitivities[st].derivative
         np.testing.assert_allclose(parallel.sensitivities[st].derivative, J, rtol=0, atol=1e-6 * np.abs(J).max())
-        np.testing.assert_allclose(parallel.noise_residuals[st][0], serial.noise_residuals[st][0], rtol=1e-12,
-                                   atol=1e-15)
+        np.testing.assert_allclose(
+            parallel.noise_residuals[st][0], serial.noise_residuals[st][0], rtol=1e-12, atol=1e-15
+        )
 
 
 def test_the_gauss_newton_mean_is_exact_for_a_linear_residual():
@@ -361,4 +414,4 @@ def test_the_gauss_newton_mean_is_exact_for_a_linear_residual():
     mean = GaussNewtonMean.at_mode(r0, J, x0, whitening)
     U = 3.0 * rng.standard_normal((50, d))
     r = r0 + (whitening.to_x(U) - x0) @ J.T
-    np.testing.assert_allclose(mean(U), np.log1p(np.sum(r ** 2, axis=1)), rtol=1e-10)
+    np.testing.assert_allclose(mean(U), np.log1p(np.sum(r**2, axis=1)), rtol=1e-10)

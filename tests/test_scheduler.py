@@ -2,6 +2,7 @@
 scale-out), against a LocalCluster started here: the same numbers as local processes, the
 runs seen on the cluster, a user's model file imported by the workers, a clear error
 without a scheduler."""
+
 import json
 
 import pytest
@@ -20,14 +21,16 @@ def duffing_data(tmp_path_factory):
     return path
 
 
-@pytest.mark.slow   # about 45 s (a cluster and two calibrations): outside the 15-minute default run
+@pytest.mark.slow  # about 45 s (a cluster and two calibrations): outside the 15-minute default run
 def test_calibrate_on_a_dask_cluster_gives_the_local_numbers(duffing_data, tmp_path):
     from bayes_update.cli import main
 
     model = "tests/test_user_model.py:three_parameter_duffing"
     args = ["calibrate", "--model", model, "--data", str(duffing_data), "--quick"]
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+    with (
+        distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        distributed.Client(cluster) as client,
+    ):
         with distributed.get_task_stream(client) as stream:
             assert main(args + ["--out", str(tmp_path / "dask"), "--scheduler", cluster.scheduler_address]) == 0
         # the model runs went to the cluster's workers (the file model imported there by its name)
@@ -42,8 +45,20 @@ def test_calibrate_on_a_dask_cluster_gives_the_local_numbers(duffing_data, tmp_p
 def test_no_scheduler_there_is_one_line_and_status_2(duffing_data, tmp_path, capsys):
     from bayes_update.cli import main
 
-    rc = main(["calibrate", "--model", "tests/test_user_model.py:three_parameter_duffing", "--data",
-               str(duffing_data), "--quick", "--out", str(tmp_path / "x"), "--scheduler", "tcp://127.0.0.1:9"])
+    rc = main(
+        [
+            "calibrate",
+            "--model",
+            "tests/test_user_model.py:three_parameter_duffing",
+            "--data",
+            str(duffing_data),
+            "--quick",
+            "--out",
+            str(tmp_path / "x"),
+            "--scheduler",
+            "tcp://127.0.0.1:9",
+        ]
+    )
     assert rc == 2
     err = capsys.readouterr().err
     assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answers there" in err

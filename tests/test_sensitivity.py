@@ -14,6 +14,7 @@ of log e_lin are Ishigami's, and k_s is inert:
 The error measured here includes the GP's (256 design points; its held-out
 median error on e is 28 %) and the estimator's (4096 base samples).
 """
+
 import math
 
 import numpy as np
@@ -56,11 +57,18 @@ def test_sobol_indices_of_the_ishigami_function():
     About 8 s on one core."""
     from threadpoolctl import threadpool_limits
 
-    space = ParameterSet([Parameter("eta", 1.0, 6.0, "MPa s"), Parameter("c", 0.0, 30.0, "N s/mm"),
-                          Parameter("F", 60.0, 95.0, "N"), Parameter("k_s", 0.0, 600.0, "N/mm")])
-    with threadpool_limits(1):        # a 256-point GP: BLAS threads only add contention
-        out = sobol_indices(IshigamiProblem(space), space, n_design=256, n_sobol=4096, pool=None, seed=3,
-                            progress=False)
+    space = ParameterSet(
+        [
+            Parameter("eta", 1.0, 6.0, "MPa s"),
+            Parameter("c", 0.0, 30.0, "N s/mm"),
+            Parameter("F", 60.0, 95.0, "N"),
+            Parameter("k_s", 0.0, 600.0, "N/mm"),
+        ]
+    )
+    with threadpool_limits(1):  # a 256-point GP: BLAS threads only add contention
+        out = sobol_indices(
+            IshigamiProblem(space), space, n_design=256, n_sobol=4096, pool=None, seed=3, progress=False
+        )
     assert "e_nlin" not in out
     got = out["e_lin"]
     for name in ("eta", "c", "F"):

@@ -12,6 +12,7 @@ the model calibrated takes 4; 1 % white noise on the response, 0.5 % on the
 force, the noise found by the framework from the periods.  Every constant
 below is this file's own.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,21 +24,21 @@ from numba import njit
 
 import bayes_update as bu
 
-FS = 400.0                                   # [Hz]: 5x the band's top
-PERIOD = 2048                                # [samples]
-BAND = (5.0, 80.0)                           # [Hz]
+FS = 400.0  # [Hz]: 5x the band's top
+PERIOD = 2048  # [samples]
+BAND = (5.0, 80.0)  # [Hz]
 N_PERIODS = 4
-M1, M2 = 0.9, 0.45                           # [kg], known
-TRUTH = {"k1": 19.0, "k2": 23.5, "c": 4.0, "k3": 0.2}    # kN/m, kN/m, N s/m, GN/m^3
+M1, M2 = 0.9, 0.45  # [kg], known
+TRUTH = {"k1": 19.0, "k2": 23.5, "c": 4.0, "k3": 0.2}  # kN/m, kN/m, N s/m, GN/m^3
 LEVELS = {"low": ("linear", 0.15, 11), "high": ("nonlinear", 3.0, 12), "mid": ("validation", 1.8, 13)}
-NOISE = (0.005, 0.01)                        # force, response: sd / rms
-PARAMETER_TOL = 0.01                         # relative, every parameter
-FLOOR_FACTOR = 1.3                           # held-out error / the truth's
+NOISE = (0.005, 0.01)  # force, response: sd / rms
+PARAMETER_TOL = 0.01  # relative, every parameter
+FLOOR_FACTOR = 1.3  # held-out error / the truth's
 
 
 @njit(cache=False)
 def _rhs(x1, v1, x2, v2, u, k1, k2, c, k3):
-    a1 = (-k1 * x1 - k3 * x1 ** 3 - c * v1 + k2 * (x2 - x1) + c * (v2 - v1)) / 0.9
+    a1 = (-k1 * x1 - k3 * x1**3 - c * v1 + k2 * (x2 - x1) + c * (v2 - v1)) / 0.9
     a2 = (u - k2 * (x2 - x1) - c * (v2 - v1)) / 0.45
     return a1, a2
 
@@ -55,12 +56,21 @@ def _acceleration(f, fs, k1, k2, c, k3, substeps):
             u1 = f[i] + (f[i + 1] - f[i]) * (s + 1) / substeps
             um = 0.5 * (u0 + u1)
             p1, p2 = _rhs(x1, v1, x2, v2, u0, k1, k2, c, k3)
-            q1, q2 = _rhs(x1 + 0.5 * h * v1, v1 + 0.5 * h * p1, x2 + 0.5 * h * v2, v2 + 0.5 * h * p2, um,
-                          k1, k2, c, k3)
-            r1, r2 = _rhs(x1 + 0.5 * h * (v1 + 0.5 * h * p1), v1 + 0.5 * h * q1,
-                          x2 + 0.5 * h * (v2 + 0.5 * h * p2), v2 + 0.5 * h * q2, um, k1, k2, c, k3)
-            s1, s2 = _rhs(x1 + h * (v1 + 0.5 * h * q1), v1 + h * r1, x2 + h * (v2 + 0.5 * h * q2), v2 + h * r2, u1,
-                          k1, k2, c, k3)
+            q1, q2 = _rhs(x1 + 0.5 * h * v1, v1 + 0.5 * h * p1, x2 + 0.5 * h * v2, v2 + 0.5 * h * p2, um, k1, k2, c, k3)
+            r1, r2 = _rhs(
+                x1 + 0.5 * h * (v1 + 0.5 * h * p1),
+                v1 + 0.5 * h * q1,
+                x2 + 0.5 * h * (v2 + 0.5 * h * p2),
+                v2 + 0.5 * h * q2,
+                um,
+                k1,
+                k2,
+                c,
+                k3,
+            )
+            s1, s2 = _rhs(
+                x1 + h * (v1 + 0.5 * h * q1), v1 + h * r1, x2 + h * (v2 + 0.5 * h * q2), v2 + h * r2, u1, k1, k2, c, k3
+            )
             x1, v1 = x1 + h * v1 + h * h * (p1 + q1 + r1) / 6, v1 + h * (p1 + 2 * q1 + 2 * r1 + s1) / 6
             x2, v2 = x2 + h * v2 + h * h * (p2 + q2 + r2) / 6, v2 + h * (p2 + 2 * q2 + 2 * r2 + s2) / 6
         out[i + 1] = _rhs(x1, v1, x2, v2, f[i + 1], k1, k2, c, k3)[1]
@@ -70,15 +80,26 @@ def _acceleration(f, fs, k1, k2, c, k3, substeps):
 class TwoMassChain:
     """The two-mass chain of the module docstring; m2's acceleration [m/s^2]."""
 
-    parameters = [bu.Parameter("k1", 12.0, 30.0, unit="kN/m"), bu.Parameter("k2", 15.0, 35.0, unit="kN/m"),
-                  bu.Parameter("c", 1.0, 15.0, unit="N s/m"), bu.Parameter("k3", 0.0, 1.0, unit="GN/m^3")]
+    parameters = [
+        bu.Parameter("k1", 12.0, 30.0, unit="kN/m"),
+        bu.Parameter("k2", 15.0, 35.0, unit="kN/m"),
+        bu.Parameter("c", 1.0, 15.0, unit="N s/m"),
+        bu.Parameter("k3", 0.0, 1.0, unit="GN/m^3"),
+    ]
 
     def __init__(self, substeps=4):
         self.substeps = substeps
 
     def simulate(self, theta, force, fs):
-        return _acceleration(np.asarray(force, float), float(fs), 1e3 * theta["k1"], 1e3 * theta["k2"],
-                             float(theta["c"]), 1e9 * theta["k3"], self.substeps)
+        return _acceleration(
+            np.asarray(force, float),
+            float(fs),
+            1e3 * theta["k1"],
+            1e3 * theta["k2"],
+            float(theta["c"]),
+            1e9 * theta["k3"],
+            self.substeps,
+        )
 
 
 def natural_frequencies(theta) -> np.ndarray:
@@ -105,10 +126,19 @@ def make_dataset():
         f = multisine(level, seed)
         y = truth_model.simulate(TRUTH, f, FS)
         clean[name] = y
-        tests.append(bu.Record(f"{name}.csv", "multisine", name, role, np.arange(f.size) / FS,
-                               f + NOISE[0] * f.std() * rng.standard_normal(f.size),
-                               y + NOISE[1] * y.std() * rng.standard_normal(f.size),
-                               sensors=(("acc2", "acceleration"),), period_samples=PERIOD))
+        tests.append(
+            bu.Record(
+                f"{name}.csv",
+                "multisine",
+                name,
+                role,
+                np.arange(f.size) / FS,
+                f + NOISE[0] * f.std() * rng.standard_normal(f.size),
+                y + NOISE[1] * y.std() * rng.standard_normal(f.size),
+                sensors=(("acc2", "acceleration"),),
+                period_samples=PERIOD,
+            )
+        )
     return bu.Dataset("two-mass-chain", FS, None, tests), clean
 
 
@@ -145,8 +175,7 @@ def test_calibrate_with_both_modes(data):
     ds, _ = data
     t0 = time.perf_counter()
     cal = bu.calibrate(ds, TwoMassChain(), workers=1, progress=False, log=lambda *a: None)
-    print(f"\n[calibrate] {cal.n_model_runs} model runs, {time.perf_counter() - t0:.1f} s; warnings "
-          f"{cal.fit_warnings}")
+    print(f"\n[calibrate] {cal.n_model_runs} model runs, {time.perf_counter() - t0:.1f} s; warnings {cal.fit_warnings}")
     # the record does not end at rest, so the model's acceleration has a mean: calibrate's number is
     # the one Problem.prediction_errors gives (both without the means), and this file's
     assert cal.prediction_errors["mid"] == pytest.approx(cal.problem.prediction_errors(cal.theta)["mid"], rel=1e-9)
@@ -167,8 +196,20 @@ def test_the_cli_calibrates_with_both_modes(data, tmp_path, capsys):
     bu.write_dataset(ds, tmp_path / "data")
     out = tmp_path / "out"
     t0 = time.perf_counter()
-    code = main(["calibrate", "--model", f"{__file__}:TwoMassChain", "--data", str(tmp_path / "data"),
-                 "--out", str(out), "--quick", "--workers", "1"])
+    code = main(
+        [
+            "calibrate",
+            "--model",
+            f"{__file__}:TwoMassChain",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(out),
+            "--quick",
+            "--workers",
+            "1",
+        ]
+    )
     assert code == 0, capsys.readouterr().err[-3000:]
     cal = json.loads((out / "calibration.json").read_text())
     print(f"\n[cli] {cal['n_model_runs']} model runs, {time.perf_counter() - t0:.1f} s")

@@ -2,6 +2,7 @@
 properties of the designs, a Gaussian-process posterior computed by hand,
 Monte Carlo moments, a synthetic valley with an exact posterior, sha256 of a
 literal JSON string, and evaluations through another executor."""
+
 import hashlib
 import math
 import warnings
@@ -14,9 +15,18 @@ from scipy.stats import qmc
 from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 from threadpoolctl import threadpool_limits
 
+from surrogates import (
+    CurvedValley,
+    EvaluationCache,
+    GPSurrogate,
+    cached_evaluate,
+    config_hash,
+    design,
+    holdout_validation,
+    propose_points,
+    refine,
+)
 from surrogates.evaluation import default_executor, evaluate_many
-from surrogates import (CurvedValley, EvaluationCache, GPSurrogate, cached_evaluate, config_hash,
-                        design, holdout_validation, propose_points, refine)
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -73,7 +83,7 @@ def test_design_rejects_bad_input():
 # -- Gaussian process ------------------------------------------------------
 def _matern52(A, B, ls):
     r = np.sqrt((((A[:, None, :] - B[None, :, :]) / ls) ** 2).sum(-1))
-    return (1 + math.sqrt(5) * r + 5 * r ** 2 / 3) * np.exp(-math.sqrt(5) * r)
+    return (1 + math.sqrt(5) * r + 5 * r**2 / 3) * np.exp(-math.sqrt(5) * r)
 
 
 def test_gp_reproduces_the_closed_form_posterior():
@@ -93,10 +103,10 @@ def test_gp_reproduces_the_closed_form_posterior():
     K = c * _matern52(U, U, ls) + (noise + 1e-10) * np.eye(len(U))  # 1e-10: sklearn's default alpha
     ks = c * _matern52(Us, U, ls)
     mu = m + s * ks @ np.linalg.solve(K, (z - m) / s)
-    var = s ** 2 * (c + noise - np.einsum("ij,ji->i", ks, np.linalg.solve(K, ks.T)))
+    var = s**2 * (c + noise - np.einsum("ij,ji->i", ks, np.linalg.solve(K, ks.T)))
     mu_s, sd_s = sur.predict_transformed(Xs)
     np.testing.assert_allclose(mu_s, mu, rtol=0, atol=1e-9)
-    np.testing.assert_allclose(sur.mean_transformed(Xs), mu, rtol=0, atol=1e-9)   # the MCMC's fast path
+    np.testing.assert_allclose(sur.mean_transformed(Xs), mu, rtol=0, atol=1e-9)  # the MCMC's fast path
     np.testing.assert_allclose(sd_s, np.sqrt(var), rtol=1e-7)
 
     pred, sd = sur.predict(Xs)
@@ -115,12 +125,13 @@ def test_plain_numpy_mean_equals_scikit_learns_prediction(nu):
     predict, fitted hyperparameters, every smoothness, with and without a prior
     mean; a kernel of another form keeps scikit-learn's path."""
     from sklearn.gaussian_process.kernels import RBF
+
     from surrogates.gp_mean import kernel_mean
 
     bounds = np.array([[-1.0, 3.0], [100.0, 400.0], [0.0, 1.0]])
     X = design(bounds, 30, seed=11)
     y = np.cos(X[:, 0]) + 0.004 * X[:, 1] + X[:, 2] ** 2
-    Xs = design(bounds, 9, seed=12) * 1.1          # some points outside the box
+    Xs = design(bounds, 9, seed=12) * 1.1  # some points outside the box
     for prior_mean in (None, _QuadraticMean()):
         sur = GPSurrogate(bounds, transform="none", nu=nu, n_restarts_optimizer=0, prior_mean=prior_mean).fit(X, y)
         assert kernel_mean(sur) is not None
@@ -181,8 +192,9 @@ def test_gp_fit_holdout_and_summary():
     assert repr(sur) == "GPSurrogate(transform='log', names=['a', 'b', 'inert'], n_train=72)"
     # the log transform against none on the same split: for a function smooth
     # in log, modelling it in its own units costs accuracy at the small values
-    lin = holdout_validation(partial(GPSurrogate, bounds, transform="none", n_restarts_optimizer=2, seed=1),
-                             X, y, fraction=0.25, seed=0)
+    lin = holdout_validation(
+        partial(GPSurrogate, bounds, transform="none", n_restarts_optimizer=2, seed=1), X, y, fraction=0.25, seed=0
+    )
     print("holdout (none):", {k: lin[k] for k in ("median_rel_error", "max_rel_error", "coverage")})
     assert out["median_rel_error"] < lin["median_rel_error"]
     # same seed and data: the same fit
@@ -235,8 +247,7 @@ def test_propose_points_where_weight_and_sd_are_high():
     print(f"flat weight: smallest distance within a batch of 8: {np.min(dist(Q, Q) + np.eye(8)):.3f}")
     assert np.min(dist(Q, Q) + np.eye(8)) > 0.1
     # log weights, candidates given explicitly
-    R = propose_points(sur, C, lambda P: np.where(inside(P) > 0, 0.0, -np.inf), 3, log_weight=True,
-                       min_distance=0.05)
+    R = propose_points(sur, C, lambda P: np.where(inside(P) > 0, 0.0, -np.inf), 3, log_weight=True, min_distance=0.05)
     np.testing.assert_array_equal(R, P[:3])
     with pytest.raises(ValueError, match="positive weight"):
         propose_points(sur, 256, lambda P: np.zeros(len(P)), 2, seed=0)
@@ -279,8 +290,7 @@ def test_several_outputs():
     one = GPSurrogate(bounds, n_restarts_optimizer=0).fit(X, f(X))
     w = lambda P: np.exp(-((P - 0.5) ** 2).sum(1) / 0.1)  # noqa: E731
     # two identical outputs: the summed variance ranks the candidates as one does
-    np.testing.assert_array_equal(propose_points([one, one], 512, w, 5, seed=2),
-                                  propose_points(one, 512, w, 5, seed=2))
+    np.testing.assert_array_equal(propose_points([one, one], 512, w, 5, seed=2), propose_points(one, 512, w, 5, seed=2))
 
     def two(x):
         return {"a": float(f(x[None])[0]), "b": float(1 + x[0])}
@@ -291,8 +301,18 @@ def test_several_outputs():
         seen.append(len(surs))
         return lambda P: w(P) * surs[1].predict(P, return_std=False)
 
-    res = refine(two, partial(GPSurrogate, bounds, n_restarts_optimizer=0), X, np.c_[f(X), 1 + X[:, 0]],
-                 weight_from, n_rounds=2, batch=3, seed=0, target=lambda r: (r["a"], r["b"]), progress=False)
+    res = refine(
+        two,
+        partial(GPSurrogate, bounds, n_restarts_optimizer=0),
+        X,
+        np.c_[f(X), 1 + X[:, 0]],
+        weight_from,
+        n_rounds=2,
+        batch=3,
+        seed=0,
+        target=lambda r: (r["a"], r["b"]),
+        progress=False,
+    )
     assert res.y.shape == (18, 2) and seen == [2, 2] and len(res.surrogate) == 2
     np.testing.assert_allclose(res.y, np.c_[f(res.X), 1 + res.X[:, 0]])
 
@@ -319,8 +339,19 @@ def test_refinement_beats_a_one_shot_design_in_a_thin_curved_valley():
         return lambda P: -0.5 * (sur.predict(P, return_std=False) / prob.floor - 1)
 
     X0 = design(prob.bounds, 32, seed=0)
-    res = refine(prob, factory, X0, prob.values(X0), weight_from, n_rounds=6, batch=16, executor=None,
-                 seed=0, log_weight=True, progress=False)
+    res = refine(
+        prob,
+        factory,
+        X0,
+        prob.values(X0),
+        weight_from,
+        n_rounds=6,
+        batch=16,
+        executor=None,
+        seed=0,
+        log_weight=True,
+        progress=False,
+    )
     assert len(res.X) == 128 and [r["n_train"] for r in res.rounds] == list(range(32, 129, 16))
     np.testing.assert_array_equal(res.X[:32], X0)
     np.testing.assert_array_equal(res.y, prob.values(res.X))
@@ -328,8 +359,10 @@ def test_refinement_beats_a_one_shot_design_in_a_thin_curved_valley():
     errors = [median_error(r["surrogate"]) for r in res.rounds]
     # where the new points went: within 3 widths of the valley floor
     in_valley = np.abs(res.X[32:, 1] - prob.curve(res.X[32:, 0])) < 3 * prob.width
-    print(f"one-shot {one_shot:.4f}, refined {refined:.4f}, factor {one_shot / refined:.2f}; "
-          f"per round {np.round(errors, 4).tolist()}; new points in the valley {in_valley.mean():.2f}")
+    print(
+        f"one-shot {one_shot:.4f}, refined {refined:.4f}, factor {one_shot / refined:.2f}; "
+        f"per round {np.round(errors, 4).tolist()}; new points in the valley {in_valley.mean():.2f}"
+    )
     assert one_shot > 0.3  # the one-shot surrogate is poor where it matters
     assert refined < 0.15
     assert one_shot / refined > 4.0
@@ -354,13 +387,16 @@ def test_warm_started_rounds_end_in_a_full_fit_and_refine_as_well():
     kw = dict(n_rounds=6, batch=16, executor=None, seed=1, log_weight=True, progress=False)
     warm = refine(prob, factory, X0, prob.values(X0), weight_from, warm_start=True, **kw)
     cold = refine(prob, factory, X0, prob.values(X0), weight_from, **kw)
-    assert warm.rounds[1]["surrogate"].n_restarts_optimizer == 0      # a round: warm, no restarts
-    assert warm.surrogate.n_restarts_optimizer == 2                   # the end: the factory's fit
+    assert warm.rounds[1]["surrogate"].n_restarts_optimizer == 0  # a round: warm, no restarts
+    assert warm.surrogate.n_restarts_optimizer == 2  # the end: the factory's fit
     fresh = factory().fit(warm.X, warm.y)
-    np.testing.assert_allclose(warm.surrogate.predict(T, return_std=False), fresh.predict(T, return_std=False),
-                               rtol=1e-10, atol=0)
-    err = {k: float(np.median(np.abs(r.surrogate.predict(T, return_std=False) - yT) / yT))
-           for k, r in (("warm", warm), ("cold", cold))}
+    np.testing.assert_allclose(
+        warm.surrogate.predict(T, return_std=False), fresh.predict(T, return_std=False), rtol=1e-10, atol=0
+    )
+    err = {
+        k: float(np.median(np.abs(r.surrogate.predict(T, return_std=False) - yT) / yT))
+        for k, r in (("warm", warm), ("cold", cold))
+    }
     print(err)
     assert err["warm"] < 0.15 and err["warm"] < 2 * err["cold"]
 
@@ -380,11 +416,22 @@ def test_refine_through_an_executor_with_failed_runs_and_a_cache(tmp_path):
         return {"v": _flaky(x)}
 
     # the corner is where the weight is: proposals land there, some fail
-    corner = lambda s: (lambda P: np.exp(10 * (P[:, 0] + P[:, 1])))  # noqa: E731
+    corner = lambda s: lambda P: np.exp(10 * (P[:, 0] + P[:, 1]))  # noqa: E731
     with ThreadPoolExecutor(2) as ex:
-        res = refine(as_dict, partial(GPSurrogate, bounds, n_restarts_optimizer=0), X0, y0, corner,
-                     n_rounds=2, batch=4, executor=ex, seed=3, target=lambda r: r["v"],
-                     evaluate=partial(cached_evaluate, cache=cache), progress=False)
+        res = refine(
+            as_dict,
+            partial(GPSurrogate, bounds, n_restarts_optimizer=0),
+            X0,
+            y0,
+            corner,
+            n_rounds=2,
+            batch=4,
+            executor=ex,
+            seed=3,
+            target=lambda r: r["v"],
+            evaluate=partial(cached_evaluate, cache=cache),
+            progress=False,
+        )
     assert len(res.X) == 21 and len(cache) == 8
     failed = ~np.isfinite(res.y)
     assert failed.sum() > 1
@@ -419,12 +466,13 @@ class _Counting:
         self.calls.append(np.array(x))
         if x[0] > 0.8:  # a model failure that returns (cached like any result)
             return {"e_lin": math.nan, "e_nlin": math.nan, "error": "BucklingError: beyond buckling"}
-        return {"e_lin": float(np.sum(x ** 2)), "e_nlin": float(np.prod(x)), "error": None}
+        return {"e_lin": float(np.sum(x**2)), "e_nlin": float(np.prod(x)), "error": None}
 
 
 def _same(a, b):
     return a.keys() == b.keys() and all(
-        a[k] == b[k] or (isinstance(a[k], float) and math.isnan(a[k]) and math.isnan(b[k])) for k in a)
+        a[k] == b[k] or (isinstance(a[k], float) and math.isnan(a[k]) and math.isnan(b[k])) for k in a
+    )
 
 
 def test_cache_resumes_an_interrupted_doe(tmp_path):
@@ -460,8 +508,9 @@ def test_cache_never_mixes_configurations(tmp_path):
     assert len(list(tmp_path.glob("*.nc"))) == 2
     with_threads = _Counting()
     with ThreadPoolExecutor(2) as ex:
-        c = cached_evaluate(with_threads, np.vstack([X, [[0.5, 0.5]]]), EvaluationCache(tmp_path, {"k_s": 1.0}),
-                            ex, progress=False)
+        c = cached_evaluate(
+            with_threads, np.vstack([X, [[0.5, 0.5]]]), EvaluationCache(tmp_path, {"k_s": 1.0}), ex, progress=False
+        )
     assert len(with_threads.calls) == 1 and all(_same(p, q) for p, q in zip(a, c))
     # a file that claims this configuration's name but holds another: refused
     cache = EvaluationCache(tmp_path, {"k_s": 1.0})
@@ -500,8 +549,12 @@ def test_dask_executor_gives_the_process_pool_results():
         expected = evaluate_many(func, list(X), pool, progress=False)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # dask's notes about ports and sizes
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=None) as cluster, distributed.Client(cluster) as client:
+        with (
+            distributed.LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            ) as cluster,
+            distributed.Client(cluster) as client,
+        ):
             got = evaluate_many(func, list(X), client.get_executor(), batch_size=2, progress=False)
     assert got == expected
     np.testing.assert_array_equal(got, func.values(X))
@@ -533,8 +586,7 @@ def test_parallel_fits_in_the_workers_give_the_same_surrogates():
     P = design(bounds, 50, seed=9)
     np.testing.assert_array_equal(par.X, seq.X)
     for a, b in zip(par.surrogate, seq.surrogate):
-        np.testing.assert_allclose(a.predict(P, return_std=False), b.predict(P, return_std=False), rtol=1e-12,
-                                   atol=0)
+        np.testing.assert_allclose(a.predict(P, return_std=False), b.predict(P, return_std=False), rtol=1e-12, atol=0)
 
 
 class _Quadratic:
@@ -584,11 +636,11 @@ def test_executor_for_owns_only_the_pool_it_makes():
     given = ThreadPoolExecutor(1)
     with executor_for(given, workers=4) as pool:
         assert pool is given
-    assert given.submit(abs, -1).result() == 1          # the caller's pool is left running
+    assert given.submit(abs, -1).result() == 1  # the caller's pool is left running
     given.shutdown()
     with executor_for(None, workers=1) as pool:
-        assert pool is None                             # one worker: every run in this process
+        assert pool is None  # one worker: every run in this process
     with executor_for(None, workers=2) as pool:
         assert pool.submit(abs, -2).result() == 2
-    with pytest.raises(RuntimeError):                   # its own pool is shut down when the block ends
+    with pytest.raises(RuntimeError):  # its own pool is shut down when the block ends
         pool.submit(abs, -3)

@@ -32,13 +32,13 @@ def _velocity(f, fs, wn, zeta, k3, c2, substeps):
         for s in range(substeps):
             u0, u1 = f[i] + (f[i + 1] - f[i]) * s / substeps, f[i] + (f[i + 1] - f[i]) * (s + 1) / substeps
             um = 0.5 * (u0 + u1)
-            k1x, k1v = v, u0 - 2 * zeta * wn * v - c2 * v * abs(v) - wn * wn * x - k3 * x ** 3
+            k1x, k1v = v, u0 - 2 * zeta * wn * v - c2 * v * abs(v) - wn * wn * x - k3 * x**3
             xa, va = x + 0.5 * h * k1x, v + 0.5 * h * k1v
-            k2x, k2v = va, um - 2 * zeta * wn * va - c2 * va * abs(va) - wn * wn * xa - k3 * xa ** 3
+            k2x, k2v = va, um - 2 * zeta * wn * va - c2 * va * abs(va) - wn * wn * xa - k3 * xa**3
             xb, vb = x + 0.5 * h * k2x, v + 0.5 * h * k2v
-            k3x, k3v = vb, um - 2 * zeta * wn * vb - c2 * vb * abs(vb) - wn * wn * xb - k3 * xb ** 3
+            k3x, k3v = vb, um - 2 * zeta * wn * vb - c2 * vb * abs(vb) - wn * wn * xb - k3 * xb**3
             xc, vc = x + h * k3x, v + h * k3v
-            k4x, k4v = vc, u1 - 2 * zeta * wn * vc - c2 * vc * abs(vc) - wn * wn * xc - k3 * xc ** 3
+            k4x, k4v = vc, u1 - 2 * zeta * wn * vc - c2 * vc * abs(vc) - wn * wn * xc - k3 * xc**3
             x, v = x + h * (k1x + 2 * k2x + 2 * k3x + k4x) / 6, v + h * (k1v + 2 * k2v + 2 * k3v + k4v) / 6
         out[i + 1] = v
     return out
@@ -47,21 +47,32 @@ def _velocity(f, fs, wn, zeta, k3, c2, substeps):
 class GainDuffing:
     """Sensor reading = gain x velocity; the quadratic damper ``c2`` [kg/m] is not a parameter."""
 
-    parameters = [Parameter("fn", 30.0, 50.0, unit="Hz"), Parameter("zeta", 0.005, 0.08, log=True),
-                  Parameter("gain", 0.5, 2.0, unit="V/(m/s)"), Parameter("k3", 0.0, 40.0, unit="1e6 N/m^3")]
+    parameters = [
+        Parameter("fn", 30.0, 50.0, unit="Hz"),
+        Parameter("zeta", 0.005, 0.08, log=True),
+        Parameter("gain", 0.5, 2.0, unit="V/(m/s)"),
+        Parameter("k3", 0.0, 40.0, unit="1e6 N/m^3"),
+    ]
 
     def __init__(self, substeps=4, c2=0.0):
         self.substeps, self.c2 = substeps, c2
 
     def simulate(self, theta, force, fs):
-        v = _velocity(np.asarray(force, float), fs, 2 * np.pi * theta["fn"], theta["zeta"], 1e6 * theta["k3"],
-                      self.c2, self.substeps)
+        v = _velocity(
+            np.asarray(force, float),
+            fs,
+            2 * np.pi * theta["fn"],
+            theta["zeta"],
+            1e6 * theta["k3"],
+            self.c2,
+            self.substeps,
+        )
         return theta["gain"] * v
 
 
 TRUTH = {"fn": 41.3, "zeta": 0.02, "gain": 1.3, "k3": 12.0}
-C2 = 0.6            # quadratic damper of the truth [kg/m]: the model has none
-FS = 1187.5         # [Hz]
+C2 = 0.6  # quadratic damper of the truth [kg/m]: the model has none
+FS = 1187.5  # [Hz]
 
 
 def _multisine(n, level, seed):
@@ -69,33 +80,43 @@ def _multisine(n, level, seed):
     freqs = np.arange(20.0, 70.0, 0.5)
     phases = np.random.default_rng(seed).uniform(0, 2 * np.pi, freqs.size)
     f = np.sin(2 * np.pi * freqs[:, None] * t + phases[:, None]).sum(axis=0)
-    return level * f / np.sqrt(np.mean(f ** 2))
+    return level * f / np.sqrt(np.mean(f**2))
 
 
 def _filtered_noise(n, level, seed):
     sos = butter(4, [15.0, 80.0], btype="band", fs=FS, output="sos")
     f = sosfiltfilt(sos, np.random.default_rng(seed).standard_normal(n))
-    return level * f / np.sqrt(np.mean(f ** 2))
+    return level * f / np.sqrt(np.mean(f**2))
 
 
 def make_dataset(n=8192, seed=0):
     """Returns (dataset, noise sd of each test's response)."""
-    from bayes_update.data.dataset import Dataset, Record
-
     import fe
+    from bayes_update.data.dataset import Dataset, Record
 
     truth = GainDuffing(substeps=16, c2=C2)
     rng = np.random.default_rng(seed)
     t = np.arange(n) / FS
     tests, noise = [], {}
-    for name, role, force in (("noise_low", "linear", _filtered_noise(n, 0.5, seed + 1)),
-                              ("multisine_high", "nonlinear", _multisine(n, 30.0, seed + 2)),
-                              ("multisine_mid", "validation", _multisine(n, 18.0, seed + 3))):
+    for name, role, force in (
+        ("noise_low", "linear", _filtered_noise(n, 0.5, seed + 1)),
+        ("multisine_high", "nonlinear", _multisine(n, 30.0, seed + 2)),
+        ("multisine_mid", "validation", _multisine(n, 18.0, seed + 3)),
+    ):
         y = truth.simulate(TRUTH, force, FS)
-        sf, sy = 0.01 * np.sqrt(np.mean(force ** 2)), 0.01 * np.sqrt(np.mean(y ** 2))
+        sf, sy = 0.01 * np.sqrt(np.mean(force**2)), 0.01 * np.sqrt(np.mean(y**2))
         noise[name] = sy
-        tests.append(Record(f"{name}.csv", "multisine", name, role, t, force + sf * rng.standard_normal(n),
-                            y + sy * rng.standard_normal(n)))
+        tests.append(
+            Record(
+                f"{name}.csv",
+                "multisine",
+                name,
+                role,
+                t,
+                force + sf * rng.standard_normal(n),
+                y + sy * rng.standard_normal(n),
+            )
+        )
     return Dataset("gain-duffing", FS, fe.Rig(), tests), noise
 
 
@@ -130,8 +151,10 @@ def calibrations(gain_data):
     from bayes_update.core.calibrate import calibrate_model
 
     ds, _ = gain_data
-    return {m: calibrate_model(ds, GainDuffing(), metrics=m, workers=2, progress=False, log=lambda *a: None)
-            for m in ("full", "paper")}
+    return {
+        m: calibrate_model(ds, GainDuffing(), metrics=m, workers=2, progress=False, log=lambda *a: None)
+        for m in ("full", "paper")
+    }
 
 
 def test_full_metrics_predict_held_out_data_like_an_output_error_fit(gain_data, calibrations):
@@ -176,10 +199,9 @@ def test_weights_are_the_measured_noise_and_the_representation_floor_is_apart():
     residual of the record's own Volterra fit: that residual also holds what orders
     1-3 cannot represent, which is reported apart as the representation floor.  The
     reference for the floor: the noise-free record's own residual in the same basis."""
+    import fe
     from bayes_update.core import Problem
     from bayes_update.data.dataset import Dataset, Record
-
-    import fe
 
     n = 8192
     t = np.arange(n) / FS
@@ -190,12 +212,12 @@ def test_weights_are_the_measured_noise_and_the_representation_floor_is_apart():
     for i, (name, role, level) in enumerate((("low", "linear", 0.5), ("high", "nonlinear", 5.0))):
         f = _filtered_noise(n, level, seed=i)
         y = model.simulate(theta, f, FS)
-        sd[role] = 0.02 * np.sqrt(np.mean(y ** 2))
+        sd[role] = 0.02 * np.sqrt(np.mean(y**2))
         clean[role] = y - y.mean()
         noisy.append(Record(f"{name}.csv", "noise", name, role, t, f, y + sd[role] * rng.standard_normal(n)))
     p = Problem(Dataset("noisy", FS, fe.Rig(), noisy), model)
     for role in ("linear", "nonlinear"):
-        assert p.noise_sd(role) == pytest.approx(sd[role], rel=0.15)     # the sensor noise, not the residual
+        assert p.noise_sd(role) == pytest.approx(sd[role], rel=0.15)  # the sensor noise, not the residual
         y = clean[role]
         comps = p.projector(role).components(y)
         clean_floor = np.linalg.norm(y - sum(comps.values())) / np.linalg.norm(y)
@@ -225,9 +247,26 @@ def test_cli_calibrate_with_a_model_from_a_file(tmp_path, gain_data):
     ds, _ = gain_data
     write_dataset(ds, tmp_path / "data")
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--model",
-                          f"{__file__}:GainDuffing", "--data", str(tmp_path / "data"), "--out", str(out),
-                          "--quick", "--workers", "2"], capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bayes_update",
+            "calibrate",
+            "--model",
+            f"{__file__}:GainDuffing",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(out),
+            "--quick",
+            "--workers",
+            "2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     cal = json.loads((out / "calibration.json").read_text())
     assert {"fn", "zeta", "gain", "k3", "e_lin", "e_nlin"} <= set(cal)

@@ -7,6 +7,7 @@ per sample against 4) with 1 % noise on force and response: a linear, a nonlinea
 test (band-limited noise, a signal the updating never sees).  Never told what is hidden, the workflow
 must name k2 where k2 is hidden, and nothing where nothing is.
 """
+
 import json
 import subprocess
 import sys
@@ -21,7 +22,7 @@ from bayes_update import Parameter
 # ----------------------------------------------------------------------------- the model
 @njit(cache=False)
 def _acc(x, v, u, m, wn, zeta, k2, k3, c2):
-    return (u - k2 * x * x - k3 * x ** 3 - c2 * v * abs(v)) / m - 2 * zeta * wn * v - wn * wn * x
+    return (u - k2 * x * x - k3 * x**3 - c2 * v * abs(v)) / m - 2 * zeta * wn * v - wn * wn * x
 
 
 @njit(cache=False)
@@ -29,7 +30,7 @@ def _velocity(f, fs, m, wn, zeta, k2, k3, c2, substeps):
     h, x, v = 1.0 / (fs * substeps), 0.0, 0.0
     out = np.zeros(f.size)
     for i in range(f.size - 1):
-        for s in range(substeps):              # RK4, the force linear between samples
+        for s in range(substeps):  # RK4, the force linear between samples
             u0, u1 = f[i] + (f[i + 1] - f[i]) * s / substeps, f[i] + (f[i + 1] - f[i]) * (s + 1) / substeps
             um = 0.5 * (u0 + u1)
             a1 = _acc(x, v, u0, m, wn, zeta, k2, k3, c2)
@@ -44,62 +45,82 @@ def _velocity(f, fs, m, wn, zeta, k2, k3, c2, substeps):
 class Duffing:
     """m x'' + 2 zeta wn m x' + m wn^2 x + k3 x^3 [+ k2 x^2 + c2 v|v|] = f (m = 0.1 kg); velocity out."""
 
-    parameters = [Parameter("fn", 30.0, 50.0, unit="Hz"), Parameter("zeta", 0.005, 0.08, log=True),
-                  Parameter("k3", 0.0, 10.0, unit="1e8 N/m^3")]
+    parameters = [
+        Parameter("fn", 30.0, 50.0, unit="Hz"),
+        Parameter("zeta", 0.005, 0.08, log=True),
+        Parameter("k3", 0.0, 10.0, unit="1e8 N/m^3"),
+    ]
 
     def __init__(self, substeps=4):
         self.substeps = substeps
 
     def candidate_effects(self):
-        return {"k2": [Parameter("k2", -20.0, 20.0, unit="1e5 N/m^2", null=0.0)],
-                "c2": [Parameter("c2", 0.0, 5.0, unit="N s^2/m^2", null=0.0)]}
+        return {
+            "k2": [Parameter("k2", -20.0, 20.0, unit="1e5 N/m^2", null=0.0)],
+            "c2": [Parameter("c2", 0.0, 5.0, unit="N s^2/m^2", null=0.0)],
+        }
 
     def simulate(self, theta, force, fs):
-        return _velocity(np.asarray(force, float), fs, 0.1, 2 * np.pi * theta["fn"], theta["zeta"],
-                         1e5 * theta.get("k2", 0.0), 1e8 * theta["k3"], theta.get("c2", 0.0), self.substeps)
+        return _velocity(
+            np.asarray(force, float),
+            fs,
+            0.1,
+            2 * np.pi * theta["fn"],
+            theta["zeta"],
+            1e5 * theta.get("k2", 0.0),
+            1e8 * theta["k3"],
+            theta.get("c2", 0.0),
+            self.substeps,
+        )
 
     def refined(self):
         return Duffing(4 * self.substeps)
+
+
 # ---------------------------------------------------------------------------------------------------
 
 
 TRUTH = {"fn": 41.3, "zeta": 0.021, "k3": 4.2}
-FS = 1187.5          # a sampling rate that is not a round number [Hz]
+FS = 1187.5  # a sampling rate that is not a round number [Hz]
 
 
 def make_dataset(hidden=None, seed=0, snr_db=40.0, n=4096, high=0.4, medium=0.5):
     """Low (linear) and high (nonlinear) chirps 15 -> 75 Hz in 2.2 s then free decay, and band-limited
     noise (15-75 Hz) for validation, from the refined model with ``hidden`` = {effect parameter: value};
     white noise of 1 % RMS on the force and on the response."""
-    import fe
     from scipy import signal
+
+    import fe
     from bayes_update.data.dataset import Dataset, Record
 
     t = np.arange(n) / FS
     T = 2.2
-    sweep = np.sin(2 * np.pi * (15 * t + (75 - 15) / (2 * T) * t ** 2)) * (t < T)
+    sweep = np.sin(2 * np.pi * (15 * t + (75 - 15) / (2 * T) * t**2)) * (t < T)
     rng = np.random.default_rng(seed)
     band = signal.sosfiltfilt(signal.butter(4, [15, 75], "bandpass", fs=FS, output="sos"), rng.standard_normal(n))
     truth = {**TRUTH, **(hidden or {})}
     truth_model = Duffing().refined()
     tests = []
-    for name, level, f, role in (("chirp_low", "low", 0.05 * sweep, "linear"),
-                                 ("chirp_high", "high", high * sweep, "nonlinear"),
-                                 ("noise_medium", "medium", medium * band / np.std(band), "validation")):
+    for name, level, f, role in (
+        ("chirp_low", "low", 0.05 * sweep, "linear"),
+        ("chirp_high", "high", high * sweep, "nonlinear"),
+        ("noise_medium", "medium", medium * band / np.std(band), "validation"),
+    ):
         y = truth_model.simulate(truth, f, FS)
-        noisy = [z + 10 ** (-snr_db / 20) * np.sqrt(np.mean(z ** 2)) * rng.standard_normal(n) for z in (f, y)]
+        noisy = [z + 10 ** (-snr_db / 20) * np.sqrt(np.mean(z**2)) * rng.standard_normal(n) for z in (f, y)]
         tests.append(Record(f"{name}.csv", name.split("_")[0], level, role, t, *noisy))
     return Dataset("duffing", FS, fe.Rig(), tests, extra={"truth": truth})
 
 
-HIDDEN_K2 = 8.0      # [1e5 N/m^2]: k2 x^2 is about a tenth of the linear spring's force at the high level
+HIDDEN_K2 = 8.0  # [1e5 N/m^2]: k2 x^2 is about a tenth of the linear spring's force at the high level
 
 
 def _run(hidden):
     from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy
 
-    return find_discrepancy(make_dataset(hidden), Duffing(), settings=DiscrepancySettings.quick(), workers=2,
-                            log=lambda *a: None)
+    return find_discrepancy(
+        make_dataset(hidden), Duffing(), settings=DiscrepancySettings.quick(), workers=2, log=lambda *a: None
+    )
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +153,9 @@ def test_hidden_quadratic_spring_is_named_and_closes_the_gap(hidden_k2):
     k2 = res.final.to_json(res.effects)["effects"]["k2"]["k2"]
     assert k2["interval"][0] <= HIDDEN_K2 <= k2["interval"][1] and k2["unit"] == "1e5 N/m^2", k2
     # the gap closes: e_nlin and the validation error at most half of before
-    assert a["e_nlin"] <= 0.5 * b["e_nlin"] and a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"], (b, a)
+    assert (
+        a["e_nlin"] <= 0.5 * b["e_nlin"] and a["held_out_error_beyond_noise"] <= 0.5 * b["held_out_error_beyond_noise"]
+    ), (b, a)
     assert all(r <= EXPLAINED_FACTOR for r in res.misfit_ratio.values()), res.misfit_ratio
     doc = res.to_json()
     assert doc["named_effect"] == "k2" and doc["named"] == ["k2"]
@@ -199,8 +222,23 @@ def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
 
     write_dataset(make_dataset({"k2": HIDDEN_K2}), tmp_path / "data")
     out = tmp_path / "out"
-    assert main(["discrepancy", "--model", f"{__file__}:Duffing", "--data", str(tmp_path / "data"),
-                 "--out", str(out), "--quick", "--workers", "2"]) == 0
+    assert (
+        main(
+            [
+                "discrepancy",
+                "--model",
+                f"{__file__}:Duffing",
+                "--data",
+                str(tmp_path / "data"),
+                "--out",
+                str(out),
+                "--quick",
+                "--workers",
+                "2",
+            ]
+        )
+        == 0
+    )
     doc = json.loads((out / "discrepancy.json").read_text())
     assert doc["named"] == ["k2"] and doc["named_effect"] == "k2" and doc["verdict"] == "named"
     assert {"candidates", "gap_before", "gap_after", "misfit_ratio", "gap_remaining", "gap_sentence"} <= set(doc)
@@ -208,8 +246,22 @@ def test_cli_discrepancy_with_a_model_from_a_file(tmp_path):
     assert "Named: **k2**" in (out / "evidence.md").read_text()
     assert (out / "gap_before_after.png").stat().st_size > 20_000
     # a model without candidate_effects(): one line saying what to add, nothing written
-    res = subprocess.run([sys.executable, "-m", "bayes_update", "discrepancy", "--model",
-                          f"{__file__}:_NoCandidates", "--data", str(tmp_path / "data"), "--out",
-                          str(tmp_path / "none")], capture_output=True, text=True, timeout=300)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bayes_update",
+            "discrepancy",
+            "--model",
+            f"{__file__}:_NoCandidates",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(tmp_path / "none"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert "has no candidate_effects()" in res.stderr and not (tmp_path / "none" / "discrepancy.json").exists()

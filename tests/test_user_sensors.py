@@ -29,7 +29,7 @@ def _rhs(f, y, k1, k2, c1, k3):
 def _chain(force, fs, k1, k2, c1, k3, substeps):
     h, y, out = 1.0 / (fs * substeps), np.zeros(4), np.zeros((force.size, 2))
     for i in range(force.size - 1):
-        for j in range(substeps):        # RK4, the force linear between samples
+        for j in range(substeps):  # RK4, the force linear between samples
             f0 = force[i] + (force[i + 1] - force[i]) * j / substeps
             f1 = force[i] + (force[i + 1] - force[i]) * (j + 1) / substeps
             a = _rhs(f0, y, k1, k2, c1, k3)
@@ -37,23 +37,25 @@ def _chain(force, fs, k1, k2, c1, k3, substeps):
             c = _rhs(0.5 * (f0 + f1), y + 0.5 * h * b, k1, k2, c1, k3)
             d = _rhs(f1, y + h * c, k1, k2, c1, k3)
             y = y + h * (a + 2 * b + 2 * c + d) / 6
-        out[i + 1, 0] = y[0]                                         # displacement of m1 [m]
-        out[i + 1, 1] = _rhs(force[i + 1], y, k1, k2, c1, k3)[3]     # acceleration of m2 [m/s^2]
+        out[i + 1, 0] = y[0]  # displacement of m1 [m]
+        out[i + 1, 1] = _rhs(force[i + 1], y, k1, k2, c1, k3)[3]  # acceleration of m2 [m/s^2]
     return out
 
 
 class Chain:
     """Two masses, k2 known; sensors: x1 (displacement) and a2 (acceleration), one column each."""
 
-    parameters = [Parameter("k1", 2e4, 8e4, unit="N/m"), Parameter("c1", 1.0, 30.0, unit="N s/m", log=True),
-                  Parameter("k3", 0.0, 5.0, unit="1e8 N/m^3")]
+    parameters = [
+        Parameter("k1", 2e4, 8e4, unit="N/m"),
+        Parameter("c1", 1.0, 30.0, unit="N s/m", log=True),
+        Parameter("k3", 0.0, 5.0, unit="1e8 N/m^3"),
+    ]
 
     def __init__(self, substeps=4, k2=4e5):
         self.substeps, self.k2 = substeps, k2
 
     def simulate(self, theta, force, fs):
-        return _chain(np.asarray(force, float), fs, theta["k1"], self.k2, theta["c1"], 1e8 * theta["k3"],
-                      self.substeps)
+        return _chain(np.asarray(force, float), fs, theta["k1"], self.k2, theta["c1"], 1e8 * theta["k3"], self.substeps)
 
 
 TRUTH = {"k1": 4.1e4, "c1": 6.0, "k3": 2.0}
@@ -75,9 +77,9 @@ def make_dataset(n=8192, seed=0):
     tests = []
     for name, role, level in (("low", "linear", 0.5), ("high", "nonlinear", 15.0), ("mid", "validation", 10.0)):
         f = sosfiltfilt(sos, rng.standard_normal(n))
-        f *= level / np.sqrt(np.mean(f ** 2))
+        f *= level / np.sqrt(np.mean(f**2))
         y = truth.simulate(TRUTH, f, FS)
-        noisy = y + 0.01 * np.sqrt(np.mean(y ** 2, axis=0)) * rng.standard_normal(y.shape)
+        noisy = y + 0.01 * np.sqrt(np.mean(y**2, axis=0)) * rng.standard_normal(y.shape)
         f_noisy = f + 0.01 * level * rng.standard_normal(n)
         tests.append(Record(f"{name}.csv", "noise", name, role, t, f_noisy, noisy, sensors=sensors))
     return Dataset("chain", FS, None, tests, extra={"truth": TRUTH})
@@ -123,9 +125,26 @@ def test_cli_calibrate_reads_the_sensors_from_dataset_json(tmp_path, data):
     assert meta["sensors"] == [{"name": "x1", "response": "displacement"}, {"name": "a2", "response": "acceleration"}]
     assert "rig" not in meta
     out = tmp_path / "out"
-    res = subprocess.run([sys.executable, "-m", "bayes_update", "calibrate", "--model", f"{__file__}:Chain",
-                          "--data", str(tmp_path / "data"), "--out", str(out), "--quick", "--workers", "2"],
-                         capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "bayes_update",
+            "calibrate",
+            "--model",
+            f"{__file__}:Chain",
+            "--data",
+            str(tmp_path / "data"),
+            "--out",
+            str(out),
+            "--quick",
+            "--workers",
+            "2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     cal = json.loads((out / "calibration.json").read_text())
     assert cal["k1"] == pytest.approx(TRUTH["k1"], rel=0.02)

@@ -1,5 +1,6 @@
 """Kautz poles, functions and basis: orthonormality (test 1), agreement with an
 independent implementation of the formulas, and bad-input errors (test 8, poles/J)."""
+
 import math
 import pathlib
 import sys
@@ -10,12 +11,17 @@ import pytest
 sys.path.insert(0, str(pathlib.Path(__file__).parent))
 from test_volterra_reference import kautz_ref_freq, kautz_ref_impulse, kautz_ref_pole  # noqa: E402
 
-from volterra import KautzBasis, KautzPole, kautz_filter, kautz_frequency_response  # noqa: E402
-from volterra import kautz_impulse_responses, pole_from_modal  # noqa: E402
+from volterra import (  # noqa: E402  # noqa: E402
+    KautzBasis,
+    KautzPole,
+    kautz_filter,
+    kautz_frequency_response,
+    kautz_impulse_responses,
+    pole_from_modal,
+)
 
 FS = 1024.0
-POLES = [(30.0, 0.01), (30.0, 0.05), (30.0, 0.2), (100.0, 0.01), (100.0, 0.05), (5.0, 0.05),
-         (5.0, 0.01), (300.0, 0.02)]
+POLES = [(30.0, 0.01), (30.0, 0.05), (30.0, 0.2), (100.0, 0.01), (100.0, 0.05), (5.0, 0.05), (5.0, 0.01), (300.0, 0.02)]
 
 
 # ------------------------------------------------------------ test 1
@@ -71,7 +77,7 @@ def test_pole_parameters():
     roots = np.roots([1.0, b * (c - 1.0), -c])
     assert np.allclose(sorted(roots, key=np.imag), [Z.conjugate(), Z], atol=1e-14)
     z = np.exp(2j * np.pi * np.linspace(0, FS / 2, 50) / FS)
-    A = (-c * z ** 2 + b * (c - 1) * z + 1) / (z ** 2 + b * (c - 1) * z - c)
+    A = (-c * z**2 + b * (c - 1) * z + 1) / (z**2 + b * (c - 1) * z - c)
     assert np.abs(np.abs(A) - 1).max() < 1e-13
     # alternative constructors and conjugate normalisation
     assert KautzPole.from_z(Z.conjugate(), FS).z == pole.z
@@ -81,7 +87,7 @@ def test_pole_parameters():
 
 def test_filter_equals_direct_convolution():
     rng = np.random.default_rng(11)
-    u = rng.standard_normal((3, 2048))        # three records filtered at once
+    u = rng.standard_normal((3, 2048))  # three records filtered at once
     pole = KautzPole.from_modal(30.0, 0.02, FS)
     out = kautz_filter(u, pole, 6)
     assert out.shape == (3, 2048, 6)
@@ -96,8 +102,7 @@ def test_filter_equals_direct_convolution():
 def test_basis_orders_terms_and_per_order_poles():
     """Today's Kautz functions (feedthrough=False); with the feed-through every
     order has one function more (the input itself)."""
-    basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6),
-                                  feedthrough=False)
+    basis = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6), feedthrough=False)
     assert basis.orders == (1, 2, 3)
     assert basis.n_params == 2 + 2 * 3 // 2 + 6 * 7 * 8 // 6
     with_ft = KautzBasis.from_modal(freq_hz=37.0, damping_ratio=0.01, fs=FS, n_functions=(2, 2, 6))
@@ -106,8 +111,13 @@ def test_basis_orders_terms_and_per_order_poles():
     assert b13.orders == (1, 3) and b13.n_params == 2 + 56
     assert KautzBasis.from_modal(37.0, 0.01, FS, {1: 4, 3: 4}).orders == (1, 3)
     assert KautzBasis.from_modal(37.0, 0.01, FS, 8).orders == (1,)
-    per = KautzBasis.from_modal(freq_hz=(30.0, 25.0, 35.0), damping_ratio={1: 0.01, 2: 0.05, 3: 0.03},
-                                fs=FS, n_functions=(4, 2, 4), feedthrough=False)
+    per = KautzBasis.from_modal(
+        freq_hz=(30.0, 25.0, 35.0),
+        damping_ratio={1: 0.01, 2: 0.05, 3: 0.03},
+        fs=FS,
+        n_functions=(4, 2, 4),
+        feedthrough=False,
+    )
     assert per.pole(2).freq_hz == pytest.approx(25.0)
     assert per.pole(3).damping_ratio == pytest.approx(0.03)
     rng = np.random.default_rng(2)
@@ -123,7 +133,7 @@ def test_basis_orders_terms_and_per_order_poles():
     G = per.regressors(u)
     assert G.shape == (1000, per.n_params)
     l3 = filt[3]
-    assert np.allclose(G[:, -1], l3[:, 3] ** 3)                 # last tuple (3, 3, 3)
+    assert np.allclose(G[:, -1], l3[:, 3] ** 3)  # last tuple (3, 3, 3)
     assert np.allclose(G[:, 4 + 1], filt[2][:, 0] * filt[2][:, 1])  # B2[0, 1]
 
 
@@ -136,14 +146,17 @@ def test_basis_is_reusable_and_comparable():
 
 
 # ------------------------------------------------------------ test 8 (poles, J)
-@pytest.mark.parametrize("kwargs,match", [
-    (dict(freq_hz=30.0, damping_ratio=-0.01), "unstable"),
-    (dict(freq_hz=30.0, damping_ratio=0.0), "unstable"),
-    (dict(freq_hz=30.0, damping_ratio=1.2), "real poles"),
-    (dict(freq_hz=600.0, damping_ratio=0.01), "Nyquist"),
-    (dict(freq_hz=-5.0, damping_ratio=0.01), "positive"),
-    (dict(freq_hz=float("nan"), damping_ratio=0.01), "positive"),
-])
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        (dict(freq_hz=30.0, damping_ratio=-0.01), "unstable"),
+        (dict(freq_hz=30.0, damping_ratio=0.0), "unstable"),
+        (dict(freq_hz=30.0, damping_ratio=1.2), "real poles"),
+        (dict(freq_hz=600.0, damping_ratio=0.01), "Nyquist"),
+        (dict(freq_hz=-5.0, damping_ratio=0.01), "positive"),
+        (dict(freq_hz=float("nan"), damping_ratio=0.01), "positive"),
+    ],
+)
 def test_bad_modal_pole_raises(kwargs, match):
     with pytest.raises(ValueError, match=match):
         KautzPole.from_modal(fs=FS, **kwargs)

@@ -17,6 +17,7 @@ Systems and constants of this module only (no other test uses them):
 
 Every expected value comes from scipy or closed forms, never from the package.
 """
+
 import pathlib
 import sys
 
@@ -76,8 +77,12 @@ def add_noise(x, rng, snr_db=40.0):
 
 # ------------------------------------------------------------ orthonormality
 def _mixed_modes(fs):
-    return [KautzPole.from_modal(11.9, 0.043, fs), KautzPole.from_modal(87.0, 0.012, fs),
-            RealPole(0.83, fs), KautzPole.from_modal(203.0, 0.07, fs)]
+    return [
+        KautzPole.from_modal(11.9, 0.043, fs),
+        KautzPole.from_modal(87.0, 0.012, fs),
+        RealPole(0.83, fs),
+        KautzPole.from_modal(203.0, 0.07, fs),
+    ]
 
 
 @pytest.mark.parametrize("feedthrough", [True, False])
@@ -133,7 +138,7 @@ def test_zoh_resonator_is_exact_with_the_feedthrough_only():
     """The issue's case: (b1 z^-1 + b2 z^-2) / D is outside today's span for every
     J1 (H1 off by percents), and inside the feed-through basis with 3 functions."""
     num, den = zoh_resonator(Z_FN, Z_ZETA, Z_FS)
-    assert abs(num[0]) < 1e-12 * np.abs(num).max()     # strictly proper
+    assert abs(num[0]) < 1e-12 * np.abs(num).max()  # strictly proper
     rng = np.random.default_rng(3141)
     u = rng.standard_normal(6000)
     y = lfilter(num, den, u)
@@ -148,8 +153,10 @@ def test_zoh_resonator_is_exact_with_the_feedthrough_only():
     for J1 in (2, 4, 6):
         old = fit_volterra(u, y, KautzBasis(pole, (J1,), feedthrough=False))
         e_old = np.max(np.abs(old.H1(f) / G - 1))
-        print(f"  without the feed-through, J1 = {J1}: H1 off by {100 * e_old:.2f} %, residual "
-              f"{100 * old.info.relative_residual:.2f} %")
+        print(
+            f"  without the feed-through, J1 = {J1}: H1 off by {100 * e_old:.2f} %, residual "
+            f"{100 * old.info.relative_residual:.2f} %"
+        )
         assert e_old > 1e-3
 
 
@@ -164,7 +171,7 @@ def test_every_proper_system_with_the_modes_poles_is_in_the_span():
     for p in modes:
         den = np.convolve(den, [1.0, -p.a] if isinstance(p, RealPole) else p.denominator())
     rng = np.random.default_rng(2718)
-    num = rng.standard_normal(den.size)                   # degree 7 = 2 x 3 + 1
+    num = rng.standard_normal(den.size)  # degree 7 = 2 x 3 + 1
     u = rng.standard_normal(5000)
     y = lfilter(num, den, u)
     basis = KautzBasis.from_modes(modes, (2,))
@@ -185,7 +192,7 @@ def test_wiener_system_kernels_with_the_feedthrough():
     x = lfilter(num, den, u)
     s = 0.8 / np.std(x)
     u, x = s * u, s * x
-    y = add_noise(x + A2 * x ** 2 + A3 * x ** 3, rng)
+    y = add_noise(x + A2 * x**2 + A3 * x**3, rng)
     model = fit_volterra(u, y, KautzBasis(true_pole(den, Z_FS), (2, 2, 2)))
     G = lambda f: dtft(num, den, f, Z_FS)  # noqa: E731
     d = Z_ZETA * Z_FN
@@ -198,7 +205,7 @@ def test_wiener_system_kernels_with_the_feedthrough():
 
 
 # ------------------------------------------------------------ several modes from data
-CH_FS, CH_PERIOD = 97.5, 390                     # 2.5 x 39 Hz; 4 s period
+CH_FS, CH_PERIOD = 97.5, 390  # 2.5 x 39 Hz; 4 s period
 CH_GEOMETRY = dict(m=[1.3, 0.9, 0.7], k=[9.1e3, 1.2e4, 1.4e4], a_damp=1.7, b_damp=1.5e-4)
 CH_K3 = 5e5
 
@@ -212,8 +219,15 @@ def chain():
     u, acc = simulate(Chain(**CH_GEOMETRY, k3=CH_K3), lines, 1.0, phases, CH_FS, 6 * CH_PERIOD)
     _, acc_lin = simulate(linear, lines, 1.0, phases, CH_FS, 6 * CH_PERIOD)
     fn, zeta = linear.modes()
-    return dict(u=u, acc=acc, lines=lines, fn=fn, zeta=zeta, H=linear.frf_acc(lines),
-                share=np.linalg.norm(acc - acc_lin) / np.linalg.norm(acc_lin))
+    return dict(
+        u=u,
+        acc=acc,
+        lines=lines,
+        fn=fn,
+        zeta=zeta,
+        H=linear.frf_acc(lines),
+        share=np.linalg.norm(acc - acc_lin) / np.linalg.norm(acc_lin),
+    )
 
 
 def noisy_chain(chain, seed):
@@ -230,8 +244,9 @@ def by_frequency(poles):
 def frf_error(u, acc, basis, chain):
     """||H1 - H|| / ||H|| over the excited lines and the three sensors (flat
     multisine: the input-energy weighting is uniform)."""
-    H1 = np.stack([fit_volterra(u, acc[:, s], basis, input_offset="mean").H1(chain["lines"])
-                   for s in range(acc.shape[1])], axis=1)
+    H1 = np.stack(
+        [fit_volterra(u, acc[:, s], basis, input_offset="mean").H1(chain["lines"]) for s in range(acc.shape[1])], axis=1
+    )
     return np.linalg.norm(H1 - chain["H"]) / np.linalg.norm(chain["H"])
 
 
@@ -250,8 +265,10 @@ def test_chain_modes_over_20_noise_seeds(chain):
         ef.append(np.abs(fr / chain["fn"] - 1).max())
         ez.append(np.abs(ze / chain["zeta"] - 1).max())
         eh.append(frf_error(u, acc, basis, chain))
-    print(f"chain, 20 seeds: frequency {100 * max(ef):.3f} %, damping {100 * max(ez):.2f} %, "
-          f"FRF {100 * max(eh):.2f} % (largest)")
+    print(
+        f"chain, 20 seeds: frequency {100 * max(ef):.3f} %, damping {100 * max(ez):.2f} %, "
+        f"FRF {100 * max(eh):.2f} % (largest)"
+    )
     assert max(ef) < 0.005 and max(ez) < 0.10 and max(eh) < 0.02
 
 
@@ -275,6 +292,7 @@ def test_chain_modes_sorted_by_energy_and_n_modes_override(chain):
     from matplotlib.figure import Figure
 
     from volterra import plot_stabilisation
+
     assert isinstance(plot_stabilisation(est), Figure)
     basis = KautzBasis.from_data(u, acc, CH_FS, period_samples=CH_PERIOD)
     # the same modes, polished in the basis's form (volterra.polish: within zeta0 or 0.5 % in frequency,
@@ -356,5 +374,7 @@ def test_real_pole_first_order_system_is_exact():
     # the filter and the closed form agree for a sequence starting with a real pole
     seq = (RealPole(a, Z_FS), KautzPole.from_modal(30.0, 0.05, Z_FS))
     rows = gobf_filter_rows(np.eye(1, 4096)[0], seq)
-    assert np.abs(np.fft.rfft(rows, axis=1).T
-                  - gobf_frequency_response(seq, np.fft.rfftfreq(4096, 1 / Z_FS), Z_FS)).max() < 1e-9
+    assert (
+        np.abs(np.fft.rfft(rows, axis=1).T - gobf_frequency_response(seq, np.fft.rfftfreq(4096, 1 / Z_FS), Z_FS)).max()
+        < 1e-9
+    )

@@ -13,6 +13,7 @@ Setup as in docs/kautz_basis_study.md: m = 0.02 kg, fn = 30 Hz,
 zeta = 0.01, chirp 20 -> 50 Hz for 2 s then 2 s free decay, 0.1 N at the top
 level, levels 1/3, 2/3, 1 stacked, 40 dB output noise (seeded).
 """
+
 import pathlib
 import sys
 
@@ -26,10 +27,10 @@ from volterra import KautzBasis, KautzPole, fit_volterra, pole_from_frf, refine_
 
 FS = 1024.0
 FN, ZETA = 30.0, 0.01
-D = ZETA * FN                              # half-power half-width [Hz]
-U0 = chirp(0.1)                            # top level [N]
+D = ZETA * FN  # half-power half-width [Hz]
+U0 = chirp(0.1)  # top level [N]
 LEVELS = (1 / 3, 2 / 3, 1.0)
-F_RES = np.linspace(FN - 3 * D, FN + 3 * D, 41)   # "near resonance": fn (1 +- 3 zeta)
+F_RES = np.linspace(FN - 3 * D, FN + 3 * D, 41)  # "near resonance": fn (1 +- 3 zeta)
 
 
 def add_noise(y, rng, snr_db=40.0):
@@ -65,10 +66,18 @@ def duffing():
     rng = np.random.default_rng(1001)
     recs = [osc.simulate(a * U0, FS) for a in LEVELS]
     ys = [add_noise(r["x"], rng) for r in recs]
-    low_u = np.sqrt(0.03) * U0                           # y3/y1 = 0.3 %
+    low_u = np.sqrt(0.03) * U0  # y3/y1 = 0.3 %
     low = osc.simulate(low_u, FS)
-    return dict(osc=osc, recs=recs, us=[a * U0 for a in LEVELS], ys=ys, low_u=low_u, low=low,
-                low_y=add_noise(low["x"], rng), low_v=add_noise(low["v"], rng))
+    return dict(
+        osc=osc,
+        recs=recs,
+        us=[a * U0 for a in LEVELS],
+        ys=ys,
+        low_u=low_u,
+        low=low,
+        low_y=add_noise(low["x"], rng),
+        low_v=add_noise(low["v"], rng),
+    )
 
 
 @pytest.fixture(scope="module")
@@ -76,15 +85,13 @@ def quadratic():
     osc = Oscillator(fn=FN, zeta=ZETA, k2=nonlinear_coefficient("k2", 0.03))
     rng = np.random.default_rng(1002)
     recs = [osc.simulate(a * U0, FS) for a in LEVELS]
-    return dict(osc=osc, recs=recs, us=[a * U0 for a in LEVELS],
-                ys=[add_noise(r["x"], rng) for r in recs])
+    return dict(osc=osc, recs=recs, us=[a * U0 for a in LEVELS], ys=[add_noise(r["x"], rng) for r in recs])
 
 
 def default_basis(J=(2, 2, 6), feedthrough=False):
     """The numbers of this module were measured without the feed-through
     (today's Kautz functions); with it, see test_volterra_multimode.py."""
-    return KautzBasis.from_modal(freq_hz=FN, damping_ratio=ZETA, fs=FS, n_functions=J,
-                                 feedthrough=feedthrough)
+    return KautzBasis.from_modal(freq_hz=FN, damping_ratio=ZETA, fs=FS, n_functions=J, feedthrough=feedthrough)
 
 
 # ------------------------------------------------------------ test 4
@@ -130,7 +137,7 @@ def test_duffing_h1_from_stacked_levels(duffing, n_levels):
     (1.5x / 1.9x).  The top level's cubic share (y3/y1 = 10 %) leaves a gain
     bias of +0.15 to +0.19 % in H1, the size of the sinc^2 factor, so this test
     checks the stacking, not the factor (the low-level tests above do)."""
-    us, ys = duffing["us"][-n_levels:], duffing["ys"][-n_levels:]   # top level y3/y1 = 10 %
+    us, ys = duffing["us"][-n_levels:], duffing["ys"][-n_levels:]  # top level y3/y1 = 10 %
     model = fit_volterra(us, ys, default_basis())
     err = h1_error(model, duffing["osc"])
     print(f"H1 from {n_levels} stacked levels (y3/y1 up to 10 %): max error {100 * err:.3f} %")
@@ -147,8 +154,10 @@ def test_duffing_y3_against_perturbation_hierarchy(duffing, stacked):
     y1, y2, y3 = model.components(U0)
     e3 = np.linalg.norm(y3 - top["x3"]) / np.linalg.norm(top["x3"])
     e1 = np.linalg.norm(y1 - top["x1"]) / np.linalg.norm(top["x1"])
-    print(f"{'stacked' if stacked else 'top level only'}: ||y3 - x3||/||x3|| = {100 * e3:.1f} %, "
-          f"||y1 - x1||/||x1|| = {100 * e1:.2f} %")
+    print(
+        f"{'stacked' if stacked else 'top level only'}: ||y3 - x3||/||x3|| = {100 * e3:.1f} %, "
+        f"||y1 - x1||/||x1|| = {100 * e1:.2f} %"
+    )
     assert e3 < 0.15
     assert e1 < 0.02
 
@@ -165,8 +174,9 @@ def test_quadratic_h2_at_f_minus_f(quadratic):
 
 
 # ------------------------------------------------------------ test 6
-RIDGE_TRIPLES = np.array([[FN, FN, -FN], [FN + D, FN, -FN], [FN - D, FN + D, -FN],
-                          [FN - 2, FN + 2, -FN], [FN - 5, FN + 5, -FN]]).T   # all sum to ~fn
+RIDGE_TRIPLES = np.array(
+    [[FN, FN, -FN], [FN + D, FN, -FN], [FN - D, FN + D, -FN], [FN - 2, FN + 2, -FN], [FN - 5, FN + 5, -FN]]
+).T  # all sum to ~fn
 
 
 def test_limit_h3_ridge_not_representable_even_by_best_projection():
@@ -186,23 +196,25 @@ def test_limit_h3_ridge_not_representable_even_by_best_projection():
     Hd = lambda f: b1.frequency_response(1, f) @ w  # noqa: E731
     exact = lambda f1, f2, f3: -Hd(f1) * Hd(f2) * Hd(f3) * Hd(f1 + f2 + f3)  # noqa: E731
     R = fftconvolve(h, h[::-1])
-    energy = np.sum(R ** 4)
+    energy = np.sum(R**4)
     rows = []
     for J3 in (4, 6, 8, 12, 16):
         b3 = KautzBasis.from_modal(FN, ZETA, FS, {3: J3}, feedthrough=False)
         psi = b3.impulse_responses(3, L)
-        g = np.stack([fftconvolve(psi[:, i], h[::-1])[L - 1:] for i in range(J3)], axis=-1)
+        g = np.stack([fftconvolve(psi[:, i], h[::-1])[L - 1 :] for i in range(J3)], axis=-1)
         C = -np.einsum("t,ti,tj,tm->ijm", h, g, g, g, optimize=True)
         P = [b3.frequency_response(3, f) for f in RIDGE_TRIPLES]
         H3 = np.einsum("pi,pj,pk,ijk->p", *P, C, optimize=True)
         err = np.abs(H3 / exact(*RIDGE_TRIPLES) - 1)
-        rows.append((J3, np.sum(C ** 2) / energy, err))
-        print(f"J3 = {J3:2d}: energy captured {100 * rows[-1][1]:.1f} %, H3 error on the ridge "
-              f"(fn,fn,-fn) {100 * err[0]:.0f} %, (fn-2,fn+2,-fn) {100 * err[3]:.0f} %, "
-              f"(fn-5,fn+5,-fn) {100 * err[4]:.0f} %")
+        rows.append((J3, np.sum(C**2) / energy, err))
+        print(
+            f"J3 = {J3:2d}: energy captured {100 * rows[-1][1]:.1f} %, H3 error on the ridge "
+            f"(fn,fn,-fn) {100 * err[0]:.0f} %, (fn-2,fn+2,-fn) {100 * err[3]:.0f} %, "
+            f"(fn-5,fn+5,-fn) {100 * err[4]:.0f} %"
+        )
     for J3, captured, err in rows:
-        assert captured < 0.99                   # slow convergence: 77 % ... 97 %
-        assert err[3] > 0.5 and err[4] > 0.5     # measured 73-88 %
+        assert captured < 0.99  # slow convergence: 77 % ... 97 %
+        assert err[3] > 0.5 and err[4] > 0.5  # measured 73-88 %
 
 
 def test_limit_h3_identified_from_duffing_record_is_not_the_true_kernel(duffing):
@@ -212,7 +224,7 @@ def test_limit_h3_identified_from_duffing_record_is_not_the_true_kernel(duffing)
     ref = duffing["osc"].H3(*RIDGE_TRIPLES) * np.prod([sinc2(t, FS) for t in RIDGE_TRIPLES], axis=0)
     err = np.abs(model.H3(*RIDGE_TRIPLES) / ref - 1)
     print("identified H3 errors on the ridge:", np.round(100 * err), "%")
-    assert err.min() > 0.3                       # measured 63 % ... 4200 % (52 % with another seed)
+    assert err.min() > 0.3  # measured 63 % ... 4200 % (52 % with another seed)
 
 
 def test_limit_h2_with_sum_on_resonance(quadratic):
@@ -222,7 +234,7 @@ def test_limit_h2_with_sum_on_resonance(quadratic):
     ref = osc.H2(*pairs) * sinc2(pairs[0], FS) * sinc2(pairs[1], FS)
     err = np.abs(model.H2(*pairs) / ref - 1)
     print("H2 errors with f1 + f2 = fn:", np.round(100 * err), "%")
-    assert err.min() > 0.5                       # measured ~100 %
+    assert err.min() > 0.5  # measured ~100 %
 
 
 # ------------------------------------------------------------ test 7
@@ -235,19 +247,15 @@ def test_symmetry_odd_system_has_negligible_y2(duffing):
 
 
 def test_symmetry_quadratic_term_gives_y2():
-    osc = Oscillator(fn=FN, zeta=ZETA, k2=0.5 * nonlinear_coefficient("k2", 0.03),
-                     k3=nonlinear_coefficient("k3", 0.10))
+    osc = Oscillator(fn=FN, zeta=ZETA, k2=0.5 * nonlinear_coefficient("k2", 0.03), k3=nonlinear_coefficient("k3", 0.10))
     rng = np.random.default_rng(1003)
     recs = [osc.simulate(a * U0, FS) for a in LEVELS]
-    model = fit_volterra([a * U0 for a in LEVELS], [add_noise(r["x"], rng) for r in recs],
-                         default_basis())
+    model = fit_volterra([a * U0 for a in LEVELS], [add_noise(r["x"], rng) for r in recs], default_basis())
     y1, y2, y3 = model.components(U0)
     top = recs[-1]
-    ratio, true_ratio = (np.linalg.norm(y2) / np.linalg.norm(y3),
-                         np.linalg.norm(top["x2"]) / np.linalg.norm(top["x3"]))
+    ratio, true_ratio = (np.linalg.norm(y2) / np.linalg.norm(y3), np.linalg.norm(top["x2"]) / np.linalg.norm(top["x3"]))
     e2 = np.linalg.norm(y2 - top["x2"]) / np.linalg.norm(top["x2"])
-    print(f"k2 + k3: ||y2||/||y3|| = {ratio:.3f} (hierarchy {true_ratio:.3f}), "
-          f"||y2 - x2||/||x2|| = {100 * e2:.1f} %")
+    print(f"k2 + k3: ||y2||/||y3|| = {ratio:.3f} (hierarchy {true_ratio:.3f}), ||y2 - x2||/||x2|| = {100 * e2:.1f} %")
     assert ratio > 0.1
     assert ratio == pytest.approx(true_ratio, rel=0.25)
     assert e2 < 0.15
@@ -256,14 +264,14 @@ def test_symmetry_quadratic_term_gives_y2():
 # ------------------------------------------------------------ pole selection
 @pytest.mark.parametrize("output", ["x", "v"])
 def test_pole_from_frf_and_refinement(output):
-    osc = Oscillator(fn=33.3, zeta=0.02)         # off the FFT grid on purpose
+    osc = Oscillator(fn=33.3, zeta=0.02)  # off the FFT grid on purpose
     rng = np.random.default_rng(1004)
     u = 0.05 * U0
     y = add_noise(osc.simulate(u, FS)[output], rng)
     # the whole-record estimate (leakage free on this transient record); the default averages
     pole = pole_from_frf(u, y, FS, f_range=(20.0, 50.0), nperseg=u.size, window="boxcar")
     print(output, pole)
-    assert pole.freq_hz == pytest.approx(33.3, abs=0.1 * 0.02 * 33.3)    # within 0.1 zeta fn
+    assert pole.freq_hz == pytest.approx(33.3, abs=0.1 * 0.02 * 33.3)  # within 0.1 zeta fn
     assert pole.damping_ratio == pytest.approx(0.02, rel=0.1)
     refined = refine_pole(u, y, pole)
     print(output, "refined", refined)
@@ -279,11 +287,10 @@ def test_pole_from_frf_and_refinement(output):
 
 
 def test_basis_from_low_level_duffing_data(duffing):
-    basis = KautzBasis.from_data(duffing["low_u"], duffing["low_y"], FS, n_functions=(2, 2, 6),
-                                 f_range=(20.0, 50.0))
+    basis = KautzBasis.from_data(duffing["low_u"], duffing["low_y"], FS, n_functions=(2, 2, 6), f_range=(20.0, 50.0))
     assert basis.pole(1).freq_hz == pytest.approx(FN, abs=0.1 * D)
     model = fit_volterra(duffing["us"], duffing["ys"], basis)
-    assert h1_error(model, duffing["osc"]) < 4.5e-3   # measured 0.315 % (1.4x)
+    assert h1_error(model, duffing["osc"]) < 4.5e-3  # measured 0.315 % (1.4x)
 
 
 def test_pole_from_frf_bad_range():

@@ -19,6 +19,7 @@ Nothing here imports the package under test:
 
 Other test modules import it (``sys.path`` gets the tests folder).
 """
+
 from __future__ import annotations
 
 import math
@@ -33,7 +34,7 @@ from scipy.signal import lsim
 
 def kautz_ref_pole(fn, zeta, fs):
     w = 2 * math.pi * fn
-    Z = np.exp(complex(-zeta * w, w * math.sqrt(1 - zeta ** 2)) / fs)
+    Z = np.exp(complex(-zeta * w, w * math.sqrt(1 - zeta**2)) / fs)
     return Z
 
 
@@ -41,14 +42,14 @@ def kautz_ref_freq(f_hz, fn, zeta, fs, J):
     """Psi_i(exp(j 2 pi f / fs)), i = 1..J, straight from the notes' formulas."""
     Z = kautz_ref_pole(fn, zeta, fs)
     b = (Z + Z.conjugate()).real / (1 + abs(Z) ** 2)
-    c = -abs(Z) ** 2
+    c = -(abs(Z) ** 2)
     z = np.exp(2j * np.pi * np.asarray(f_hz, float) / fs)
-    D = z ** 2 + b * (c - 1) * z - c
-    A = (-c * z ** 2 + b * (c - 1) * z + 1) / D
+    D = z**2 + b * (c - 1) * z - c
+    A = (-c * z**2 + b * (c - 1) * z + 1) / D
     cols = []
     for g in range(1, J // 2 + 1):
-        psi_even = np.sqrt((1 - c ** 2) * (1 - b ** 2)) * z / D * A ** (g - 1)
-        psi_odd = (z - b) / np.sqrt(1 - b ** 2) * psi_even
+        psi_even = np.sqrt((1 - c**2) * (1 - b**2)) * z / D * A ** (g - 1)
+        psi_odd = (z - b) / np.sqrt(1 - b**2) * psi_even
         cols += [psi_odd, psi_even]
     return np.stack(cols, axis=-1)
 
@@ -84,6 +85,7 @@ def volterra_forward_ref(u, psi_by_order, coef_by_order):
 
 
 # ------------------------------------------------------------ oscillator ref
+
 
 @njit(cache=False)
 def _rhs(s, uf, m, c, k, k2, k3, out):
@@ -155,7 +157,7 @@ class Oscillator:
 
     def H1(self, f_hz):
         w = 2 * np.pi * np.asarray(f_hz, float)
-        return 1.0 / (self.k - self.m * w ** 2 + 1j * self.c * w)
+        return 1.0 / (self.k - self.m * w**2 + 1j * self.c * w)
 
     def H2(self, f1, f2):
         """Harmonic probing, symmetric, no 1/n!."""
@@ -166,8 +168,7 @@ class Oscillator:
         s = np.add(np.add(f1, f2), f3)
         return -H1(s) * (
             self.k3 * H1(f1) * H1(f2) * H1(f3)
-            + (2 * self.k2 / 3) * (H1(f1) * self.H2(f2, f3) + H1(f2) * self.H2(f1, f3)
-                                   + H1(f3) * self.H2(f1, f2))
+            + (2 * self.k2 / 3) * (H1(f1) * self.H2(f2, f3) + H1(f2) * self.H2(f1, f3) + H1(f3) * self.H2(f1, f2))
         )
 
 
@@ -180,7 +181,7 @@ def sinc2(f_hz, fs):
 def chirp(amp, fs=1024.0, n=4096, f0=20.0, f1=50.0, duration=2.0):
     """Linear chirp f0 -> f1 Hz during ``duration`` s, then zero (free decay)."""
     t = np.arange(n) / fs
-    u = amp * np.sin(2 * np.pi * (f0 * t + (f1 - f0) * t ** 2 / (2 * duration)))
+    u = amp * np.sin(2 * np.pi * (f0 * t + (f1 - f0) * t**2 / (2 * duration)))
     u[t >= duration] = 0.0
     return u
 
@@ -205,10 +206,9 @@ def test_rk4_linear_part_matches_exact_first_order_hold():
     t = np.arange(u.size) / FS
     # lsim with interp=True integrates a piecewise-linear input exactly
     _, x_exact, _ = lsim(([1.0], [osc.m, osc.c, osc.k]), u, t, interp=True)
-    err = [np.linalg.norm(osc.simulate(u, FS, ns)["x1"] - x_exact) / np.linalg.norm(x_exact)
-           for ns in (16, 32)]
-    assert err[0] < 2e-8          # measured 1.06e-8 at T/16
-    assert err[0] / err[1] > 12   # fourth-order convergence (16x per halving)
+    err = [np.linalg.norm(osc.simulate(u, FS, ns)["x1"] - x_exact) / np.linalg.norm(x_exact) for ns in (16, 32)]
+    assert err[0] < 2e-8  # measured 1.06e-8 at T/16
+    assert err[0] / err[1] > 12  # fourth-order convergence (16x per halving)
 
 
 def test_rk4_converged_in_substeps():
@@ -234,8 +234,9 @@ def test_harmonic_probing_matches_integrated_hierarchy():
     tt = t[seg]
 
     def phasor(x, fr):
-        E = np.column_stack([np.ones_like(tt)] + [g(2 * np.pi * q * f * tt) for q in (1, 2, 3)
-                                                  for g in (np.cos, np.sin)])
+        E = np.column_stack(
+            [np.ones_like(tt)] + [g(2 * np.pi * q * f * tt) for q in (1, 2, 3) for g in (np.cos, np.sin)]
+        )
         coef = np.linalg.lstsq(E, x[seg], rcond=None)[0]
         q = int(round(fr / f))
         return coef[0] if q == 0 else coef[2 * q - 1] - 1j * coef[2 * q]

@@ -24,17 +24,23 @@ argument permutations; frequencies in Hz, lags in samples,
 what the Kautz-basis kernels can and cannot represent (H3 near
 f1 + f2 + f3 = fn is not representable).
 """
+
 from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
-from .kautz import KautzPole, RealPole
-from .gobf import (gobf_filter_rows, gobf_frequency_response, kautz_filter, kautz_frequency_response,
-                   kautz_impulse_responses)
-from .model import VolterraModel
 from .fit import FitInfo, fit_volterra
 from .frf import estimate_h1, excited_band, periodic_h1
+from .gobf import (
+    gobf_filter_rows,
+    gobf_frequency_response,
+    kautz_filter,
+    kautz_frequency_response,
+    kautz_impulse_responses,
+)
+from .kautz import KautzPole, RealPole
+from .model import VolterraModel
 from .modes import ModalEstimate, PoleEstimationError, estimate_modes
 from .periods import PeriodLayout, find_periods
-from .projector import VolterraProjector
 from .poles import pole_from_frf, pole_from_modal, refine_bounds, refine_pole
+from .projector import VolterraProjector
 from .regressors import index_tuples, multiplicity, n_terms
 
 __all__ = [

@@ -1,4 +1,5 @@
 """Input checks shared by the basis, the fitting and the pole-selection functions."""
+
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
@@ -100,9 +101,7 @@ def _per_order(value, orders, name):
         return {n: value[n] for n in orders}
     if isinstance(value, Sequence) and not isinstance(value, str):
         if len(value) < max(orders):
-            raise ValueError(
-                f"{name}: a sequence must give one entry per order 1..{max(orders)}, got {len(value)}"
-            )
+            raise ValueError(f"{name}: a sequence must give one entry per order 1..{max(orders)}, got {len(value)}")
         return {n: value[n - 1] for n in orders}
     return {n: value for n in orders}
 

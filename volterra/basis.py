@@ -54,6 +54,7 @@ gain -0.58 %): there u^3 = 3/4 A^2 u + (third harmonic), so the order-3
 regressors with the feed-through nearly repeat the order-1 one.  Fit two or
 three levels jointly (as the framework does), or ``feedthrough=False``.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -128,8 +129,9 @@ class KautzBasis:
 
     # ----------------------------------------------------------- constructors
     @classmethod
-    def from_modal(cls, freq_hz, damping_ratio, fs: float, n_functions=DEFAULT_N_FUNCTIONS,
-                   feedthrough=True) -> "KautzBasis":
+    def from_modal(
+        cls, freq_hz, damping_ratio, fs: float, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True
+    ) -> "KautzBasis":
         """One-mode basis from modal data.
 
         ``freq_hz`` [Hz] and ``damping_ratio`` [-] are scalars (one pole for
@@ -148,9 +150,9 @@ class KautzBasis:
     def from_pole(cls, pole, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True) -> "KautzBasis":
         """Basis with the same pole for every order."""
         return cls(pole, n_functions, feedthrough)
+
     @classmethod
-    def from_modes(cls, modes, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True,
-                   nonlinear_modes=None) -> "KautzBasis":
+    def from_modes(cls, modes, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True, nonlinear_modes=None) -> "KautzBasis":
         """Several modes: all of ``modes`` (a sequence of poles) at order 1.
 
         ``nonlinear_modes`` chooses the modes of orders 2 and 3: None (all),
@@ -163,7 +165,7 @@ class KautzBasis:
         elif isinstance(nonlinear_modes, (int, np.integer)) and not isinstance(nonlinear_modes, bool):
             if not 1 <= nonlinear_modes <= len(modes):
                 raise ValueError(f"nonlinear_modes = {nonlinear_modes} must be in 1..{len(modes)}")
-            high = modes[:int(nonlinear_modes)]
+            high = modes[: int(nonlinear_modes)]
         else:
             idx = [int(i) for i in nonlinear_modes]
             if not idx or any(not 0 <= i < len(modes) for i in idx):
@@ -173,9 +175,21 @@ class KautzBasis:
         return cls({n: modes if n == 1 else high for n in nf}, nf, feedthrough)
 
     @classmethod
-    def from_data(cls, u, y, fs: float, n_functions=DEFAULT_N_FUNCTIONS, f_range=None,
-                  refine: bool = True, *, n_modes=None, period_samples=None,
-                  feedthrough=True, nonlinear_modes=1, **options) -> "KautzBasis":
+    def from_data(
+        cls,
+        u,
+        y,
+        fs: float,
+        n_functions=DEFAULT_N_FUNCTIONS,
+        f_range=None,
+        refine: bool = True,
+        *,
+        n_modes=None,
+        period_samples=None,
+        feedthrough=True,
+        nonlinear_modes=1,
+        **options,
+    ) -> "KautzBasis":
         """Basis of every mode :func:`volterra.estimate_modes` resolves in a
         low-level (essentially linear) record's excited, coherent band.
 
@@ -192,15 +206,17 @@ class KautzBasis:
         all).  ``options`` go to :func:`volterra.estimate_modes`.  Raises
         :class:`volterra.PoleEstimationError` when no mode can be found.
         """
-        est = estimate_modes(u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine,
-                             period_samples=period_samples, **options)
+        est = estimate_modes(
+            u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine, period_samples=period_samples, **options
+        )
         poles = est.poles
         if refine:
             # the basis's own order-1 form: the poles it serves best, near the modal ones (volterra.polish)
             ft1 = bool(feedthrough) if isinstance(feedthrough, (bool, np.bool_)) else 1 in tuple(feedthrough)
             poles, _ = polish(est.lines, poles, ft1)
-        return cls.from_modes(poles, n_functions, feedthrough,
-                              None if nonlinear_modes is None else min(nonlinear_modes, len(poles)))
+        return cls.from_modes(
+            poles, n_functions, feedthrough, None if nonlinear_modes is None else min(nonlinear_modes, len(poles))
+        )
 
     # ------------------------------------------------------------- properties
     @property
@@ -275,8 +291,11 @@ class KautzBasis:
     def subset(self, orders) -> "KautzBasis":
         """The same basis restricted to some orders."""
         orders = self._check_orders(orders)
-        return KautzBasis({n: self._poles[n] for n in orders},
-                          {n: self._n_functions[n] for n in orders}, [n for n in orders if self._ft[n]])
+        return KautzBasis(
+            {n: self._poles[n] for n in orders},
+            {n: self._n_functions[n] for n in orders},
+            [n for n in orders if self._ft[n]],
+        )
 
     # ------------------------------------------------------------- operations
     def filter(self, u, orders=None) -> dict:
@@ -349,25 +368,26 @@ class KautzBasis:
     def __eq__(self, other):
         if not isinstance(other, KautzBasis):
             return NotImplemented
-        return (self._n_functions == other._n_functions and self._poles == other._poles
-                and self._ft == other._ft)
+        return self._n_functions == other._n_functions and self._poles == other._poles and self._ft == other._ft
 
     def __hash__(self):
         return hash((tuple(self._n_functions.items()), tuple(self._poles.items()), tuple(self._ft.items())))
 
     def describe(self) -> str:
-        lines = [f"Kautz basis, fs = {self._fs:g} Hz, {self.n_params} regressors, feed-through "
-                 f"{self.feedthrough}"]
+        lines = [f"Kautz basis, fs = {self._fs:g} Hz, {self.n_params} regressors, feed-through {self.feedthrough}"]
         for n in self.orders:
             poles = ", ".join(f"f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}" for p in self._poles[n])
-            lines.append(f"  order {n}: J = {self._n_functions[n]:2d} per mode, {self.dim(n)} functions "
-                         f"({self.n_terms(n)} terms), poles {poles}")
+            lines.append(
+                f"  order {n}: J = {self._n_functions[n]:2d} per mode, {self.dim(n)} functions "
+                f"({self.n_terms(n)} terms), poles {poles}"
+            )
         return "\n".join(lines)
 
     def __repr__(self) -> str:
         parts = ", ".join(
             f"{n}: (J={self._n_functions[n]}, "
-            + "; ".join(f"f={p.freq_hz:.4g} Hz, zeta={p.damping_ratio:.4g}" for p in self._poles[n]) + ")"
+            + "; ".join(f"f={p.freq_hz:.4g} Hz, zeta={p.damping_ratio:.4g}" for p in self._poles[n])
+            + ")"
             for n in self.orders
         )
         return f"KautzBasis(fs={self._fs:g} Hz, feedthrough={self.feedthrough}, {{{parts}}})"

@@ -6,10 +6,11 @@ by a blocked Householder QR and an SVD of its R factor, and returns a
 :class:`volterra.VolterraModel` with :class:`FitInfo` diagnostics.  What the
 fitted kernels can and cannot represent: :mod:`volterra.model`.
 """
+
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -59,10 +60,12 @@ class FitInfo:
     h0_stderr: float = float("nan")
 
     def __repr__(self):
-        return (f"FitInfo(n_samples={self.n_samples}, n_records={self.n_records}, "
-                f"n_params={self.n_params}, rank={self.rank}, "
-                f"condition_number={self.condition_number:.3g}, "
-                f"relative_residual={self.relative_residual:.3g})")
+        return (
+            f"FitInfo(n_samples={self.n_samples}, n_records={self.n_records}, "
+            f"n_params={self.n_params}, rank={self.rank}, "
+            f"condition_number={self.condition_number:.3g}, "
+            f"relative_residual={self.relative_residual:.3g})"
+        )
 
 
 def _tall_qr_r(A: np.ndarray, chunk: int | None = None) -> np.ndarray:
@@ -74,7 +77,7 @@ def _tall_qr_r(A: np.ndarray, chunk: int | None = None) -> np.ndarray:
         chunk = max(512, 8 * n)
     if m <= 2 * chunk:
         return np.linalg.qr(A, mode="r")
-    Rs = [np.linalg.qr(A[i:i + chunk], mode="r") for i in range(0, m, chunk)]
+    Rs = [np.linalg.qr(A[i : i + chunk], mode="r") for i in range(0, m, chunk)]
     return _tall_qr_r(np.vstack(Rs), chunk)
 
 
@@ -93,8 +96,8 @@ def _stacked_rows(us, ys, sub, offset):
     AT = np.empty((P + 1, sum(r.size for r in us)))
     k = 0
     for r_u, r_y in zip(us, ys):
-        sub.regressor_rows(r_u - offset, out=AT[:P, k:k + r_u.size])
-        AT[P, k:k + r_u.size] = r_y
+        sub.regressor_rows(r_u - offset, out=AT[:P, k : k + r_u.size])
+        AT[P, k : k + r_u.size] = r_y
         k += r_u.size
     return AT
 
@@ -113,8 +116,16 @@ def _column_scale(GT, labels):
     return scale
 
 
-def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
-                 rcond: float = 1e-12, fit_h0: bool = True, input_offset=0.0) -> VolterraModel:
+def fit_volterra(
+    u,
+    y,
+    basis: KautzBasis,
+    ridge: float = 0.0,
+    orders=None,
+    rcond: float = 1e-12,
+    fit_h0: bool = True,
+    input_offset=0.0,
+) -> VolterraModel:
     """Identify a Kautz-basis Volterra model by linear least squares (eq. 18-19).
 
     Parameters
@@ -189,13 +200,13 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
     scale = _column_scale(AT[:P], sub.labels())
     means = AT.mean(axis=1) if fit_h0 else np.zeros(P + 1)
     if fit_h0:
-        AT -= means[:, None]           # centred columns and y: h0 drops out
-    AT[:P] /= scale[:, None]           # column-normalised regressors G_s (in place)
+        AT -= means[:, None]  # centred columns and y: h0 drops out
+    AT[:P] /= scale[:, None]  # column-normalised regressors G_s (in place)
     Gs = AT[:P].T
     R_full = _tall_qr_r(AT.T)
     R = R_full[:P, :P]
-    qty = R_full[:P, P]                # Q^T y
-    Ur, s, Vt = np.linalg.svd(R)       # numpy LAPACK: one BLAS thread pool with the QR
+    qty = R_full[:P, P]  # Q^T y
+    Ur, s, Vt = np.linalg.svd(R)  # numpy LAPACK: one BLAS thread pool with the QR
     uty = Ur.T @ qty
     keep = s > rcond * s[0]
     rank = int(keep.sum())
@@ -203,17 +214,16 @@ def fit_volterra(u, y, basis: KautzBasis, ridge: float = 0.0, orders=None,
         filt = np.where(keep, s / (s * s + ridge), 0.0)
     theta_s = Vt.T @ (filt * uty)
     theta = theta_s / scale
-    mean_s = means[:P] / scale         # column means of the normalised regressors
+    mean_s = means[:P] / scale  # column means of the normalised regressors
     h0 = float(means[P] - mean_s @ theta_s) if fit_h0 else 0.0
 
     blocks = _coefficient_blocks(orders, sub)
-    parts = {n: Gs[:, blocks[n]] @ theta_s[blocks[n]] + mean_s[blocks[n]] @ theta_s[blocks[n]]
-             for n in orders}
-    resid = AT[P] - Gs @ theta_s       # = y - h0 - sum(parts)  (h0 = 0 without fit_h0)
+    parts = {n: Gs[:, blocks[n]] @ theta_s[blocks[n]] + mean_s[blocks[n]] @ theta_s[blocks[n]] for n in orders}
+    resid = AT[P] - Gs @ theta_s  # = y - h0 - sum(parts)  (h0 = 0 without fit_h0)
     rss = float(resid @ resid)
     dof = max(N - rank - fit_h0, 1)
     sigma2 = rss / dof
-    cov_s = (Vt.T * filt ** 2) @ Vt * sigma2
+    cov_s = (Vt.T * filt**2) @ Vt * sigma2
     stderr = np.sqrt(np.clip(np.diag(cov_s), 0, None)) / scale
     # h0 = mean(y) - mean_s . theta_s, the two independent (centred columns)
     h0_stderr = math.sqrt(sigma2 / N + float(mean_s @ cov_s @ mean_s)) if fit_h0 else float("nan")

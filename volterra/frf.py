@@ -14,6 +14,7 @@
 
 Frequencies in Hz.
 """
+
 from __future__ import annotations
 
 import math
@@ -49,8 +50,9 @@ def _welch_kw(fs, window, n, nfft):
     return dict(fs=fs, window=window, nperseg=n, noverlap=n // 2, nfft=nfft, detrend="constant")
 
 
-def estimate_h1(u, y, fs: float, nperseg: int | None = None, window="hann",
-                nfft: int | None = None, return_coherence: bool = False):
+def estimate_h1(
+    u, y, fs: float, nperseg: int | None = None, window="hann", nfft: int | None = None, return_coherence: bool = False
+):
     """H1 FRF estimate ``H1(f) = S_uy(f) / S_uu(f)`` from Welch averages.
 
     Parameters
@@ -182,11 +184,12 @@ def periodic_h1(u, y, fs: float, period_samples: int, skip_periods: int = 1):
             raise ValueError(f"input and output records have unequal lengths: {r_u.size} and {r_y.shape[0]}")
         n_per = r_u.size // P - int(skip_periods)
         if n_per < 1:
-            raise ValueError(f"a record of {r_u.size} samples holds fewer than {skip_periods + 1} periods "
-                             f"of {P} samples")
+            raise ValueError(
+                f"a record of {r_u.size} samples holds fewer than {skip_periods + 1} periods of {P} samples"
+            )
         start = int(skip_periods) * P
-        U = np.fft.rfft(r_u[start:start + n_per * P].reshape(n_per, P), axis=1)
-        Y = np.fft.rfft(r_y[start:start + n_per * P].T.reshape(r_y.shape[1], n_per, P), axis=2)
+        U = np.fft.rfft(r_u[start : start + n_per * P].reshape(n_per, P), axis=1)
+        Y = np.fft.rfft(r_y[start : start + n_per * P].T.reshape(r_y.shape[1], n_per, P), axis=2)
         Suy = Suy + np.einsum("spk,pk->ks", Y, U.conj())
         Suu = Suu + np.sum(np.abs(U) ** 2, axis=0)
         Syy = Syy + np.sum(np.abs(Y) ** 2, axis=1).T

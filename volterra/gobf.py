@@ -39,6 +39,7 @@ Filtering is exact and recursive (``scipy.signal.lfilter``, zero initial
 state: records start at rest); one second-order recursion per pair, never a
 truncated convolution.
 """
+
 from __future__ import annotations
 
 import math
@@ -48,8 +49,15 @@ from scipy.signal import lfilter
 
 from .kautz import KautzPole, RealPole, _check_n_functions
 
-__all__ = ["pole_sequence", "n_sequence_functions", "gobf_filter_rows", "gobf_frequency_response",
-           "kautz_filter", "kautz_impulse_responses", "kautz_frequency_response"]
+__all__ = [
+    "pole_sequence",
+    "n_sequence_functions",
+    "gobf_filter_rows",
+    "gobf_frequency_response",
+    "kautz_filter",
+    "kautz_impulse_responses",
+    "kautz_frequency_response",
+]
 
 
 def pole_sequence(modes, n_functions: int) -> tuple:
@@ -89,7 +97,7 @@ def gobf_filter_rows(u, sequence, feedthrough: bool = True) -> np.ndarray:
     M = n_sequence_functions(sequence, feedthrough)
     N = u.shape[-1]
     out = np.empty(u.shape[:-1] + (M, N))
-    lag = 1 if feedthrough else 0          # the strictly proper form is the advanced one delayed
+    lag = 1 if feedthrough else 0  # the strictly proper form is the advanced one delayed
     row = 0
     if feedthrough:
         out[..., 0, :] = u
@@ -99,9 +107,9 @@ def gobf_filter_rows(u, sequence, feedthrough: bool = True) -> np.ndarray:
     for p in sequence:
         den, num_a, funcs = _section(p)
         if r is None:
-            r = lfilter([1.0], den, u, axis=-1)              # 1 / D_1 u
+            r = lfilter([1.0], den, u, axis=-1)  # 1 / D_1 u
         else:
-            r = lfilter(prev_num, den, r, axis=-1)           # A_{k-1} / D_k ... (all-passes so far)
+            r = lfilter(prev_num, den, r, axis=-1)  # A_{k-1} / D_k ... (all-passes so far)
         for gain, diff, delay in funcs:
             d = delay + lag
             dst = out[..., row, :]
@@ -109,7 +117,7 @@ def gobf_filter_rows(u, sequence, feedthrough: bool = True) -> np.ndarray:
                 dst[..., :d] = 0.0
             np.multiply(r[..., : N - d], gain, out=dst[..., d:])
             if diff:
-                dst[..., d + 1:] -= (diff * gain) * r[..., : N - d - 1]
+                dst[..., d + 1 :] -= (diff * gain) * r[..., : N - d - 1]
             row += 1
         prev_num = num_a
     return out

@@ -26,10 +26,11 @@ This module holds the poles (:class:`KautzPole`, a complex pair, and
 several modes, are in :mod:`volterra.gobf` (exact recursive filtering,
 ``scipy.signal.lfilter``, zero initial state, never a truncated convolution).
 """
+
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -159,7 +160,7 @@ class KautzPole:
     @property
     def c(self) -> float:
         """Kautz parameter ``c = -Z conj Z`` (the paper's d; real, -1 < c < 0)."""
-        return float(-abs(self.z) ** 2)
+        return float(-(abs(self.z) ** 2))
 
     @property
     def radius(self) -> float:
@@ -261,5 +262,3 @@ def _check_n_functions(n_functions: int) -> int:
             "pairs, one pair per power of the all-pass); use e.g. 2, 4, 6 or 8"
         )
     return J
-
-

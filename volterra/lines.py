@@ -30,16 +30,17 @@ running median of the best sensor's coherence over 15 lines below
 the coherent lines (a force sensor's coloured noise lifts the input's
 spectrum below or above the excitation, not the output's coherence).  Frequencies Hz; H in output unit per input unit.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
 import numpy as np
-
 from scipy.ndimage import median_filter, uniform_filter1d
 
 from .frf import excited_band
-from .lpm import DEFAULT_HALF_WIDTH as LPM_HALF_WIDTH, local_polynomial
+from .lpm import DEFAULT_HALF_WIDTH as LPM_HALF_WIDTH
+from .lpm import local_polynomial
 from .periods import PeriodLayout, find_periods, steady_periods
 
 __all__ = ["Lines", "record_lines"]
@@ -100,8 +101,15 @@ class Lines:
         if self.whole is None:
             return self
         H, var, inv_u = self.whole
-        return replace(self, H=H, var=var, inv_u=inv_u, correlated=1, whole=None,
-                       method=self.method.replace("local polynomial method", "whole record, transient fitted"))
+        return replace(
+            self,
+            H=H,
+            var=var,
+            inv_u=inv_u,
+            correlated=1,
+            whole=None,
+            method=self.method.replace("local polynomial method", "whole record, transient fitted"),
+        )
 
 
 def _periodic(r_u, r_y, layout: PeriodLayout, fs):
@@ -110,8 +118,8 @@ def _periodic(r_u, r_y, layout: PeriodLayout, fs):
     first, last = steady_periods(r_y, layout)
     N, P = layout.period, last - first
     a = layout.start + first * N
-    U = np.fft.rfft(r_u[a:a + P * N].reshape(P, N), axis=1) / np.sqrt(N)         # (P, K)
-    Y = np.fft.rfft(r_y[a:a + P * N].T.reshape(r_y.shape[1], P, N), axis=2) / np.sqrt(N)
+    U = np.fft.rfft(r_u[a : a + P * N].reshape(P, N), axis=1) / np.sqrt(N)  # (P, K)
+    Y = np.fft.rfft(r_y[a : a + P * N].T.reshape(r_y.shape[1], P, N), axis=2) / np.sqrt(N)
     Um, Ym = U.mean(axis=0), Y.mean(axis=1)
     upow = np.abs(Um) ** 2
     dU, dY = U - Um, Y - Ym[:, None, :]
@@ -119,7 +127,7 @@ def _periodic(r_u, r_y, layout: PeriodLayout, fs):
     excited = (upow >= PERIODIC_LINE_LEVEL * upow[1:].max()) & (upow >= PERIODIC_LINE_SNR * s_u / P)
     excited[0] = False
     with np.errstate(divide="ignore", invalid="ignore"):
-        H = (Ym / Um).T                                                           # (K, S)
+        H = (Ym / Um).T  # (K, S)
         s_y = np.sum(np.abs(dY) ** 2, axis=1).T / (P - 1)
         s_yu = np.sum(dY * np.conj(dU)[None], axis=1).T / (P - 1)
         var = (s_y + np.abs(H) ** 2 * s_u[:, None] - 2 * np.real(np.conj(H) * s_yu)) / (P * upow[:, None])
@@ -127,9 +135,18 @@ def _periodic(r_u, r_y, layout: PeriodLayout, fs):
         coh = np.abs(suy) ** 2 / (np.sum(np.abs(U) ** 2, axis=0)[:, None] * np.sum(np.abs(Y) ** 2, axis=1).T)
     f = np.arange(N // 2 + 1) * fs / N
     e = excited
-    return dict(f=f[e], H=H[e], var=np.maximum(var[e], 0.0), coh=coh[e], upow=upow[e],
-                inv_u=np.zeros(e.sum(), complex), detect=H[e], detect_var=np.maximum(var[e], 0.0),
-                spacing=fs / N, periods=P)
+    return dict(
+        f=f[e],
+        H=H[e],
+        var=np.maximum(var[e], 0.0),
+        coh=coh[e],
+        upow=upow[e],
+        inv_u=np.zeros(e.sum(), complex),
+        detect=H[e],
+        detect_var=np.maximum(var[e], 0.0),
+        spacing=fs / N,
+        periods=P,
+    )
 
 
 def _whole(r_u, r_y, fs, lo, hi):
@@ -160,11 +177,33 @@ def _whole(r_u, r_y, fs, lo, hi):
     if rough:
         # the LPM's FRF, its transient (and any other leakage) taken by its local polynomials; the
         # whole record's lines kept beside it for modes narrower than its window (Lines.whole_record)
-        return dict(f=f_all[k], H=lp.G, var=lp.var_g, coh=coh, upow=lp.u_power, inv_u=np.zeros(k.size, complex),
-                    detect=lp.G, detect_var=lp.var_g, spacing=fs / n, rough=True,
-                    H_whole=H, var_whole=var, inv_u_whole=1.0 / U)
-    return dict(f=f_all[k], H=H, var=var, coh=coh, upow=lp.u_power, inv_u=1.0 / U, detect=H, detect_var=var,
-                spacing=fs / n, rough=False)
+        return dict(
+            f=f_all[k],
+            H=lp.G,
+            var=lp.var_g,
+            coh=coh,
+            upow=lp.u_power,
+            inv_u=np.zeros(k.size, complex),
+            detect=lp.G,
+            detect_var=lp.var_g,
+            spacing=fs / n,
+            rough=True,
+            H_whole=H,
+            var_whole=var,
+            inv_u_whole=1.0 / U,
+        )
+    return dict(
+        f=f_all[k],
+        H=H,
+        var=var,
+        coh=coh,
+        upow=lp.u_power,
+        inv_u=1.0 / U,
+        detect=H,
+        detect_var=var,
+        spacing=fs / n,
+        rough=False,
+    )
 
 
 def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coherence: float = 0.5) -> Lines:
@@ -185,8 +224,10 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
         notes.append("the records repeat with different periods: read as not periodic")
     if periodic:
         parts = [_periodic(r_u, r_y, lay, fs) for r_u, r_y, lay in zip(us, ys, layouts)]
-        method = (f"periodic: {min(p['periods'] for p in parts)}+ steady periods of {layouts[0].period} samples"
-                  f"{' (declared)' if layouts[0].declared else ' (found in the input)'}")
+        method = (
+            f"periodic: {min(p['periods'] for p in parts)}+ steady periods of {layouts[0].period} samples"
+            f"{' (declared)' if layouts[0].declared else ' (found in the input)'}"
+        )
         f_all = np.concatenate([p["f"] for p in parts])
         if f_all.size == 0:
             raise ValueError("the periodic input excites no line 20 dB above its own noise")
@@ -196,13 +237,20 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
         lo, hi = excited_band(us, fs) if f_range is None else map(float, f_range)
         parts = [_whole(r_u, r_y, fs, lo, hi) for r_u, r_y in zip(us, ys)]
         rough = [p["rough"] for p in parts]
-        method = ("local polynomial method" if all(rough) else "whole record, transient fitted" if not any(rough)
-                  else "local polynomial method / whole record, transient fitted")
+        method = (
+            "local polynomial method"
+            if all(rough)
+            else "whole record, transient fitted"
+            if not any(rough)
+            else "local polynomial method / whole record, transient fitted"
+        )
         correlated = 2 * LPM_HALF_WIDTH + 1 if any(rough) else 1
     if f_range is not None and not lo < hi:
         raise ValueError(f"f_range must be (f_min, f_max) with f_min < f_max, got {f_range!r}")
-    cat = {key: np.concatenate([p[key] for p in parts]) for key in
-           ("f", "H", "var", "coh", "upow", "inv_u", "detect", "detect_var")}
+    cat = {
+        key: np.concatenate([p[key] for p in parts])
+        for key in ("f", "H", "var", "coh", "upow", "inv_u", "detect", "detect_var")
+    }
     cat["record"] = np.concatenate([np.full(p["f"].size, j) for j, p in enumerate(parts)])
     for key in ("H", "var", "inv_u"):
         cat[key + "_whole"] = np.concatenate([p.get(key + "_whole", p[key]) for p in parts])
@@ -212,8 +260,10 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
     f, H, coh = cat["f"], cat["H"], cat["coh"]
     keep = (f >= lo) & (f <= hi) & (f > 0) & np.all(np.isfinite(H), axis=1)
     if keep.sum() < 4:
-        raise ValueError(f"the band ({lo:.4g}, {hi:.4g}) Hz holds fewer than 4 frequency lines "
-                         f"(spacing {spacing:.3g} Hz); widen it or give a longer record")
+        raise ValueError(
+            f"the band ({lo:.4g}, {hi:.4g}) Hz holds fewer than 4 frequency lines "
+            f"(spacing {spacing:.3g} Hz); widen it or give a longer record"
+        )
     # a line counts when the output follows the input around it, not by one line's chance
     # coherence: the running median of the sensors' best over COHERENCE_LINES lines
     best = np.nan_to_num(coh).max(axis=1)
@@ -227,6 +277,22 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
     note = f"; {'; '.join(notes)}" if notes else ""
     g = {key: v[good] for key, v in cat.items()}
     whole = (g["H_whole"], g["var_whole"], g["inv_u_whole"]) if correlated > 1 else None
-    return Lines(g["f"], g["H"], g["var"], g["coh"], g["upow"], g["inv_u"], g["record"], g["detect"],
-                 g["detect_var"], (float(lo), float(hi)), spacing, method + note, tuple(layouts),
-                 int(keep.sum()), float(np.nan_to_num(coh[keep]).max()), correlated, whole)
+    return Lines(
+        g["f"],
+        g["H"],
+        g["var"],
+        g["coh"],
+        g["upow"],
+        g["inv_u"],
+        g["record"],
+        g["detect"],
+        g["detect_var"],
+        (float(lo), float(hi)),
+        spacing,
+        method + note,
+        tuple(layouts),
+        int(keep.sum()),
+        float(np.nan_to_num(coh[keep]).max()),
+        correlated,
+        whole,
+    )

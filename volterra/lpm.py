@@ -21,6 +21,7 @@ One function, :func:`local_polynomial`, used by :func:`volterra.estimate_modes`
 estimate (``bayes_update.data.lpm``).  DFTs are scaled by 1 / sqrt(N);
 frequencies are line indices here (the callers map them to Hz).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -51,8 +52,9 @@ class LocalPolynomial:
     u_power: np.ndarray
 
 
-def local_polynomial(u, y, half_width: int = DEFAULT_HALF_WIDTH, degree: int = DEFAULT_DEGREE,
-                     lines=None, frf: bool = True) -> LocalPolynomial:
+def local_polynomial(
+    u, y, half_width: int = DEFAULT_HALF_WIDTH, degree: int = DEFAULT_DEGREE, lines=None, frf: bool = True
+) -> LocalPolynomial:
     """The LPM of one record (module docstring).
 
     Parameters
@@ -82,28 +84,28 @@ def local_polynomial(u, y, half_width: int = DEFAULT_HALF_WIDTH, degree: int = D
     if k_all.size and (k_all.min() < R or k_all.max() > K - R - 1):
         raise ValueError(f"lines must lie in {R} .. {K - R - 1}")
     r = np.arange(-R, R + 1)
-    P = np.vander(r / R, d + 1, increasing=True)                    # (2R+1, d+1)
+    P = np.vander(r / R, d + 1, increasing=True)  # (2R+1, d+1)
     S = y.shape[1]
     G = np.zeros((k_all.size, S), complex)
     noise = np.zeros((k_all.size, S))
     var_g = np.zeros((k_all.size, S))
     dof = np.zeros(k_all.size)
     for a in range(0, k_all.size, BLOCK):
-        kk = k_all[a:a + BLOCK]
+        kk = k_all[a : a + BLOCK]
         idx = kk[:, None] + r[None, :]
         A = np.concatenate([U[idx][:, :, None] * P[None], np.broadcast_to(P, (kk.size,) + P.shape)], axis=2)
         Uc, s, Vh = np.linalg.svd(A, full_matrices=True)
         tol = s[:, :1] * 1e-10 * (2 * R + 1)
         rank = np.sum(s > tol, axis=1)
-        Yl = Y[idx]                                                    # (m, 2R+1, S)
-        coef = np.einsum("mji,mjs->mis", Uc.conj(), Yl)               # Y in the left singular basis
+        Yl = Y[idx]  # (m, 2R+1, S)
+        coef = np.einsum("mji,mjs->mis", Uc.conj(), Yl)  # Y in the left singular basis
         keep = np.arange(2 * R + 1)[None, :] >= rank[:, None]
         q = (2 * R + 1) - rank
-        noise[a:a + kk.size] = np.sum(np.abs(coef) ** 2 * keep[:, :, None], axis=1) / q[:, None]
-        dof[a:a + kk.size] = q
+        noise[a : a + kk.size] = np.sum(np.abs(coef) ** 2 * keep[:, :, None], axis=1) / q[:, None]
+        dof[a : a + kk.size] = q
         if frf:
             inv = np.where(np.arange(n_par)[None, :] < rank[:, None], 1.0 / np.where(s > tol, s, 1.0), 0.0)
-            v0 = Vh[:, :, 0].conj()                                    # row 0 of V: G(0)'s coefficient
-            G[a:a + kk.size] = np.einsum("mi,mis->ms", v0 * inv, coef[:, :n_par])
-            var_g[a:a + kk.size] = noise[a:a + kk.size] * np.sum(np.abs(v0 * inv) ** 2, axis=1)[:, None]
+            v0 = Vh[:, :, 0].conj()  # row 0 of V: G(0)'s coefficient
+            G[a : a + kk.size] = np.einsum("mi,mis->ms", v0 * inv, coef[:, :n_par])
+            var_g[a : a + kk.size] = noise[a : a + kk.size] * np.sum(np.abs(v0 * inv) ** 2, axis=1)[:, None]
     return LocalPolynomial(k_all, G, noise, var_g, dof, np.abs(U[k_all]) ** 2)

@@ -32,6 +32,7 @@ automatic reading of the diagram) is about 150 lines of numpy.
 
 Frequencies in Hz, continuous poles ``s`` in rad/s (upper half plane).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -74,11 +75,11 @@ def lscf_poles(f, H, orders, weights=None):
     W = np.broadcast_to(np.asarray(weights, float).reshape(L, -1), (L, S))
     dt = _fit_dt(f)
     orders = sorted(int(n) for n in orders)
-    orders = [n for n in orders if not (2 * L * S < 2 * (n + 1) + n or L <= n + 1)]   # too few lines
+    orders = [n for n in orders if not (2 * L * S < 2 * (n + 1) + n or L <= n + 1)]  # too few lines
     if not orders:
         return {}
     top = orders[-1]
-    X = np.exp(-2j * np.pi * np.outer(f, np.arange(top + 1)) * dt)             # (L, top+1)
+    X = np.exp(-2j * np.pi * np.outer(f, np.arange(top + 1)) * dt)  # (L, top+1)
     # per sensor, the numerator's orthonormal basis at the top order: the leading columns of
     # its Q span the numerator of every lower order (QR of leading columns is nested)
     Qs, Ys = [], []
@@ -93,14 +94,14 @@ def lscf_poles(f, H, orders, weights=None):
         # (the stacked least squares is that of the R factors: never the normal equations)
         blocks = []
         for Q, Yr in zip(Qs, Ys):
-            Qn, Yn = Q[:, :n + 1], Yr[:, :n + 1]
+            Qn, Yn = Q[:, : n + 1], Yr[:, : n + 1]
             blocks.append(np.linalg.qr(Yn - Qn @ (Qn.T @ Yn), mode="r"))
         Mr = np.vstack(blocks)
         scale = np.linalg.norm(Mr, axis=0)
         scale[scale == 0] = 1.0
         Ms = Mr / scale
         alpha = np.linalg.lstsq(Ms[:, :n], -Ms[:, n], rcond=None)[0] / scale[:n]
-        coef = np.append(alpha, 1.0 / scale[n])                      # A(Omega) = sum coef_r Omega^r
+        coef = np.append(alpha, 1.0 / scale[n])  # A(Omega) = sum coef_r Omega^r
         # Omega = 1/z: sum_r coef_r z^-r = 0  <=>  sum_r coef_r z^(n-r) = 0
         z = np.roots(coef)
         z = z[z != 0]
@@ -162,7 +163,7 @@ def stable_modes(poles_by_order, band, max_damping=DEFAULT_MAX_DAMPING, df=0.01,
     modes = []
     for idx in np.split(np.arange(sf.size), cuts):
         count = len(set(sn[idx].tolist()))
-        top = idx[sn[idx] >= np.median(sn[idx])]              # the higher orders of the cluster
+        top = idx[sn[idx] >= np.median(sn[idx])]  # the higher orders of the cluster
         modes.append((float(np.median(sf[top])), float(np.median(sz[top])), count))
     return modes, diagram
 
@@ -192,7 +193,7 @@ def mode_contributions(f, H, s_poles, weights=None):
     rhs = np.vstack([(W[:, None] * H).real, (W[:, None] * H).imag])
     x = np.linalg.lstsq(A, rhs, rcond=None)[0]
     M = s.size
-    R = x[:M] + 1j * x[M:2 * M]                                      # (M, S)
+    R = x[:M] + 1j * x[M : 2 * M]  # (M, S)
     return (a.T[:, :, None] * R[:, None, :]) + (b.T[:, :, None] * R.conj()[:, None, :])
 
 
@@ -215,8 +216,8 @@ def subbands(lo: float, hi: float, ratio: float = SUBBAND_RATIO) -> list:
     step = (hi / lo) ** (1.0 / (n + 1))
     out = []
     for j in range(n):
-        a = lo * step ** j
-        out.append((a, a * step * step, lo if j == 0 else a * step ** 0.5, hi if j == n - 1 else a * step ** 1.5))
+        a = lo * step**j
+        out.append((a, a * step * step, lo if j == 0 else a * step**0.5, hi if j == n - 1 else a * step**1.5))
     return out
 
 
@@ -235,7 +236,7 @@ def subband_clusters(f, H, W, band, orders, max_damping=DEFAULT_MAX_DAMPING, out
         sel = np.flatnonzero((f >= a) & (f <= b))
         if sel.size < 8:
             continue
-        sel = sel[::max(1, -(-sel.size // MAX_WINDOW_LINES))]     # evenly thinned: speed
+        sel = sel[:: max(1, -(-sel.size // MAX_WINDOW_LINES))]  # evenly thinned: speed
         Wsel = None if W is None else np.asarray(W)[sel]
         poles = lscf_poles(f[sel], H[sel], orders, Wsel)
         if not poles:

@@ -35,10 +35,11 @@ record's ``Y / U`` is fitted without leakage whatever the excitation.
 
 Frequencies in Hz, continuous poles ``lam`` in rad/s (upper half plane).
 """
+
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -81,7 +82,7 @@ def poles_from_modal(freq_hz, zeta) -> np.ndarray:
     """Continuous poles [rad/s] of modes (f [Hz], zeta [-])."""
     w = 2 * np.pi * np.asarray(freq_hz, float)
     z = np.asarray(zeta, float)
-    return -z * w + 1j * w * np.sqrt(1 - z ** 2)
+    return -z * w + 1j * w * np.sqrt(1 - z**2)
 
 
 def _poles(modes) -> np.ndarray:
@@ -149,7 +150,7 @@ def fit(d: FitLines, modes, pseudo=(), powers=RESIDUAL_POWERS):
     lam_all = np.concatenate([lam, _poles(pseudo)])
     x, r = _solve(_columns(d, lam_all, powers), d.H, d.W)
     M, Mt = lam.size, lam_all.size
-    R = x[:M] + 1j * x[Mt:Mt + M]                                 # (M, S)
+    R = x[:M] + 1j * x[Mt : Mt + M]  # (M, S)
     jw = 2j * np.pi * np.asarray(d.f, float)[:, None]
     a, b = 1.0 / (jw - lam[None, :]), 1.0 / (jw - np.conj(lam)[None, :])
     parts = a.T[:, :, None] * R[:, None, :] + b.T[:, :, None] * np.conj(R)[:, None, :]
@@ -164,7 +165,7 @@ def significance(d: FitLines, modes, pseudo=(), powers=RESIDUAL_POWERS):
     _, r, full = fit(d, modes, pseudo, powers)
     out = np.empty(len(modes))
     for m in range(len(modes)):
-        out[m] = fit(d, modes[:m] + modes[m + 1:], pseudo, powers)[2] - full
+        out[m] = fit(d, modes[:m] + modes[m + 1 :], pseudo, powers)[2] - full
     return out, r
 
 
@@ -172,7 +173,7 @@ def _dlam(lam, freq_hz, zeta):
     """(d lam / d log f, d lam / d log zeta) [rad/s]."""
     w = 2 * np.pi * np.asarray(freq_hz, float)
     z = np.asarray(zeta, float)
-    return lam, -z * w * (1 + 1j * z / np.sqrt(1 - z ** 2))
+    return lam, -z * w * (1 + 1j * z / np.sqrt(1 - z**2))
 
 
 def _residual_jacobian(d: FitLines, freq_hz, zeta, powers, norm):
@@ -207,16 +208,18 @@ def _residual_jacobian(d: FitLines, freq_hz, zeta, powers, norm):
         for k, dl in enumerate((d_f, d_z)):
             g = (a * a) * dl[None, :]
             h = (b * b) * np.conj(dl)[None, :]
-            dv = (g + h) * x[None, :M] + 1j * (g - h) * x[None, M:2 * M]          # (L, M)
+            dv = (g + h) * x[None, :M] + 1j * (g - h) * x[None, M : 2 * M]  # (L, M)
             for j, mk in enumerate(masks if recs else []):
-                dz = z * dl[None, :] / d.fs                                     # d z / d theta
+                dz = z * dl[None, :] / d.fs  # d z / d theta
                 gA = A * A * om * dz
                 gB = B * B * om * np.conj(dz)
                 c0 = base + 2 * M * j
-                dv = dv + mk[:, None] * ((gA + gB) * x[None, c0:c0 + M] + 1j * (gA - gB) * x[None, c0 + M:c0 + 2 * M])
+                dv = dv + mk[:, None] * (
+                    (gA + gB) * x[None, c0 : c0 + M] + 1j * (gA - gB) * x[None, c0 + M : c0 + 2 * M]
+                )
             dv = d.W[:, s, None] * dv
             D = np.vstack([dv.real, dv.imag])
-            Js[:, k * M:(k + 1) * M] = -(D - Q @ (Q.T @ D))
+            Js[:, k * M : (k + 1) * M] = -(D - Q @ (Q.T @ D))
         jac.append(Js)
     return np.concatenate(res) / norm, np.vstack(jac) / norm
 
@@ -242,9 +245,17 @@ def refine(d: FitLines, freq_hz, zeta, bounds, powers=RESIDUAL_POWERS):
             cache[key] = _residual_jacobian(d, np.exp(x[:M]), np.exp(x[M:]), powers, norm)
         return cache[key]
 
-    res = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1], bounds=(lo, hi),
-                        x_scale=np.full(x0.size, 1e-3), xtol=1e-10, ftol=1e-12, gtol=1e-12,
-                        max_nfev=60 * x0.size)
+    res = least_squares(
+        lambda x: both(x)[0],
+        x0,
+        jac=lambda x: both(x)[1],
+        bounds=(lo, hi),
+        x_scale=np.full(x0.size, 1e-3),
+        xtol=1e-10,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=60 * x0.size,
+    )
     x = res.x
     width = hi - lo
     edge = np.minimum(x - lo, hi - x) <= 5e-3 * width

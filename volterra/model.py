@@ -47,10 +47,11 @@ of a truncated fit in this basis", NOT the true Volterra components: compare
 like with like (same basis, orders and input for reference and model), and
 do not read pointwise H2/H3 as physical kernels.
 """
+
 from __future__ import annotations
 
-from itertools import permutations
 import math
+from itertools import permutations
 
 import numpy as np
 
@@ -77,6 +78,7 @@ def _coefficient_blocks(orders, basis):
         start += p
     return blocks
 
+
 class VolterraModel:
     """A discrete-time Volterra model of orders 1..3 in a Kautz basis.
 
@@ -102,8 +104,9 @@ class VolterraModel:
     represent.
     """
 
-    def __init__(self, basis: KautzBasis, coefficients, orders=None, info=None,
-                 h0: float = 0.0, input_offset: float = 0.0):
+    def __init__(
+        self, basis: KautzBasis, coefficients, orders=None, info=None, h0: float = 0.0, input_offset: float = 0.0
+    ):
         if not isinstance(basis, KautzBasis):
             raise ValueError(f"basis must be a KautzBasis, got {type(basis).__name__}")
         self.orders = basis._check_orders(orders)
@@ -226,7 +229,7 @@ class VolterraModel:
         """``||y - predict(u)|| / ||y||`` over all records."""
         us, ys, _ = paired_records(u, y)
         num = sum(float(np.sum((yy - self._predict_one(uu)) ** 2)) for uu, yy in zip(us, ys))
-        den = sum(float(np.sum(yy ** 2)) for yy in ys)
+        den = sum(float(np.sum(yy**2)) for yy in ys)
         return math.sqrt(num / den)
 
     # -------------------------------------------------- time-domain kernels
@@ -254,8 +257,7 @@ class VolterraModel:
     def h3(self, n_samples: int) -> np.ndarray:
         """Full symmetric third-order kernel, shape (n_samples,)*3 (keep n_samples small)."""
         psi = self.basis.impulse_responses(3, n_samples)
-        return np.einsum("ijk,ai,bj,ck->abc", self.symmetric_coefficients(3), psi, psi, psi,
-                         optimize=True)
+        return np.einsum("ijk,ai,bj,ck->abc", self.symmetric_coefficients(3), psi, psi, psi, optimize=True)
 
     # --------------------------------------------- frequency-domain kernels
     def H1(self, f_hz):
@@ -280,8 +282,7 @@ class VolterraModel:
         several 100 % measured; see the module docstring)."""
         f1, f2, f3 = np.broadcast_arrays(*(np.asarray(f, float) for f in (f1_hz, f2_hz, f3_hz)))
         P1, P2, P3 = (self.basis.frequency_response(3, f) for f in (f1, f2, f3))
-        return np.einsum("...i,...j,...k,ijk->...", P1, P2, P3, self.symmetric_coefficients(3),
-                         optimize=True)
+        return np.einsum("...i,...j,...k,ijk->...", P1, P2, P3, self.symmetric_coefficients(3), optimize=True)
 
     # ----------------------------------------------------------------- report
     def summary(self, max_terms: int = 8) -> str:
@@ -289,8 +290,7 @@ class VolterraModel:
         H1 peak and the largest coefficients of each order."""
         info = self.info
         lines = ["Volterra model in a Kautz basis (y = h0 + y1 + y2 + y3, no 1/n! factor)"]
-        lines.append(f"  sampling rate {self.fs:g} Hz, orders {self.orders}, "
-                     f"{self.basis.n_params} coefficients")
+        lines.append(f"  sampling rate {self.fs:g} Hz, orders {self.orders}, {self.basis.n_params} coefficients")
         h0 = f"  h0 = {self.h0:.6e}"
         if info is not None and np.isfinite(info.h0_stderr):
             h0 += f"  +- {info.h0_stderr:.2e}"
@@ -301,11 +301,9 @@ class VolterraModel:
             lines.append(f"  input offset {self.input_offset:.6e} subtracted from u")
         for n in self.orders:
             ft = ", feed-through" if self.basis.has_feedthrough(n) else ""
-            poles = "; ".join(f"f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}"
-                              for p in self.basis.modes(n))
+            poles = "; ".join(f"f = {p.freq_hz:.4f} Hz, zeta = {p.damping_ratio:.5f}" for p in self.basis.modes(n))
             lines.append(
-                f"  order {n}: J = {self.basis.n_functions[n]}{ft}, {self.basis.n_terms(n)} "
-                f"terms, pole {poles}"
+                f"  order {n}: J = {self.basis.n_functions[n]}{ft}, {self.basis.n_terms(n)} terms, pole {poles}"
             )
         if info is not None:
             lines.append(
@@ -314,8 +312,7 @@ class VolterraModel:
                 f"ridge {info.ridge:g}"
             )
             lines.append(
-                f"  residual: rms {info.residual_rms:.4g}, relative {100 * info.relative_residual:.3f} % "
-                "of ||y||"
+                f"  residual: rms {info.residual_rms:.4g}, relative {100 * info.relative_residual:.3f} % of ||y||"
             )
             shares = ", ".join(f"||y{n}||/||y|| = {100 * s:.3g} %" for n, s in info.component_shares.items())
             lines.append(f"  components on the fitted data: {shares}")

@@ -42,6 +42,7 @@
 Modes come back sorted by their response energy, the largest first.  What
 cannot be trusted raises :class:`PoleEstimationError`, saying what to check.
 """
+
 from __future__ import annotations
 
 import functools
@@ -49,13 +50,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lsfd
 from ._validation import as_record_list
 from .kautz import KautzPole
 from .lines import record_lines
 from .lscf import DEFAULT_MAX_DAMPING, subband_clusters
-from . import lsfd
-from .selection import (MIN_SIGNIFICANCE, PoleEstimationError, energies, fit_lines, inside, peak_mode,
-                        refine_modes, relative_residual, residual_peak, select, weights)
+from .selection import (
+    MIN_SIGNIFICANCE,
+    PoleEstimationError,
+    energies,
+    fit_lines,
+    inside,
+    peak_mode,
+    refine_modes,
+    relative_residual,
+    residual_peak,
+    select,
+    weights,
+)
 
 # PoleEstimationError is defined in volterra.selection (and exported by the package): listed once
 __all__ = ["ModalEstimate", "estimate_modes"]
@@ -136,8 +148,9 @@ def _records(u, y):
         r_y = np.asarray(r_y, float)
         r_y = r_y[:, None] if r_y.ndim == 1 else r_y
         if r_y.ndim != 2 or r_y.shape[0] != r_u.size:
-            raise ValueError(f"y record {k} must be (n,) or (n, n_sensors) with n = len(u) = {r_u.size}, "
-                             f"got shape {r_y.shape}")
+            raise ValueError(
+                f"y record {k} must be (n,) or (n, n_sensors) with n = len(u) = {r_u.size}, got shape {r_y.shape}"
+            )
         if not np.all(np.isfinite(r_y)):
             raise ValueError(f"y record {k} contains NaN/inf values")
         out.append(r_y - r_y.mean(axis=0))
@@ -172,7 +185,8 @@ def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max
                 f"refining the poles: no mode settles (the one near {refined[stuck[0]][0]:.4g} Hz ran to the "
                 "edge of its search range, re-centred three times): the record is not essentially linear, "
                 "or its modes are not in it. Check f_range, offsets and slow drifts in u and y, that the "
-                "record is low-level, and n_modes.")
+                "record is low-level, and n_modes."
+            )
     modes, pseudo = refined, pseudo_r
     good = [inside(*m, band, spacing) and m[1] < max_damping for m in modes]
     demoted = [m for m, g in zip(modes, good) if not g]
@@ -185,20 +199,32 @@ def _one_blas_thread(func):
     """``func`` with one BLAS thread: its fits' matrices are a few hundred rows of a few dozen
     columns, where threads only contend (the four tests of the lab records' inspection took 58 s
     with two OpenBLAS threads on 2 cores, 14 s with one; in two test workers at once, 175 s)."""
+
     @functools.wraps(func)
     def wrapper(*args, **kwargs):
         from threadpoolctl import threadpool_limits
 
         with threadpool_limits(1, user_api="blas"):
             return func(*args, **kwargs)
+
     return wrapper
 
 
 @_one_blas_thread
-def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, refine: bool = True,
-                   period_samples: int | None = None, min_coherence: float = MIN_COHERENCE,
-                   max_damping: float = DEFAULT_MAX_DAMPING, max_order: int = MAX_LSCF_ORDER,
-                   min_significance: float = MIN_SIGNIFICANCE, max_residual: float = MAX_RESIDUAL) -> ModalEstimate:
+def estimate_modes(
+    u,
+    y,
+    fs: float,
+    f_range=None,
+    n_modes: int | None = None,
+    refine: bool = True,
+    period_samples: int | None = None,
+    min_coherence: float = MIN_COHERENCE,
+    max_damping: float = DEFAULT_MAX_DAMPING,
+    max_order: int = MAX_LSCF_ORDER,
+    min_significance: float = MIN_SIGNIFICANCE,
+    max_residual: float = MAX_RESIDUAL,
+) -> ModalEstimate:
     """Poles of every mode of the excited, coherent band of a linear record (module docstring).
 
     Parameters
@@ -226,7 +252,8 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
             f"fewer than 4 frequency lines in ({lo:.4g}, {hi:.4g}) Hz have a coherence of {min_coherence:g} "
             f"or more (largest {lines.band_coherence:.3g}): the output does not follow the input there, it is "
             "noise. Check that y is the response to u (channels, units, synchronisation), the noise level, "
-            "and f_range.")
+            "and f_range."
+        )
     f, H = lines.f, lines.H
     d = _fit_data(lines, fs)
     Wd = weights(lines.detect_var, lines.detect, lines.u_power)
@@ -239,8 +266,9 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     # whose tails the residual terms cannot follow (it never enters the band)
     pseudo += [(lo / PSEUDO_STEP, PSEUDO_ZETA), (hi * PSEUDO_STEP, PSEUDO_ZETA)]
     cand = [(c[0], c[1]) for c in strong if inside(c[0], c[1], band, spacing)]
-    weak = sorted((c for c in clusters if MIN_STABLE <= c[2] < c[3] and inside(c[0], c[1], band, spacing)),
-                  key=lambda c: -c[2])
+    weak = sorted(
+        (c for c in clusters if MIN_STABLE <= c[2] < c[3] and inside(c[0], c[1], band, spacing)), key=lambda c: -c[2]
+    )
     if n_modes is None:
         # a cluster stable at few orders (a weak mode beside a strong one) is a candidate too:
         # the selection keeps it only if it stands out
@@ -253,8 +281,8 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
             # the other clusters by the response energy their modes carry (their stability is poor)
             idx = fit_lines(f, cand + rest, spacing)
             parts, _, _ = lsfd.fit(d.take(idx), cand + rest, pseudo)
-            shares = energies(H[idx], lines.u_power[idx], parts)[len(cand):]
-            cand += [rest[i] for i in np.argsort(-shares)[:n_modes - len(cand)]]
+            shares = energies(H[idx], lines.u_power[idx], parts)[len(cand) :]
+            cand += [rest[i] for i in np.argsort(-shares)[: n_modes - len(cand)]]
         peak = peak_mode(f, lines.detect) if not cand and n_modes == 1 else None
         if peak is not None and inside(*peak, band, spacing):
             cand = [peak]
@@ -262,7 +290,8 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
             raise PoleEstimationError(
                 f"n_modes = {n_modes}, but the stabilisation diagram holds only {len(cand)} stable "
                 "pole cluster(s) in the band. Check the band (f_range), the coherence and the record length "
-                "(frequency resolution), or ask for fewer modes.")
+                "(frequency resolution), or ask for fewer modes."
+            )
     elif n_modes is not None and len(cand) > n_modes:
         parts, _, _ = lsfd.fit(d.take(fit_lines(f, cand, spacing)), cand, pseudo)
         idx = fit_lines(f, cand, spacing)
@@ -271,11 +300,13 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     if not cand:
         peak = peak_mode(f, lines.detect)
         cand = [] if peak is None or not inside(*peak, band, spacing) else [peak]
-    no_mode = (f"no mode stands out of the noise in ({lo:.4g}, {hi:.4g}) Hz (lines read: {lines.method}, "
-               f"{spacing:.3g} Hz apart): check that y is the response to u (channels, units, synchronisation), "
-               "the noise level, f_range, offsets or slow drifts in u and y, and that the record is long enough: "
-               f"a mode whose half-power band (2 zeta f) is narrower than the lines' spacing ({spacing:.3g} Hz) "
-               "is not resolved (record more periods or a longer record).")
+    no_mode = (
+        f"no mode stands out of the noise in ({lo:.4g}, {hi:.4g}) Hz (lines read: {lines.method}, "
+        f"{spacing:.3g} Hz apart): check that y is the response to u (channels, units, synchronisation), "
+        "the noise level, f_range, offsets or slow drifts in u and y, and that the record is long enough: "
+        f"a mode whose half-power band (2 zeta f) is narrower than the lines' spacing ({spacing:.3g} Hz) "
+        "is not resolved (record more periods or a longer record)."
+    )
     fixed = n_modes is not None
 
     def fit_on(lines, d, pseudo):
@@ -295,8 +326,9 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
                     break
                 tried.append(start)
                 try:
-                    trial = _refined(d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr,
-                                     max_damping)
+                    trial = _refined(
+                        d, modes + [start], pseudo, band, spacing, fixed, min_significance, corr, max_damping
+                    )
                 except PoleEstimationError:
                     trial = ([],)
                 if len(trial[0]) > len(modes):
@@ -313,12 +345,16 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
                     f"the refined modal fit leaves {100 * resid:.3g} % of the response unexplained (more than "
                     f"{100 * max_residual:.3g} %): y does not follow u linearly. Check that y is the response to u, "
                     "the noise level, slow drifts of y, that the record is low-level (not strongly nonlinear), and "
-                    "that n_modes (if given) is not below the number of modes in the band.")
+                    "that n_modes (if given) is not below the number of modes in the band."
+                )
         return modes, sig, pseudo, lscf, resid
 
     fitted = None
-    if (lines.whole is not None and lines.H.size <= MAX_WHOLE_LINES
-            and any(2 * z * fr < lines.correlated * spacing for fr, z in cand)):
+    if (
+        lines.whole is not None
+        and lines.H.size <= MAX_WHOLE_LINES
+        and any(2 * z * fr < lines.correlated * spacing for fr, z in cand)
+    ):
         # a mode narrower than the LPM's window: fitted on the whole record's lines, its transient
         # a term of the fit (Lines.whole_record); the diagram above stays the LPM's.  Where no mode
         # holds there (a two-period multisine at 1024 samples: its lines between the excited ones
@@ -335,11 +371,19 @@ def estimate_modes(u, y, fs: float, f_range=None, n_modes: int | None = None, re
     order = np.argsort(-shares)
     poles = [KautzPole.from_modal(fr, ze, fs) for fr, ze in modes]
     starts = tuple(KautzPole.from_modal(fr, ze, fs) for fr, ze in sorted(lscf))
-    return ModalEstimate(poles=tuple(poles[i] for i in order), energy_shares=shares[order],
-                         lscf_poles=starts, significance=np.asarray(sig)[order],
-                         pseudo=tuple((float(a), float(b)) for a, b in pseudo), band=band,
-                         relative_residual=resid, method=lines.method,
-                         lines=lsfd.FitLines(f, H, np.sqrt(lines.u_power)[:, None] * np.ones(H.shape[1]), fs,
-                                             lines.inv_u, lines.record),
-                         f=f, H=H, coherence=lines.coherence,
-                         variance=lines.var, diagram=diagram)
+    return ModalEstimate(
+        poles=tuple(poles[i] for i in order),
+        energy_shares=shares[order],
+        lscf_poles=starts,
+        significance=np.asarray(sig)[order],
+        pseudo=tuple((float(a), float(b)) for a, b in pseudo),
+        band=band,
+        relative_residual=resid,
+        method=lines.method,
+        lines=lsfd.FitLines(f, H, np.sqrt(lines.u_power)[:, None] * np.ones(H.shape[1]), fs, lines.inv_u, lines.record),
+        f=f,
+        H=H,
+        coherence=lines.coherence,
+        variance=lines.var,
+        diagram=diagram,
+    )

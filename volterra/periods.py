@@ -21,6 +21,7 @@ through this one finder.
 
 Indices are samples.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -80,12 +81,13 @@ def _pair_ratios(f: np.ndarray, period: int) -> np.ndarray:
 
     def window_sums(x):
         c = np.concatenate([[0.0], np.cumsum(x)])
-        return c[N:N + m] - c[:m]
+        return c[N : N + m] - c[:m]
 
     e = f[N:] - f[:-N]
     num = window_sums(e * e) - window_sums(e) ** 2 / N
-    den = (window_sums(f[:-N] ** 2) - window_sums(f[:-N]) ** 2 / N
-           + window_sums(f[N:] ** 2) - window_sums(f[N:]) ** 2 / N)
+    den = (
+        window_sums(f[:-N] ** 2) - window_sums(f[:-N]) ** 2 / N + window_sums(f[N:] ** 2) - window_sums(f[N:]) ** 2 / N
+    )
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(den > 0, np.clip(num, 0.0, None) / den, np.inf)
 
@@ -102,8 +104,8 @@ def _best_chain(f: np.ndarray, period: int):
     thr = min(MAX_REPEAT_RATIO, REPEAT_TOLERANCE * q_min + 1e-15)
     rows = -(-Q.size // period)
     Q2 = np.full(rows * period, np.inf)
-    Q2[:Q.size] = Q
-    Q2 = Q2.reshape(rows, period)                    # column s: the pairs starting at s, s + N, ...
+    Q2[: Q.size] = Q
+    Q2 = Q2.reshape(rows, period)  # column s: the pairs starting at s, s + N, ...
     good = Q2 <= thr
     csum = np.cumsum(np.where(good, Q2, 0.0), axis=0)
     run = np.zeros(period, int)
@@ -120,7 +122,7 @@ def _best_chain(f: np.ndarray, period: int):
     total = csum[end[cols], cols] - np.where(first > 0, csum[np.maximum(first - 1, 0), cols], 0.0)
     k = int(np.argmin(total))
     s0, r0, n = int(cols[k]), int(first[k]), int(length[cols[k]])
-    worst = float(np.max(Q2[r0:r0 + n, s0]))
+    worst = float(np.max(Q2[r0 : r0 + n, s0]))
     return s0 + r0 * period, n + 1, worst
 
 
@@ -155,10 +157,10 @@ def _candidates(f: np.ndarray, max_period: int) -> list:
     nfft = 1 << int(np.ceil(np.log2(2 * n)))
     F = np.fft.rfft(f, nfft)
     r = np.fft.irfft(np.abs(F) ** 2, nfft)[:n]
-    c = np.cumsum(f ** 2)
+    c = np.cumsum(f**2)
     lags = np.arange(n)
-    head = c[n - 1 - lags]                       # sum f[:n-L]^2
-    tail = c[-1] - np.concatenate([[0.0], c[:-1]])[lags]   # sum f[L:]^2
+    head = c[n - 1 - lags]  # sum f[:n-L]^2
+    tail = c[-1] - np.concatenate([[0.0], c[:-1]])[lags]  # sum f[L:]^2
     with np.errstate(divide="ignore", invalid="ignore"):
         rn = r / np.sqrt(head * tail)
     below = np.flatnonzero(rn < 0.5)
@@ -168,7 +170,7 @@ def _candidates(f: np.ndarray, max_period: int) -> list:
     hi = min(max_period, n - 2)
     if hi <= lo:
         return []
-    seg = rn[lo - 1:hi + 2]                      # one lag either side: the ends may be maxima
+    seg = rn[lo - 1 : hi + 2]  # one lag either side: the ends may be maxima
     peaks = np.flatnonzero((seg[1:-1] > seg[:-2]) & (seg[1:-1] >= seg[2:]) & (seg[1:-1] > 0.2)) + lo
     return [int(p) for p in peaks[np.argsort(rn[peaks])[::-1][:N_CANDIDATES]]]
 
@@ -189,31 +191,37 @@ def find_periods(u, period_samples: int | None = None):
     """
     f = np.asarray(u, float)
     t = np.linspace(-1.0, 1.0, f.size)
-    f = f - np.polyval(np.polyfit(t, f, 2), t)           # offset and slow drift
+    f = f - np.polyval(np.polyfit(t, f, 2), t)  # offset and slow drift
     if period_samples is not None:
         period = int(period_samples)
         if f.size < MIN_PERIODS * period:
-            return (f"the record holds {f.size / period:.1f} periods of {period} samples; "
-                    f"at least {MIN_PERIODS} are needed (the first is a transient)")
+            return (
+                f"the record holds {f.size / period:.1f} periods of {period} samples; "
+                f"at least {MIN_PERIODS} are needed (the first is a transient)"
+            )
         chain = _with_leading(f, period, _best_chain(f, period))
         if chain is None or chain[1] < MIN_PERIODS:
             found = "no two consecutive periods" if chain is None else f"only {chain[1]} consecutive periods"
-            return (f"the force does not repeat with the declared period of {period} samples "
-                    f"({found} agree to within {MAX_REPEAT_RATIO:.0%} of its energy; is the "
-                    "generator clocked with the acquisition?)")
+            return (
+                f"the force does not repeat with the declared period of {period} samples "
+                f"({found} agree to within {MAX_REPEAT_RATIO:.0%} of its energy; is the "
+                "generator clocked with the acquisition?)"
+            )
         return PeriodLayout(period, chain[0], chain[1], True, chain[2])
     found = []
     for lag in _candidates(f, f.size // MIN_PERIODS):
         chain = _with_leading(f, lag, _best_chain(f, lag))
-        if chain is not None and chain[1] >= MIN_PERIODS \
-                and _share(f, chain[0], chain[0] + lag * chain[1]) >= MIN_ENERGY_SHARE:
+        if (
+            chain is not None
+            and chain[1] >= MIN_PERIODS
+            and _share(f, chain[0], chain[0] + lag * chain[1]) >= MIN_ENERGY_SHARE
+        ):
             found.append(PeriodLayout(lag, chain[0], chain[1], False, chain[2]))
     if not found:
         return "no period_samples declared and no period found in the force (no exact repetition)"
     best = min(found, key=lambda p: p.repeat_ratio)
     # a multiple of the period repeats as well as the period itself: prefer its divisor
-    divisors = [p for p in found if best.period % p.period == 0
-                and p.repeat_ratio <= 1.5 * best.repeat_ratio + 1e-15]
+    divisors = [p for p in found if best.period % p.period == 0 and p.repeat_ratio <= 1.5 * best.repeat_ratio + 1e-15]
     return min(divisors, key=lambda p: p.period)
 
 
@@ -238,12 +246,17 @@ def steady_periods(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE) -> tu
     x = np.asarray(x, float)
     x = x[:, None] if x.ndim == 1 else x
     N, P = layout.period, layout.n_periods
-    Y = x[layout.start:layout.stop].T.reshape(x.shape[1], P, N)
-    E = np.sum([np.sum(detrended_rows(np.diff(Yc, axis=0), detrend) ** 2, axis=1)
-                / max(float(np.sum(Yc ** 2)), 1e-300) for Yc in Y], axis=0)   # (P - 1,): pair j = j, j + 1
+    Y = x[layout.start : layout.stop].T.reshape(x.shape[1], P, N)
+    E = np.sum(
+        [
+            np.sum(detrended_rows(np.diff(Yc, axis=0), detrend) ** 2, axis=1) / max(float(np.sum(Yc**2)), 1e-300)
+            for Yc in Y
+        ],
+        axis=0,
+    )  # (P - 1,): pair j = j, j + 1
     first, last = 1, P
-    while last - first >= 3 and E[first] > TRANSIENT_RATIO * np.median(E[first + 1:last - 1]):
+    while last - first >= 3 and E[first] > TRANSIENT_RATIO * np.median(E[first + 1 : last - 1]):
         first += 1
-    while last - first >= 3 and E[last - 2] > TRANSIENT_RATIO * np.median(E[first:last - 2]):
+    while last - first >= 3 and E[last - 2] > TRANSIENT_RATIO * np.median(E[first : last - 2]):
         last -= 1
     return first, last

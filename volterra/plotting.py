@@ -2,6 +2,7 @@
 never calls ``plt.show()``).  Figures are built with ``matplotlib.figure.Figure``
 so they do not touch the pyplot state; save them with ``fig.savefig(...)`` or
 display them in a notebook."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -10,8 +11,9 @@ from matplotlib.figure import Figure
 __all__ = ["plot_components", "plot_h1", "plot_h2", "plot_stabilisation"]
 
 
-def plot_components(model, u, y=None, t=None, labels=("y1", "y2", "y3"), ylabel="output",
-                    title=None, figsize=(8, 6)) -> Figure:
+def plot_components(
+    model, u, y=None, t=None, labels=("y1", "y2", "y3"), ylabel="output", title=None, figsize=(8, 6)
+) -> Figure:
     """Components y1, y2, y3 of the response to ``u`` against time (as the
     paper's Fig. 6 and 12), one panel each; ``y`` (optional) is drawn in the
     first panel for comparison.  ``t`` [s] defaults to ``k / fs``."""
@@ -35,8 +37,7 @@ def plot_components(model, u, y=None, t=None, labels=("y1", "y2", "y3"), ylabel=
     return fig
 
 
-def plot_h1(model, f_hz=None, reference=None, reference_label="reference", title=None,
-            figsize=(7, 5)) -> Figure:
+def plot_h1(model, f_hz=None, reference=None, reference_label="reference", title=None, figsize=(7, 5)) -> Figure:
     """Magnitude and phase of H1(f).  ``f_hz`` defaults to 0 .. fs/2;
     ``reference`` (complex array on ``f_hz``) is drawn for comparison."""
     f = np.linspace(0, model.fs / 2, 2049)[1:] if f_hz is None else np.asarray(f_hz, float)
@@ -60,8 +61,7 @@ def plot_h1(model, f_hz=None, reference=None, reference_label="reference", title
     return fig
 
 
-def plot_h2(model, f_range=None, n_points: int = 161, kind: str = "surface", title=None,
-            figsize=(7, 6)) -> Figure:
+def plot_h2(model, f_range=None, n_points: int = 161, kind: str = "surface", title=None, figsize=(7, 6)) -> Figure:
     """``|H2(f1, f2)|`` over ``f_range`` x ``f_range`` [Hz] (default: -2 .. 2 x the
     order-2 pole frequency, so that the reliable (f, -f) region is visible), as
     a 3-D surface (``kind="surface"``) or a colour map (``kind="map"``).

@@ -25,6 +25,7 @@ a quarter of the half-power half-width (0.25 zeta fn) costs 13-17 % of H1 near
 resonance at J1 = 2, 2-2.5 % at J1 = 4 and 0.3-0.4 % at J1 = 8.  A refined
 pole from a low-level record is accurate enough for J1 = 2.
 """
+
 from __future__ import annotations
 
 import math
@@ -134,9 +135,17 @@ def _search_band(f_range, us, fs, nperseg):
     return lo, hi
 
 
-def pole_from_frf(u, y, fs: float, f_range=None, nperseg: int | None = None, window="hann",
-                  nfft: int | None = None, min_coherence: float = MIN_COHERENCE,
-                  return_details: bool = False):
+def pole_from_frf(
+    u,
+    y,
+    fs: float,
+    f_range=None,
+    nperseg: int | None = None,
+    window="hann",
+    nfft: int | None = None,
+    min_coherence: float = MIN_COHERENCE,
+    return_details: bool = False,
+):
     """Pole from the peak and half-power width of an averaged H1 FRF estimate.
 
     ``fn = f_peak``, ``zeta = (f_hi - f_lo) / (2 f_peak)`` where f_lo, f_hi are
@@ -173,8 +182,7 @@ def pole_from_frf(u, y, fs: float, f_range=None, nperseg: int | None = None, win
         (a noise spike), or it is at DC or Nyquist.
     """
     us, ys = _centred(u, y)
-    f, H, coh = estimate_h1(us, ys, fs, nperseg=nperseg, window=window, nfft=nfft,
-                            return_coherence=True)
+    f, H, coh = estimate_h1(us, ys, fs, nperseg=nperseg, window=window, nfft=nfft, return_coherence=True)
     lo, hi = _search_band(f_range, us, fs, nperseg)
     band = np.flatnonzero((f > lo) & (f <= hi) & np.isfinite(H))
     if band.size < 3:
@@ -232,9 +240,18 @@ def _at_bound(x, lo, hi, tol=5e-3):
     return None
 
 
-def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, orders=None,
-                xatol: float = 1e-7, maxiter: int = 400,
-                max_residual: float = MAX_RESIDUAL, feedthrough: bool = True) -> KautzPole:
+def refine_pole(
+    u,
+    y,
+    pole: KautzPole,
+    n_functions=(2,),
+    ridge: float = 0.0,
+    orders=None,
+    xatol: float = 1e-7,
+    maxiter: int = 400,
+    max_residual: float = MAX_RESIDUAL,
+    feedthrough: bool = True,
+) -> KautzPole:
     """Refine a (common) pole by minimising the relative fit residual.
 
     Bounded Nelder-Mead over ``(log f, log zeta)`` inside the neighbourhood
@@ -287,8 +304,13 @@ def refine_pole(u, y, pole: KautzPole, n_functions=(2,), ridge: float = 0.0, ord
 
     # first steps: half a half-power half-width in frequency, x1.35 in damping
     simplex = _initial_simplex(x0, bounds, (0.5 * pole.damping_ratio, 0.3))
-    res = minimize(cost, x0, method="Nelder-Mead", bounds=bounds,
-                   options=dict(initial_simplex=simplex, xatol=xatol, fatol=1e-12, maxiter=maxiter))
+    res = minimize(
+        cost,
+        x0,
+        method="Nelder-Mead",
+        bounds=bounds,
+        options=dict(initial_simplex=simplex, xatol=xatol, fatol=1e-12, maxiter=maxiter),
+    )
     x = res.x if np.isfinite(res.fun) and res.fun <= cost(x0) else x0
     refined = KautzPole.from_modal(math.exp(x[0]), math.exp(x[1]), fs)
     _check_refined(refined, pole, x, bounds, residual(x), max_residual, n_samples)
@@ -318,8 +340,7 @@ def _check_refined(refined, start, x, bounds, resid, max_residual, n_samples):
                 "and slow drifts in u and y, that the record is low-level, and that one mode "
                 "dominates the band."
             )
-    _check_usable(refined.freq_hz, refined.damping_ratio, refined.fs, n_samples,
-                  "refine_pole: the refined pole")
+    _check_usable(refined.freq_hz, refined.damping_ratio, refined.fs, n_samples, "refine_pole: the refined pole")
     if not resid <= max_residual:
         raise PoleEstimationError(
             f"refine_pole: the refined linear fit leaves {100 * resid:.3g} % of ||y|| unexplained "

@@ -22,6 +22,7 @@ a better pole: the modal poles are kept, and :func:`polish` says so.
 
 Frequencies Hz, damping ratios [-].
 """
+
 from __future__ import annotations
 
 import math
@@ -29,9 +30,9 @@ import math
 import numpy as np
 from scipy.optimize import least_squares
 
+from . import lsfd
 from .gobf import gobf_frequency_response
 from .kautz import KautzPole
-from . import lsfd
 
 __all__ = ["polish"]
 
@@ -61,7 +62,7 @@ def _residual(x, d: lsfd.FitLines, fs, feedthrough, norm):
     cols = gobf_frequency_response(modes, d.f, fs, feedthrough)
     if d.records:
         lam = lsfd.poles_from_modal(np.exp(x[:M]), np.exp(x[M:]))
-        extra = lsfd._columns(d, lam, ())[:, 2 * M:]              # the transient terms only
+        extra = lsfd._columns(d, lam, ())[:, 2 * M :]  # the transient terms only
         cols = np.hstack([cols, extra])
     _, r = lsfd._solve(cols, d.H, d.W)
     return np.concatenate([r.real.ravel(), r.imag.ravel()]) / norm
@@ -79,9 +80,17 @@ def polish(lines: lsfd.FitLines, poles, feedthrough: bool):
     d = lsfd.FitLines(lines.f, lines.H, lines.W / np.sqrt(energy)[None, :], lines.fs, lines.inv_u, lines.record)
     lo, hi = _box(poles)
     x0 = np.clip(np.log([p.freq_hz for p in poles] + [p.damping_ratio for p in poles]), lo + 1e-9, hi - 1e-9)
-    res = least_squares(_residual, x0, bounds=(lo, hi), args=(d, fs, feedthrough, 1.0),
-                        x_scale=np.full(x0.size, 1e-3), xtol=1e-10, ftol=1e-12, gtol=1e-12,
-                        max_nfev=100 * x0.size)
+    res = least_squares(
+        _residual,
+        x0,
+        bounds=(lo, hi),
+        args=(d, fs, feedthrough, 1.0),
+        x_scale=np.full(x0.size, 1e-3),
+        xtol=1e-10,
+        ftol=1e-12,
+        gtol=1e-12,
+        max_nfev=100 * x0.size,
+    )
     x = res.x
     if np.any(np.minimum(x - lo, hi - x) <= 5e-3 * (hi - lo)):
         return poles, False

@@ -7,6 +7,7 @@ once; each new output is then two small matrix-vector products instead of a
 full least-squares fit (about 50 us instead of 2-3 ms for 4096 samples and
 61 regressors).
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,8 +40,7 @@ class VolterraProjector:
         Fit the zeroth-order term h0, as in ``fit_volterra`` (default True).
     """
 
-    def __init__(self, u, basis: KautzBasis, ridge: float = 0.0, rcond: float = 1e-12,
-                 fit_h0: bool = True):
+    def __init__(self, u, basis: KautzBasis, ridge: float = 0.0, rcond: float = 1e-12, fit_h0: bool = True):
         if not isinstance(basis, KautzBasis):
             raise ValueError(f"basis must be a KautzBasis, got {type(basis).__name__}")
         u = np.asarray(u, dtype=float)
@@ -54,18 +54,18 @@ class VolterraProjector:
         P = basis.n_params
         if u.size <= P + fit_h0:
             raise ValueError(f"too few samples: {u.size} sample(s) for {P} regressors")
-        GT = basis.regressor_rows(u)                     # (P, N)
+        GT = basis.regressor_rows(u)  # (P, N)
         scale = np.sqrt(np.einsum("ij,ij->i", GT, GT))
         if not np.all(scale > 0):
             raise ValueError("some regressor columns are identically zero: u does not excite the basis")
-        Gs = (GT / scale[:, None]).T                     # column-normalised (N, P)
+        Gs = (GT / scale[:, None]).T  # column-normalised (N, P)
         mean_s = Gs.mean(axis=0) if fit_h0 else np.zeros(P)
-        Q, R = np.linalg.qr(Gs - mean_s)                 # centred columns: h0 drops out
+        Q, R = np.linalg.qr(Gs - mean_s)  # centred columns: h0 drops out
         U, s, Vt = np.linalg.svd(R)
         keep = s > rcond * s[0]
         filt = np.where(keep, s / np.where(keep, s * s + ridge, 1.0), 0.0)
         # theta_s = solve @ (y - mean y); component n = Gs_n @ (theta_s)_n; h0 = mean y - mean_s . theta_s
-        self._solve_s = (Vt.T * filt) @ U.T @ Q.T        # (P, N): centred y -> scaled coefficients
+        self._solve_s = (Vt.T * filt) @ U.T @ Q.T  # (P, N): centred y -> scaled coefficients
         self._Gs = Gs
         self._mean_s = mean_s
         self._scale = scale

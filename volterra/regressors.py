@@ -11,17 +11,17 @@ giving ``comb(J_n + n - 1, n)`` columns per order: J1 + J2 (J2+1)/2 +
 J3 (J3+1)(J3+2)/6 in all.  Columns are ordered by order, then
 lexicographically by index tuple (``itertools.combinations_with_replacement``).
 """
+
 from __future__ import annotations
 
+import math
 from collections import Counter
 from functools import lru_cache
 from itertools import combinations_with_replacement
-import math
 
 import numpy as np
 
-__all__ = ["index_tuples", "multiplicity", "n_terms", "regressor_block", "regressor_matrix",
-           "regressor_rows"]
+__all__ = ["index_tuples", "multiplicity", "n_terms", "regressor_block", "regressor_matrix", "regressor_rows"]
 
 
 @lru_cache(maxsize=None)
@@ -90,7 +90,7 @@ def _block_rows(LT: np.ndarray, order: int, out: np.ndarray) -> None:
             p = p * LT[i]
         last = int(prefix[-1])
         n = J - last
-        np.multiply(p, LT[last:], out=out[k:k + n])
+        np.multiply(p, LT[last:], out=out[k : k + n])
         k += n
 
 
@@ -108,6 +108,6 @@ def regressor_rows(filtered_rows: dict, orders, out: np.ndarray | None = None) -
     k = 0
     for n in orders:
         p = n_terms(n, filtered_rows[n].shape[0])
-        _block_rows(filtered_rows[n], n, out[k:k + p])
+        _block_rows(filtered_rows[n], n, out[k : k + p])
         k += p
     return out

@@ -18,6 +18,7 @@ discrete record read as continuous) is not a mode.
 
 Frequencies Hz, damping ratios [-].
 """
+
 from __future__ import annotations
 
 import math
@@ -28,8 +29,19 @@ from scipy.ndimage import median_filter, uniform_filter1d
 
 from . import lsfd
 
-__all__ = ["PoleEstimationError", "MIN_SIGNIFICANCE", "weights", "inside", "select", "refine_modes",
-           "residual_peak", "relative_residual", "energies", "fit_lines", "peak_mode"]
+__all__ = [
+    "PoleEstimationError",
+    "MIN_SIGNIFICANCE",
+    "weights",
+    "inside",
+    "select",
+    "refine_modes",
+    "residual_peak",
+    "relative_residual",
+    "energies",
+    "fit_lines",
+    "peak_mode",
+]
 
 #: Default smallest significance of a mode (chi-square rise) ...
 MIN_SIGNIFICANCE = 25.0
@@ -74,8 +86,7 @@ def inside(f, z, band, spacing):
     """The half-power band of (f, z) holds a line at least (a narrower peak is one
     line's chance, not a mode the record resolves) and lies inside ``band`` with
     two lines to spare."""
-    return (2 * z * f >= spacing and f * (1 - z) - 2 * spacing >= band[0]
-            and f * (1 + z) + 2 * spacing <= band[1])
+    return 2 * z * f >= spacing and f * (1 - z) - 2 * spacing >= band[0] and f * (1 + z) + 2 * spacing <= band[1]
 
 
 def fit_lines(f, modes, spacing):
@@ -118,8 +129,10 @@ def select(d, modes, pseudo, fixed, min_significance, spacing, correlated=1):
         sig, resid = lsfd.significance(d, modes, pseudo)
         if fixed:
             return modes, sig
-        ratio = [s / threshold(S, local_level(d.f, resid, fr, ze, spacing), min_significance, correlated)
-                 for s, (fr, ze) in zip(sig, modes)]
+        ratio = [
+            s / threshold(S, local_level(d.f, resid, fr, ze, spacing), min_significance, correlated)
+            for s, (fr, ze) in zip(sig, modes)
+        ]
         drop = int(np.argmin(ratio))
         if ratio[drop] >= 1.0:
             return modes, sig
@@ -197,7 +210,7 @@ def residual_peak(d, modes, pseudo, band, spacing, min_significance, exclude=(),
     b = k
     while b < f.size - 1 and es[b + 1] > half and free[b + 1]:
         b += 1
-    excess = float(np.sum(e[a:b + 1] - level))
+    excess = float(np.sum(e[a : b + 1] - level))
     S = d.H.shape[1]
     if excess < threshold(S, max(1.0, level / (stats.chi2.median(2 * S) / 2)), min_significance, correlated):
         return None
@@ -232,4 +245,3 @@ def peak_mode(f, H):
     if lo is None or hi is None:
         return None
     return float(f[i]), float(min(max((f[hi] - f[lo]) / (2 * f[i]), 1e-4), 0.3))
-

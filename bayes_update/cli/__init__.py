@@ -6,6 +6,7 @@ Commands for any model (:mod:`.commands`): ``calibrate``, ``sample``,
 fix is reported in one line with exit status 2; Ctrl-C ends a command with
 status 130 and leaves OUT as it was (:mod:`bayes_update.reports.outputs`).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,9 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="bayes-update",
         description="Probabilistic updating of nonlinear structural models with Volterra series "
-                    "(after Bussetta, Shiki and da Silva, 2017): calibrate, sample the posterior of, and "
-                    "find what is missing in a model of your own (--model path.py:NAME) or the paper's "
-                    "preloaded beam (--model fe|rom) against a data set of vibration tests.")
+        "(after Bussetta, Shiki and da Silva, 2017): calibrate, sample the posterior of, and "
+        "find what is missing in a model of your own (--model path.py:NAME) or the paper's "
+        "preloaded beam (--model fe|rom) against a data set of vibration tests.",
+    )
     parser.add_argument("--version", action="version", version=f"bayes-update {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="command")
     commands.add_commands(sub)
@@ -69,7 +71,7 @@ def _run_staged(args) -> int:
     of model runs is OUT/cache."""
     from bayes_update.reports.outputs import staged_output
 
-    if getattr(args, "out", None) is None:          # a command that writes no folder (cache)
+    if getattr(args, "out", None) is None:  # a command that writes no folder (cache)
         return args.func(args)
     args.final_out = Path(args.out)
     args.cache_dir = args.final_out / "cache"
@@ -84,12 +86,16 @@ def _resume_hint(args) -> str:
         return "nothing was written"
     if args.command in _RESUMABLE and not getattr(args, "no_cache", False):
         if args.command == "reproduce":
-            return (f"nothing in {out} was changed except {out / 'cache'}, which keeps the model runs "
-                    "finished so far: rerun the same command to resume")
+            return (
+                f"nothing in {out} was changed except {out / 'cache'}, which keeps the model runs "
+                "finished so far: rerun the same command to resume"
+            )
         from bayes_update.cli.options import run_cache
 
         # the beam's calibrate is the paper's grids, which keep no runs
         if args.command == "sample" or getattr(args, "model", None) not in beam_cli.BEAM_MODELS:
-            return (f"nothing in {out} was changed; the model runs finished so far are kept in {run_cache(args)}: "
-                    "rerun the same command to resume")
+            return (
+                f"nothing in {out} was changed; the model runs finished so far are kept in {run_cache(args)}: "
+                "rerun the same command to resume"
+            )
     return f"nothing in {out} was changed; rerun the same command to start again"

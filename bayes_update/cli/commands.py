@@ -5,6 +5,7 @@
 the command's defaults (``--quick``: small ones), then ``--config FILE.toml``,
 then the options on the command line.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -14,22 +15,35 @@ import sys
 from pathlib import Path
 
 from bayes_update.cli import beam as beam_cli
-from bayes_update.cli.options import (add_cache, add_common, add_data_out, add_metrics, add_model,
-                                      add_posterior_options, add_scheduler, read_config, run_cache, settings_from)
+from bayes_update.cli.options import (
+    add_cache,
+    add_common,
+    add_data_out,
+    add_metrics,
+    add_model,
+    add_posterior_options,
+    add_scheduler,
+    read_config,
+    run_cache,
+    settings_from,
+)
 from bayes_update.data.folder import read_dataset
 
 __all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_inspect", "cmd_sample"]
 
 
 def add_commands(sub) -> None:
-    p = sub.add_parser("calibrate", help="two-stage deterministic calibration of a model on a data set",
-                       description="Your own model (--model path.py:NAME): a sensitivity screen picks the "
-                                   "parameters the linear test moves, stage 1 fits them on e_lin, stage 2 "
-                                   "fits all on both tests (least squares from Sobol' starts); "
-                                   "calibration.json holds one key per parameter (its unit), e_lin, e_nlin "
-                                   "and the prediction error on each validation test. The beam (--model "
-                                   "fe|rom): the paper's section 4 on grids, Tables 1-3 with figures. "
-                                   "Without --data: the beam's embedded default data set.")
+    p = sub.add_parser(
+        "calibrate",
+        help="two-stage deterministic calibration of a model on a data set",
+        description="Your own model (--model path.py:NAME): a sensitivity screen picks the "
+        "parameters the linear test moves, stage 1 fits them on e_lin, stage 2 "
+        "fits all on both tests (least squares from Sobol' starts); "
+        "calibration.json holds one key per parameter (its unit), e_lin, e_nlin "
+        "and the prediction error on each validation test. The beam (--model "
+        "fe|rom): the paper's section 4 on grids, Tables 1-3 with figures. "
+        "Without --data: the beam's embedded default data set.",
+    )
     add_data_out(p)
     p.add_argument("--quick", action="store_true", help="small designs or coarse grids (a first look, or CI)")
     add_model(p)
@@ -40,20 +54,29 @@ def add_commands(sub) -> None:
     add_scheduler(p)
     p.set_defaults(func=cmd_calibrate)
 
-    p = sub.add_parser("sample", help="the posterior of a model's parameters (GP surrogate + emcee, or direct)",
-                       description="Bayesian updating on a data set: the likelihood from the Volterra metrics "
-                                   "of the 'linear' and 'nonlinear' tests with noise and model-error scales "
-                                   "measured at the start, the model's declared uniform prior (--prior to "
-                                   "change it), Gaussian-process surrogates refined where the posterior is, "
-                                   "emcee. Writes posterior.nc (ArviZ), posterior_summary.json, run.json "
-                                   "and figures. Without --data: the beam's embedded default data set.")
+    p = sub.add_parser(
+        "sample",
+        help="the posterior of a model's parameters (GP surrogate + emcee, or direct)",
+        description="Bayesian updating on a data set: the likelihood from the Volterra metrics "
+        "of the 'linear' and 'nonlinear' tests with noise and model-error scales "
+        "measured at the start, the model's declared uniform prior (--prior to "
+        "change it), Gaussian-process surrogates refined where the posterior is, "
+        "emcee. Writes posterior.nc (ArviZ), posterior_summary.json, run.json "
+        "and figures. Without --data: the beam's embedded default data set.",
+    )
     add_data_out(p)
-    p.add_argument("--direct", action="store_true",
-                   help="sample on the model itself, no surrogate (for a model of a few ms per run)")
+    p.add_argument(
+        "--direct",
+        action="store_true",
+        help="sample on the model itself, no surrogate (for a model of a few ms per run)",
+    )
     p.add_argument("--quick", action="store_true", help="small designs and chains (a first look, or CI)")
-    p.add_argument("--thorough", action="store_true",
-                   help="the former sizes, some 1200-1400 model runs instead of 230-300 "
-                        "(PosteriorSettings.thorough: a reference for the default's)")
+    p.add_argument(
+        "--thorough",
+        action="store_true",
+        help="the former sizes, some 1200-1400 model runs instead of 230-300 "
+        "(PosteriorSettings.thorough: a reference for the default's)",
+    )
     add_cache(p)
     add_model(p)
     add_metrics(p)
@@ -63,42 +86,61 @@ def add_commands(sub) -> None:
     add_scheduler(p)
     p.set_defaults(func=cmd_sample)
 
-    p = sub.add_parser("inspect", help="a first look at a data set, no model needed",
-                       description="The noise of every channel of every test and how it was found, the "
-                                   "excited band, the modes of the linear test, how each mode's frequency and "
-                                   "damping move with the level, and warnings (offsets, drift, clipping, "
-                                   "coherence). Writes inspection.json and figures (FRF per sensor by level "
-                                   "with coherence, noise spectra against the response, the modes' level "
-                                   "dependence). Without --data: the beam's embedded default data set.")
+    p = sub.add_parser(
+        "inspect",
+        help="a first look at a data set, no model needed",
+        description="The noise of every channel of every test and how it was found, the "
+        "excited band, the modes of the linear test, how each mode's frequency and "
+        "damping move with the level, and warnings (offsets, drift, clipping, "
+        "coherence). Writes inspection.json and figures (FRF per sensor by level "
+        "with coherence, noise spectra against the response, the modes' level "
+        "dependence). Without --data: the beam's embedded default data set.",
+    )
     add_data_out(p)
     add_common(p, seed=False)
     p.set_defaults(func=cmd_inspect)
 
-    p = sub.add_parser("cache", help="what the run cache holds; --clear to free it",
-                       description="The folder of kept model runs (--cache DIR, else $BAYES_UPDATE_CACHE, else "
-                                   "~/.cache/bayes-update), how many runs of how many models, and their size. "
-                                   "With --clear, delete them (all, or with --older-than DAYS those last written "
-                                   "before); a command run afterwards makes its runs again.")
+    p = sub.add_parser(
+        "cache",
+        help="what the run cache holds; --clear to free it",
+        description="The folder of kept model runs (--cache DIR, else $BAYES_UPDATE_CACHE, else "
+        "~/.cache/bayes-update), how many runs of how many models, and their size. "
+        "With --clear, delete them (all, or with --older-than DAYS those last written "
+        "before); a command run afterwards makes its runs again.",
+    )
     p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="the cache folder (default: as above)")
     p.add_argument("--clear", action="store_true", help="delete the kept runs")
-    p.add_argument("--older-than", type=float, default=None, metavar="DAYS",
-                   help="with --clear: only the runs last written more than DAYS days ago")
+    p.add_argument(
+        "--older-than",
+        type=float,
+        default=None,
+        metavar="DAYS",
+        help="with --clear: only the runs last written more than DAYS days ago",
+    )
     p.set_defaults(func=cmd_cache)
 
-    p = sub.add_parser("discrepancy", help="find the effect the model misses, add it, show the gap shrink",
-                       description="After the baseline update, each effect the model offers "
-                                   "(candidate_effects(); the beam's: initial_imperfection, "
-                                   "amplitude_dependent_damping, shaker_attachment, clamp_compliance) is "
-                                   "fitted with its own parameters and ranked by Laplace evidence; one is "
-                                   "named only when 2 ln B > 6, its parameter excludes 'no effect' and it "
-                                   "predicts the validation tests better; then re-update, and the gap that "
-                                   "remains, in numbers. Writes "
-                                   "discrepancy.json, evidence.md and figures. Without --data: the beam's "
-                                   "embedded default data set.")
+    p = sub.add_parser(
+        "discrepancy",
+        help="find the effect the model misses, add it, show the gap shrink",
+        description="After the baseline update, each effect the model offers "
+        "(candidate_effects(); the beam's: initial_imperfection, "
+        "amplitude_dependent_damping, shaker_attachment, clamp_compliance) is "
+        "fitted with its own parameters and ranked by Laplace evidence; one is "
+        "named only when 2 ln B > 6, its parameter excludes 'no effect' and it "
+        "predicts the validation tests better; then re-update, and the gap that "
+        "remains, in numbers. Writes "
+        "discrepancy.json, evidence.md and figures. Without --data: the beam's "
+        "embedded default data set.",
+    )
     add_data_out(p)
     p.add_argument("--quick", action="store_true", help="fewer noise replicates and iterations (CI)")
-    p.add_argument("--candidates", nargs="+", default=None, metavar="NAME",
-                   help="restrict the candidates (default: all the model offers)")
+    p.add_argument(
+        "--candidates",
+        nargs="+",
+        default=None,
+        metavar="NAME",
+        help="restrict the candidates (default: all the model offers)",
+    )
     add_model(p)
     add_metrics(p)
     beam_cli.add_model_options(p)
@@ -210,7 +252,7 @@ def _check_scheduler(args) -> None:
     scheme, sep, rest = address.rpartition("://")
     if sep and scheme not in ("tcp", "tls"):
         return
-    if rest.startswith("["):                               # [IPv6]:port
+    if rest.startswith("["):  # [IPv6]:port
         host, _, tail = rest[1:].partition("]")
         port = tail[1:] if tail.startswith(":") else ""
     else:
@@ -220,8 +262,10 @@ def _check_scheduler(args) -> None:
     try:
         socket.create_connection((host, int(port or DASK_PORT)), timeout=SCHEDULER_TIMEOUT).close()
     except OSError as exc:
-        raise ValueError(f"--scheduler {address}: no Dask scheduler answers there ({exc.strerror or exc}); start "
-                         "one (`dask scheduler`) or check the address and port") from None
+        raise ValueError(
+            f"--scheduler {address}: no Dask scheduler answers there ({exc.strerror or exc}); start "
+            "one (`dask scheduler`) or check the address and port"
+        ) from None
 
 
 @contextlib.contextmanager
@@ -240,8 +284,7 @@ def _executor(args):
         raise ValueError(f"--scheduler {args.scheduler}: no Dask scheduler answers there ({exc})") from None
     try:
         workers = len(client.scheduler_info().get("workers", {}))
-        print(f"bayes-update: model runs on the Dask cluster at {args.scheduler} ({workers} workers)",
-              file=sys.stderr)
+        print(f"bayes-update: model runs on the Dask cluster at {args.scheduler} ({workers} workers)", file=sys.stderr)
         where = str(getattr(args, "model", "")).rpartition(":")[0]
         if where.endswith(".py"):
             # a model file of the user's: the workers import it by its name, as local processes
@@ -261,15 +304,20 @@ def cmd_calibrate(args) -> int:
         from bayes_update.models.beam.calibrate import CalibrationSettings
 
         if args.metrics not in (None, "paper"):
-            raise ValueError("--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
-                             "use `sample --metrics full` for the beam under the full set")
+            raise ValueError(
+                "--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
+                "use `sample --metrics full` for the beam under the full set"
+            )
         settings = settings_from(CalibrationSettings, args.quick, config)
     else:
         from bayes_update.core.calibrate import check_settings
 
-        options = {"n_start": 16 if args.quick else 64, "seed": 0,
-                   **check_settings(config, f"--config {args.config}: [calibrate]"),
-                   **({"seed": args.seed} if args.seed is not None else {})}
+        options = {
+            "n_start": 16 if args.quick else 64,
+            "seed": 0,
+            **check_settings(config, f"--config {args.config}: [calibrate]"),
+            **({"seed": args.seed} if args.seed is not None else {}),
+        }
     _check_scheduler(args)
     model, data, space, _ = _model_and_data(args)
     _check_first(data, model, space)
@@ -287,8 +335,16 @@ def cmd_calibrate(args) -> int:
         from bayes_update.reports.calibration import format_calibration, write_calibration
 
         with _executor(args) as pool:
-            cal = calibrate_model(data, model, metrics=args.metrics or "full", space=space, workers=workers,
-                                  executor=pool, cache_dir=run_cache(args), **options)
+            cal = calibrate_model(
+                data,
+                model,
+                metrics=args.metrics or "full",
+                space=space,
+                workers=workers,
+                executor=pool,
+                cache_dir=run_cache(args),
+                **options,
+            )
         write_calibration(cal, args.out, sensors=data.sensors)
         print(format_calibration(cal))
     print(f"wrote {args.final_out}")
@@ -305,32 +361,55 @@ def cmd_sample(args) -> int:
     if args.thorough and args.quick:
         raise ValueError("--thorough and --quick: choose one")
     config = {**(THOROUGH if args.thorough else {}), **read_config(args.config, "sample")}
-    settings = settings_from(PosteriorSettings, args.quick, config, seed=args.seed,
-                             n_predictive=args.predictive, n_global=args.sensitivity,
-                             **{("direct_walkers" if args.direct else "n_walkers"): args.walkers,
-                                ("direct_steps" if args.direct else "n_steps"): args.steps})
+    settings = settings_from(
+        PosteriorSettings,
+        args.quick,
+        config,
+        seed=args.seed,
+        n_predictive=args.predictive,
+        n_global=args.sensitivity,
+        **{
+            ("direct_walkers" if args.direct else "n_walkers"): args.walkers,
+            ("direct_steps" if args.direct else "n_steps"): args.steps,
+        },
+    )
     if args.direct and args.model == "fe":
-        print("bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
-              "evaluation (a few hours); --model rom is the intended use", file=sys.stderr)
+        print(
+            "bayes-update sample: note: --direct on the full FE costs ~0.1 s per likelihood "
+            "evaluation (a few hours); --model rom is the intended use",
+            file=sys.stderr,
+        )
     _check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     _check_first(data, model, space)
     _first_look(data, args.out)
     with _executor(args) as pool:
-        res = sample(data, model, settings, workers=workers, direct=args.direct, space=space, executor=pool,
-                     cache_dir=run_cache(args), metrics=args.metrics)
+        res = sample(
+            data,
+            model,
+            settings,
+            workers=workers,
+            direct=args.direct,
+            space=space,
+            executor=pool,
+            cache_dir=run_cache(args),
+            metrics=args.metrics,
+        )
     if truth is not None and args.model not in beam_cli.BEAM_MODELS:
         # the data set's own block: drawn only where it names the model's parameters in their units
         from bayes_update.reports.posterior import truth_in_model_units
 
         truth = truth_in_model_units(truth, res.space.report_units)
-    elif truth is not None:          # the beam's, already in the model's (paper) units
-        truth = {k: float(v) for k, v in truth.items()
-                 if k in res.space.report_units and isinstance(v, (int, float))} or None
+    elif truth is not None:  # the beam's, already in the model's (paper) units
+        truth = {
+            k: float(v) for k, v in truth.items() if k in res.space.report_units and isinstance(v, (int, float))
+        } or None
     write_posterior(res, args.out, truth=truth)
     print(res.summary_table())
-    print(f"{res.n_model_runs['total']} model runs ({sum(res.n_model_runs_reused.values())} of them found in "
-          f"{run_cache(args) or 'no cache'}), {res.timing['total']:.0f} s; wrote {args.final_out}")
+    print(
+        f"{res.n_model_runs['total']} model runs ({sum(res.n_model_runs_reused.values())} of them found in "
+        f"{run_cache(args) or 'no cache'}), {res.timing['total']:.0f} s; wrote {args.final_out}"
+    )
     return 0
 
 
@@ -341,16 +420,23 @@ def cmd_discrepancy(args) -> int:
     # every check before the first long step; find_discrepancy's own first (the model's contract and
     # candidate effects, the data set's roles, one run) comes before its long ones
     workers = _workers(args)
-    settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"),
-                             seed=args.seed)
+    settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"), seed=args.seed)
     _check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     if args.model in beam_cli.BEAM_MODELS:
         hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
         truth = {"parameters": truth, "effects": hidden} if truth else None
     with _executor(args) as pool:
-        res = find_discrepancy(data, model, settings=settings, workers=workers, candidates=args.candidates,
-                               metrics=args.metrics, space=space, executor=pool)
+        res = find_discrepancy(
+            data,
+            model,
+            settings=settings,
+            workers=workers,
+            candidates=args.candidates,
+            metrics=args.metrics,
+            space=space,
+            executor=pool,
+        )
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")
@@ -384,12 +470,16 @@ def cmd_inspect(args) -> int:
     paths = write_inspection(data, args.out)
     doc = json.loads(paths["inspection.json"].read_text())
     for name, t in doc["tests"].items():
-        noise = ", ".join(f"{ch} {v['sd']:.3g} ({v['method']})" if v["sd"] is not None else f"{ch} unknown"
-                          for ch, v in t["noise"].items())
+        noise = ", ".join(
+            f"{ch} {v['sd']:.3g} ({v['method']})" if v["sd"] is not None else f"{ch} unknown"
+            for ch, v in t["noise"].items()
+        )
         band = t.get("excited_band_hz")
         print(f"{name}: band {band[0]:.1f}-{band[1]:.1f} Hz; noise sd: {noise}" if band else f"{name}: {noise}")
-    print("modes of the linear test: " + (", ".join(f"{m['freq_hz']:.3f} Hz (zeta {m['damping_ratio']:.4f})"
-                                                  for m in doc["modes"]) or "none found"))
+    print(
+        "modes of the linear test: "
+        + (", ".join(f"{m['freq_hz']:.3f} Hz (zeta {m['damping_ratio']:.4f})" for m in doc["modes"]) or "none found")
+    )
     for w in doc["warnings"]:
         print(f"WARNING: {w}")
     print(f"wrote {args.final_out}")

@@ -1,4 +1,5 @@
 """Options every command shares, the settings file (``--config``) and the log setup."""
+
 from __future__ import annotations
 
 import argparse
@@ -6,25 +7,44 @@ import logging
 import sys
 from pathlib import Path
 
-__all__ = ["add_common", "add_data_out", "add_metrics", "add_model", "add_posterior_options", "configure_logging",
-           "add_scheduler", "read_config", "settings_from", "settings_replaced"]
+__all__ = [
+    "add_common",
+    "add_data_out",
+    "add_metrics",
+    "add_model",
+    "add_posterior_options",
+    "configure_logging",
+    "add_scheduler",
+    "read_config",
+    "settings_from",
+    "settings_replaced",
+]
 
 
 def add_data_out(p: argparse.ArgumentParser, out_required: bool = True) -> None:
-    p.add_argument("--data", type=Path, default=None,
-                   help="data-set folder (dataset.json + one CSV per test; docs/data_format.md); "
-                        "default: the beam's embedded data set")
+    p.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="data-set folder (dataset.json + one CSV per test; docs/data_format.md); "
+        "default: the beam's embedded data set",
+    )
     p.add_argument("--out", type=Path, required=out_required, help="output folder")
 
 
 def add_cache(p: argparse.ArgumentParser) -> None:
     """--cache DIR and --no-cache: where the command keeps its model runs (every command
     given the same folder shares them: bayes_update.core.runs)."""
-    p.add_argument("--cache", type=Path, default=None, metavar="DIR",
-                   help="folder of the run cache (default: $BAYES_UPDATE_CACHE, else ~/.cache/bayes-update): "
-                        "every model run is kept there as it ends, so that the same command run again, "
-                        "interrupted or not, makes none of them again, and sample after calibrate on the "
-                        "same data and model starts from calibrate's runs")
+    p.add_argument(
+        "--cache",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder of the run cache (default: $BAYES_UPDATE_CACHE, else ~/.cache/bayes-update): "
+        "every model run is kept there as it ends, so that the same command run again, "
+        "interrupted or not, makes none of them again, and sample after calibrate on the "
+        "same data and model starts from calibrate's runs",
+    )
     p.add_argument("--no-cache", action="store_true", help="keep no model run on disk (none is reused)")
 
 
@@ -39,14 +59,20 @@ def run_cache(args):
 
 def add_common(p: argparse.ArgumentParser, seed: bool = True) -> None:
     """--workers, --seed, --config and the log options."""
-    p.add_argument("--workers", type=int, default=None,
-                   help="processes for the model runs (default: all cores; 1 = serial)")
+    p.add_argument(
+        "--workers", type=int, default=None, help="processes for the model runs (default: all cores; 1 = serial)"
+    )
     if seed:
         p.add_argument("--seed", type=int, default=None, help="seed of every random choice (default 0)")
-    p.add_argument("--config", type=Path, default=None, metavar="FILE.toml",
-                   help="settings file: a [calibrate], [sample] or [discrepancy] table whose keys are the "
-                        "command's settings (e.g. [sample] n_walkers = 48, n_steps = 20000); options on the "
-                        "command line win")
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE.toml",
+        help="settings file: a [calibrate], [sample] or [discrepancy] table whose keys are the "
+        "command's settings (e.g. [sample] n_walkers = 48, n_steps = 20000); options on the "
+        "command line win",
+    )
     g = p.add_mutually_exclusive_group()
     g.add_argument("--quiet", "-q", action="store_true", help="warnings and errors only")
     g.add_argument("--verbose", "-v", action="store_true", help="debug messages too")
@@ -55,40 +81,75 @@ def add_common(p: argparse.ArgumentParser, seed: bool = True) -> None:
 
 def add_scheduler(p: argparse.ArgumentParser) -> None:
     """--scheduler: the model runs on a Dask cluster."""
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="a Dask scheduler (e.g. tcp://10.0.0.5:8786): the model runs go to its workers "
-                        "instead of local processes (--workers is then ignored); needs dask[distributed]")
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="a Dask scheduler (e.g. tcp://10.0.0.5:8786): the model runs go to its workers "
+        "instead of local processes (--workers is then ignored); needs dask[distributed]",
+    )
 
 
 def add_model(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--model", default="fe", metavar="SPEC",
-                   help="the model to update: path/to/file.py:NAME or package.module:NAME (a class or "
-                        "zero-argument factory with `parameters` and `simulate(theta, force, fs)`; "
-                        "docs/models.md), or the beam: fe (its full FE model, the default) or rom (its "
-                        "modal reduced-order model, ~1 ms per run)")
-    p.add_argument("--prior", action="append", default=[], metavar="NAME=LO:HI",
-                   help="change one parameter's prior range, in the unit the model declares for it "
-                        "(the beam: eta MPa s, c N s/mm, F N, k_s N/mm), e.g. --prior F=20:95; repeatable")
+    p.add_argument(
+        "--model",
+        default="fe",
+        metavar="SPEC",
+        help="the model to update: path/to/file.py:NAME or package.module:NAME (a class or "
+        "zero-argument factory with `parameters` and `simulate(theta, force, fs)`; "
+        "docs/models.md), or the beam: fe (its full FE model, the default) or rom (its "
+        "modal reduced-order model, ~1 ms per run)",
+    )
+    p.add_argument(
+        "--prior",
+        action="append",
+        default=[],
+        metavar="NAME=LO:HI",
+        help="change one parameter's prior range, in the unit the model declares for it "
+        "(the beam: eta MPa s, c N s/mm, F N, k_s N/mm), e.g. --prior F=20:95; repeatable",
+    )
 
 
 def add_metrics(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--metrics", choices=("paper", "full"), default=None,
-                   help="metric set: paper (e_lin on y1 of the linear test, e_nlin on y2 + y3 of the "
-                        "nonlinear one; the beam's default) or full (the whole projection of each test, "
-                        "weighted by its noise; the default for any other model)")
+    p.add_argument(
+        "--metrics",
+        choices=("paper", "full"),
+        default=None,
+        help="metric set: paper (e_lin on y1 of the linear test, e_nlin on y2 + y3 of the "
+        "nonlinear one; the beam's default) or full (the whole projection of each test, "
+        "weighted by its noise; the default for any other model)",
+    )
 
 
 def add_posterior_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--walkers", type=int, default=None, help="emcee walkers (PosteriorSettings.n_walkers; direct_walkers with --direct)")
-    p.add_argument("--steps", type=int, default=None,
-                   help="emcee steps per walker on the surrogate (PosteriorSettings.n_steps; "
-                        "direct_steps with --direct)")
-    p.add_argument("--predictive", type=int, default=None, metavar="N",
-                   help="model runs at N posterior draws: predictive bands and the surrogate's check "
-                        "(PosteriorSettings.n_predictive; default 0, 32 is a good size)")
-    p.add_argument("--sensitivity", type=int, default=None, metavar="N",
-                   help="global Sobol' indices from a GP on N model runs over the prior box "
-                        "(PosteriorSettings.n_global; default 0, 128 is a good size)")
+    p.add_argument(
+        "--walkers",
+        type=int,
+        default=None,
+        help="emcee walkers (PosteriorSettings.n_walkers; direct_walkers with --direct)",
+    )
+    p.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="emcee steps per walker on the surrogate (PosteriorSettings.n_steps; direct_steps with --direct)",
+    )
+    p.add_argument(
+        "--predictive",
+        type=int,
+        default=None,
+        metavar="N",
+        help="model runs at N posterior draws: predictive bands and the surrogate's check "
+        "(PosteriorSettings.n_predictive; default 0, 32 is a good size)",
+    )
+    p.add_argument(
+        "--sensitivity",
+        type=int,
+        default=None,
+        metavar="N",
+        help="global Sobol' indices from a GP on N model runs over the prior box "
+        "(PosteriorSettings.n_global; default 0, 128 is a good size)",
+    )
 
 
 def read_config(path: Path | None, section: str) -> dict:
@@ -142,8 +203,13 @@ def configure_logging(args) -> None:
     log = logging.getLogger("bayes_update")
     for h in list(log.handlers):
         log.removeHandler(h)
-    level = (logging.WARNING if getattr(args, "quiet", False) else
-             logging.DEBUG if getattr(args, "verbose", False) else logging.INFO)
+    level = (
+        logging.WARNING
+        if getattr(args, "quiet", False)
+        else logging.DEBUG
+        if getattr(args, "verbose", False)
+        else logging.INFO
+    )
     log.setLevel(level)
     log.propagate = False
     console = logging.StreamHandler(sys.stderr)

@@ -2,6 +2,7 @@
 curvature at the mode set to the inverse of the sandwich covariance built
 from the noise replicates of :func:`bayes_update.core.likelihood.estimate_likelihood`
 (docs/likelihood.md, "Curvature adjustment")."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -33,9 +34,9 @@ class CurvatureAdjustment:
     center: np.ndarray
     A: np.ndarray
     variance_ratios: np.ndarray
-    sd_ratios: np.ndarray       # per coordinate: adjusted / unadjusted Laplace sd
-    names: tuple = ()           # the coordinates' names
-    between_tests: dict | None = None   # where the tests disagree: between_test_covariance's record
+    sd_ratios: np.ndarray  # per coordinate: adjusted / unadjusted Laplace sd
+    names: tuple = ()  # the coordinates' names
+    between_tests: dict | None = None  # where the tests disagree: between_test_covariance's record
     #: where the tests disagree: maps a draw's offset from the centre to the offset it would have
     #: in the posterior without their disagreement (the uncertainty within one test)
     within: np.ndarray | None = None
@@ -51,12 +52,16 @@ class CurvatureAdjustment:
         return A_inv @ np.asarray(cov, float) @ A_inv.T
 
     def to_dict(self) -> dict:
-        return {"variance_ratios": self.variance_ratios.tolist(),
-                "sd_ratios": dict(zip(self.names, self.sd_ratios.tolist())), "between_tests": self.between_tests}
+        return {
+            "variance_ratios": self.variance_ratios.tolist(),
+            "sd_ratios": dict(zip(self.names, self.sd_ratios.tolist())),
+            "between_tests": self.between_tests,
+        }
 
 
-def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stages=None,
-                         clip: float = 16.0, names=(), residual=None) -> CurvatureAdjustment | None:
+def curvature_adjustment(
+    likelihood: Likelihood, jacobian, center, widths, stages=None, clip: float = 16.0, names=(), residual=None
+) -> CurvatureAdjustment | None:
     """The :class:`CurvatureAdjustment` at the mode ``center``.
 
     Parameters
@@ -83,7 +88,7 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     if any(v is None for v in res.values()):
         return None
     widths = np.asarray(widths, float)
-    J = np.asarray(jacobian, float) * widths                            # coordinates x / width
+    J = np.asarray(jacobian, float) * widths  # coordinates x / width
     n_rows = sum(res[st][0].shape[1] for st in stages)
     if J.ndim != 2 or J.shape[0] != n_rows:
         raise ValueError(f"the Jacobian has {J.shape[0] if J.ndim else 0} rows, the stages' residuals {n_rows}")
@@ -91,17 +96,23 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
     blocks, row = [], 0
     for st in stages:
         (D, weights), sc = res[st], likelihood.scales[st]
-        Js = J[row:row + D.shape[1]]
-        rs = None if residual is None else np.asarray(residual, float)[row:row + D.shape[1]]
+        Js = J[row : row + D.shape[1]]
+        rs = None if residual is None else np.asarray(residual, float)[row : row + D.shape[1]]
         row += D.shape[1]
         DJ = (D / sc.sd) @ Js
-        blocks.append((st, Js.T @ Js, (DJ * weights[:, None]).T @ DJ + (sc.model_error / sc.sd) ** 2 * (Js.T @ Js),
-                       None if rs is None else Js.T @ rs))
+        blocks.append(
+            (
+                st,
+                Js.T @ Js,
+                (DJ * weights[:, None]).T @ DJ + (sc.model_error / sc.sd) ** 2 * (Js.T @ Js),
+                None if rs is None else Js.T @ rs,
+            )
+        )
     H = np.eye(d) + sum(b[1] for b in blocks)
     M = np.eye(d) + sum(b[2] for b in blocks)
     h_half, h_ihalf = _sqrt_and_inverse(H)
     omega, U = np.linalg.eigh(h_ihalf @ M @ h_ihalf)
-    X = (U * np.clip(omega, 1.0 / clip, clip)) @ U.T               # H^1/2 (target covariance) H^1/2
+    X = (U * np.clip(omega, 1.0 / clip, clip)) @ U.T  # H^1/2 (target covariance) H^1/2
     between = between_test_covariance(blocks, len(stages)) if residual is not None else None
     A_within = _adjustment_matrix(X, h_half, h_ihalf)
     if between is not None:
@@ -120,9 +131,15 @@ def curvature_adjustment(likelihood: Likelihood, jacobian, center, widths, stage
         record["offsets"] = {name: (xk * widths).tolist() for name, xk in between["estimates"]}
         # draws of the adjusted posterior -> draws of the within-test one (without T), about the centre
         within = (np.linalg.solve(A_within, A_s)) * np.outer(widths, 1.0 / widths)
-    return CurvatureAdjustment(center=np.asarray(center, float), A=A, variance_ratios=omega,
-                               sd_ratios=np.sqrt(np.diag(cov1) / np.diag(cov0)), names=tuple(names),
-                               between_tests=record, within=within)
+    return CurvatureAdjustment(
+        center=np.asarray(center, float),
+        A=A,
+        variance_ratios=omega,
+        sd_ratios=np.sqrt(np.diag(cov1) / np.diag(cov0)),
+        names=tuple(names),
+        between_tests=record,
+        within=within,
+    )
 
 
 def _adjustment_matrix(X, h_half, h_ihalf) -> np.ndarray:
@@ -190,7 +207,7 @@ def between_test_covariance(blocks, n_stages: int):
         return None
     H = np.eye(blocks[0][1].shape[0]) + sum(b[1] for b in blocks)
     h_ihalf, U, shares = _shares(blocks, H)
-    V = U[:, np.all(shares >= MIN_SHARE, axis=0)]          # the shared directions, whitened
+    V = U[:, np.all(shares >= MIN_SHARE, axis=0)]  # the shared directions, whitened
     r = V.shape[1]
     if r == 0:
         return None
@@ -201,7 +218,7 @@ def between_test_covariance(blocks, n_stages: int):
     for _, Hk, Mk, _ in blocks:
         P = np.linalg.inv(Hk + info)
         C.append(P @ (Mk + info) @ P)
-    xs = np.array([V.T @ h_half @ xk for xk in x])         # (K, r) in whitened shared coordinates
+    xs = np.array([V.T @ h_half @ xk for xk in x])  # (K, r) in whitened shared coordinates
     Cs = [V.T @ h_half @ c @ h_half @ V for c in C]
     W = [np.linalg.inv(c) for c in Cs]
     x_w = np.linalg.solve(sum(W), sum(w @ xk for w, xk in zip(W, xs)))
@@ -216,9 +233,15 @@ def between_test_covariance(blocks, n_stages: int):
     T_s = (E * np.clip(w, 0.0, None)) @ E.T
     if not np.any(T_s):
         return None
-    back = h_ihalf @ V                                      # whitened shared -> scaled coordinates
-    return {"T": back @ T_s @ back.T, "Q": Q, "limit": limit, "n_directions": r,
-            "estimates": [(b[0], back @ xk) for b, xk in zip(blocks, xs)], "covariances": C}
+    back = h_ihalf @ V  # whitened shared -> scaled coordinates
+    return {
+        "T": back @ T_s @ back.T,
+        "Q": Q,
+        "limit": limit,
+        "n_directions": r,
+        "estimates": [(b[0], back @ xk) for b, xk in zip(blocks, xs)],
+        "covariances": C,
+    }
 
 
 def own_points(jacobian, residual, sizes, x, box) -> list:
@@ -230,12 +253,11 @@ def own_points(jacobian, residual, sizes, x, box) -> list:
     r = np.asarray(residual, float)
     blocks, row = [], 0
     for n in sizes:
-        Jk, rk = J[row:row + n], r[row:row + n]
+        Jk, rk = J[row : row + n], r[row : row + n]
         row += n
         blocks.append((Jk.T @ Jk, Jk.T @ rk))
     H = np.eye(J.shape[1]) + sum(Hk for Hk, _ in blocks)
-    return [np.clip(np.asarray(x, float) + own_step(Hk, gk, H) * widths, box[:, 0], box[:, 1])
-            for Hk, gk in blocks]
+    return [np.clip(np.asarray(x, float) + own_step(Hk, gk, H) * widths, box[:, 0], box[:, 1]) for Hk, gk in blocks]
 
 
 def _between_record(between: dict, widths, names) -> dict:
@@ -244,7 +266,13 @@ def _between_record(between: dict, widths, names) -> dict:
     along the shared directions, in the parameters' units."""
     sd_T = np.sqrt(np.clip(np.diag(between["T"]), 0.0, None)) * widths
     moved = sd_T > 1e-9 * widths
-    return {"chi2": between["Q"], "chi2_limit": between["limit"], "n_directions": between["n_directions"],
-            "between_test_sd": {n: float(v) for n, v, m in zip(names, sd_T, moved) if m},
-            "shift_from_joint": {name: {n: float(v * w) for n, v, w, m in zip(names, xk, widths, moved) if m}
-                                 for name, xk in between["estimates"]}}
+    return {
+        "chi2": between["Q"],
+        "chi2_limit": between["limit"],
+        "n_directions": between["n_directions"],
+        "between_test_sd": {n: float(v) for n, v, m in zip(names, sd_T, moved) if m},
+        "shift_from_joint": {
+            name: {n: float(v * w) for n, v, w, m in zip(names, xk, widths, moved) if m}
+            for name, xk in between["estimates"]
+        },
+    }

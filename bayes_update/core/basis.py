@@ -2,21 +2,28 @@
 and 3 on the one that represents the nonlinear test best), the functions per
 mode and order, the feed-through (per metric set), and its JSON record.
 :class:`bayes_update.core.problem.Problem` builds its metrics on it."""
+
 from __future__ import annotations
 
 import numpy as np
 
 import volterra
 
-__all__ = ["DEFAULT_N_FUNCTIONS", "FEEDTHROUGH", "basis_from_reference", "describe_basis", "excited_band",
-           "linear_n_functions", "nonlinear_mode_for"]
+__all__ = [
+    "DEFAULT_N_FUNCTIONS",
+    "FEEDTHROUGH",
+    "basis_from_reference",
+    "describe_basis",
+    "excited_band",
+    "linear_n_functions",
+    "nonlinear_mode_for",
+]
 
 #: Kautz functions per mode and order (J1, J2, J3): see volterra.basis for the trade-off.
 DEFAULT_N_FUNCTIONS = volterra.DEFAULT_N_FUNCTIONS
 
 
-def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS, n_modes: int = 1,
-                       feedthrough: bool = False) -> tuple:
+def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS, n_modes: int = 1, feedthrough: bool = False) -> tuple:
     """(J1, J2, J3) for a linear test that must identify ``n_linear``
     parameters: J1 (functions per mode, even, at least ``base``'s) the
     smallest for which y1's coefficients, J1 x ``n_modes`` (+ 1 with the
@@ -34,8 +41,7 @@ def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
     the band in which an FRF estimate of the record is meaningful
     (:func:`volterra.excited_band` on 4 s Hann segments, the force's mean
     removed)."""
-    return volterra.excited_band(np.asarray(force, float), fs, level=level,
-                                 nperseg=min(len(force), int(4 * fs)))
+    return volterra.excited_band(np.asarray(force, float), fs, level=level, nperseg=min(len(force), int(4 * fs)))
 
 
 #: Orders whose functions include the input itself (the feed-through), per metric set.
@@ -48,8 +54,16 @@ def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
 FEEDTHROUGH = {"full": (1,), "paper": ()}
 
 
-def basis_from_reference(force, response, fs: float, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=(1,),
-                         n_modes=None, period_samples=None, nonlinear=None) -> volterra.KautzBasis:
+def basis_from_reference(
+    force,
+    response,
+    fs: float,
+    n_functions=DEFAULT_N_FUNCTIONS,
+    feedthrough=(1,),
+    n_modes=None,
+    period_samples=None,
+    nonlinear=None,
+) -> volterra.KautzBasis:
     """The data set's basis from the reference linear record: every mode of its
     excited, coherent band (LSCF fit of H1 on a stabilisation diagram, refined on
     the record's linear fit; :meth:`volterra.KautzBasis.from_data`), all of them
@@ -58,9 +72,17 @@ def basis_from_reference(force, response, fs: float, n_functions=DEFAULT_N_FUNCT
     best (:func:`nonlinear_mode_for`).  ``response``: (n,) or (n, n_sensors),
     the sensors share the poles."""
     f_lo, f_hi = excited_band(force, fs)
-    basis = volterra.KautzBasis.from_data(force, response, fs, n_functions=n_functions, f_range=(f_lo, f_hi),
-                                          refine=True, feedthrough=feedthrough, n_modes=n_modes,
-                                          period_samples=period_samples)
+    basis = volterra.KautzBasis.from_data(
+        force,
+        response,
+        fs,
+        n_functions=n_functions,
+        f_range=(f_lo, f_hi),
+        refine=True,
+        feedthrough=feedthrough,
+        n_modes=n_modes,
+        period_samples=period_samples,
+    )
     return basis if nonlinear is None else nonlinear_mode_for(basis, *nonlinear)
 
 
@@ -89,14 +111,15 @@ def nonlinear_mode_for(basis: volterra.KautzBasis, force, response) -> volterra.
         return basis
     y = np.asarray(response, float)
     y = y[:, None] if y.ndim == 1 else y
-    y = y / np.sqrt(np.mean(y ** 2, axis=0))
+    y = y / np.sqrt(np.mean(y**2, axis=0))
     candidates, residuals = [], []
     for i in range(len(modes)):
         cand = volterra.KautzBasis.from_modes(modes, basis.n_functions, basis.feedthrough, nonlinear_modes=[i])
         proj = volterra.VolterraProjector(np.asarray(force, float), cand)
         candidates.append(cand)
-        residuals.append(sum(float(np.sum((y[:, j] - sum(proj.components(y[:, j]).values())) ** 2))
-                             for j in range(y.shape[1])))
+        residuals.append(
+            sum(float(np.sum((y[:, j] - sum(proj.components(y[:, j]).values())) ** 2)) for j in range(y.shape[1]))
+        )
     best = int(np.argmin(residuals))
     # the basis as given when its own mode wins
     return basis if modes[best] == basis.modes(2)[0] else candidates[best]
@@ -105,12 +128,17 @@ def nonlinear_mode_for(basis: volterra.KautzBasis, force, response) -> volterra.
 def describe_basis(basis: volterra.KautzBasis) -> dict:
     """JSON-ready record of a basis (its first pole [Hz, -], every mode, J per mode,
     the feed-through and the number of coefficients, per order)."""
-    return {"fs_hz": basis.fs,
-            "orders": {str(n): {"n_functions": basis.n_functions[n],
-                                "pole_freq_hz": basis.pole(n).freq_hz,
-                                "pole_damping_ratio": basis.pole(n).damping_ratio,
-                                "modes": [{"freq_hz": p.freq_hz, "damping_ratio": p.damping_ratio}
-                                          for p in basis.modes(n)],
-                                "feedthrough": basis.has_feedthrough(n),
-                                "n_coefficients": basis.n_terms(n)}
-                       for n in basis.orders}}
+    return {
+        "fs_hz": basis.fs,
+        "orders": {
+            str(n): {
+                "n_functions": basis.n_functions[n],
+                "pole_freq_hz": basis.pole(n).freq_hz,
+                "pole_damping_ratio": basis.pole(n).damping_ratio,
+                "modes": [{"freq_hz": p.freq_hz, "damping_ratio": p.damping_ratio} for p in basis.modes(n)],
+                "feedthrough": basis.has_feedthrough(n),
+                "n_coefficients": basis.n_terms(n),
+            }
+            for n in basis.orders
+        },
+    }

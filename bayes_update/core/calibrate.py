@@ -43,6 +43,7 @@ its declared parameters:
 Every model run goes through the executor; the least-squares engine is
 :func:`bayes_update.core.mode.find_mode`.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -52,21 +53,29 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.stats import qmc
 
-from surrogates.evaluation import evaluate_many, executor_for
-from bayes_update.core.logs import info
 import volterra
-
+from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
 from bayes_update.core.checks import disagreement_sentence, fit_warnings, output_errors, test_disagreement
-from bayes_update.core.identifiability import gauss_newton_covariance, parameter_sd, unidentified_directions
-from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, find_mode
 from bayes_update.core.effects import WithNulls
+from bayes_update.core.identifiability import gauss_newton_covariance, parameter_sd, unidentified_directions
+from bayes_update.core.logs import info
+from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, find_mode
 from bayes_update.core.model import ModelSpecError, model_label
 from bayes_update.core.preflight import preflight
-from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, linear_n_functions
 from bayes_update.core.problem import Problem
+from surrogates.evaluation import evaluate_many, executor_for
 
-__all__ = ["SETTINGS", "Calibration", "TwoStage", "calibrate_model", "check_settings", "find_start", "problem_for",
-           "screen_linear", "two_stage"]
+__all__ = [
+    "SETTINGS",
+    "Calibration",
+    "TwoStage",
+    "calibrate_model",
+    "check_settings",
+    "find_start",
+    "problem_for",
+    "screen_linear",
+    "two_stage",
+]
 
 #: a step of this fraction of a prior range probes the linear test's sensitivity
 SCREEN_STEP = 0.05
@@ -111,15 +120,15 @@ class Calibration:
     theta: dict
     stage1: dict
     linear_parameters: list
-    sensitivity: dict               # name -> move of y1 per prior range (relative to ||y1_ref||)
-    metrics: dict                   # e_lin, e_nlin at theta
+    sensitivity: dict  # name -> move of y1 per prior range (relative to ||y1_ref||)
+    metrics: dict  # e_lin, e_nlin at theta
     metric_set: str
-    prediction_errors: dict         # validation test -> ||y - y_model|| / ||y||
-    unidentified: dict              # stage -> [{"direction": {name: loading}, "sd_over_range": float}]
-    noise_sd: dict                  # stage -> measured noise [response unit]
-    fit_warnings: list              # plain sentences (bayes_update.core.checks)
-    disagreement: list              # parameters the two tests pull apart (bayes_update.core.checks)
-    output_errors: dict             # test -> {"rel": output error, "noise_floor": what noise alone gives}
+    prediction_errors: dict  # validation test -> ||y - y_model|| / ||y||
+    unidentified: dict  # stage -> [{"direction": {name: loading}, "sd_over_range": float}]
+    noise_sd: dict  # stage -> measured noise [response unit]
+    fit_warnings: list  # plain sentences (bayes_update.core.checks)
+    disagreement: list  # parameters the two tests pull apart (bayes_update.core.checks)
+    output_errors: dict  # test -> {"rel": output error, "noise_floor": what noise alone gives}
     n_functions: tuple
     n_model_runs: int
     units: dict
@@ -134,25 +143,31 @@ class Calibration:
 
     def calibration_json(self) -> dict:
         """One key per parameter (its unit), e_lin, e_nlin, and how they were found."""
-        return {**self.theta, **self.metrics,
-                "metric_set": self.metric_set,
-                "units": self.units,
-                "prediction_errors": self.prediction_errors,
-                "stage_1": self.stage1,
-                "linear_parameters": self.linear_parameters,
-                "linear_sensitivity": self.sensitivity,
-                "unidentified_directions": self.unidentified,
-                "noise_sd": self.noise_sd,
-                "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
-                "representation_floor": {self.problem.tests[st].name: self.problem.representation_floor(st)
-                                         for st in self.problem.stages},
-                "output_errors": self.output_errors,
-                "fit_warnings": self.fit_warnings,
-                "test_disagreement": self.disagreement,
-                "sd": self.sd, "sd_method": self.sd_method, "laplace_mode": self.laplace_mode,
-                "n_functions": list(self.n_functions),
-                "n_model_runs": self.n_model_runs,
-                "setup": self.problem.describe()}
+        return {
+            **self.theta,
+            **self.metrics,
+            "metric_set": self.metric_set,
+            "units": self.units,
+            "prediction_errors": self.prediction_errors,
+            "stage_1": self.stage1,
+            "linear_parameters": self.linear_parameters,
+            "linear_sensitivity": self.sensitivity,
+            "unidentified_directions": self.unidentified,
+            "noise_sd": self.noise_sd,
+            "noise": {t: {ch: e.to_dict() for ch, e in chans.items()} for t, chans in self.problem.noise.items()},
+            "representation_floor": {
+                self.problem.tests[st].name: self.problem.representation_floor(st) for st in self.problem.stages
+            },
+            "output_errors": self.output_errors,
+            "fit_warnings": self.fit_warnings,
+            "test_disagreement": self.disagreement,
+            "sd": self.sd,
+            "sd_method": self.sd_method,
+            "laplace_mode": self.laplace_mode,
+            "n_functions": list(self.n_functions),
+            "n_model_runs": self.n_model_runs,
+            "setup": self.problem.describe(),
+        }
 
 
 def _residual(problem: Problem, stages, point_map, weighted: bool) -> ResidualFunction:
@@ -178,7 +193,8 @@ def screen_linear(problem: Problem, space, executor=None) -> tuple[list, dict, i
             f"{model_label(problem.model)}: the linear test's compared output does not move with any parameter "
             f"at the middle of the prior (a step of {100 * SCREEN_STEP:g} % of each prior range changes "
             "nothing): check that simulate uses theta[name] of every declared parameter, and that each "
-            "parameter's range and unit are those simulate expects")
+            "parameter's range and unit are those simulate expects"
+        )
     names = [n for n, m in zip(space.names, move) if m >= SCREEN_THRESHOLD * move.max()]
     return names, dict(zip(space.names, move.tolist())), len(points)
 
@@ -202,15 +218,17 @@ def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, c
         raise ModelSpecError(
             f"{model_label(fun.problem.model)} raised ModelError at all {n_start} points of the {desc} over the "
             "prior: it cannot run over (nearly) all of its prior; narrow the prior (the Parameter bounds, or "
-            "--prior NAME=LO:HI) to where the model runs, or check when simulate raises ModelError")
+            "--prior NAME=LO:HI) to where the model runs, or check when simulate raises ModelError"
+        )
     order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
     if costs:
         return [X[i] for i in order], len(X), [float(cost[i]) for i in order]
     return [X[i] for i in order], len(X)
 
 
-def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effects: bool = False,
-                store=None) -> Problem:
+def problem_for(
+    dataset, model, space=None, metrics=None, executor=None, *, effects: bool = False, store=None
+) -> Problem:
     """The one builder of a :class:`Problem` for ``model`` on ``dataset``.
 
     First the check before any long step (:func:`bayes_update.core.preflight.preflight`:
@@ -240,9 +258,8 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effe
     if problem.metrics == "full":
         names, sens, runs = screen_linear(problem, space, executor)
         basis = problem.basis
-        n_functions = linear_n_functions(len(names), n_modes=len(basis.modes(1)),
-                                         feedthrough=basis.has_feedthrough(1))
-        if n_functions != DEFAULT_N_FUNCTIONS:      # the same poles, more functions per mode
+        n_functions = linear_n_functions(len(names), n_modes=len(basis.modes(1)), feedthrough=basis.has_feedthrough(1))
+        if n_functions != DEFAULT_N_FUNCTIONS:  # the same poles, more functions per mode
             basis = volterra.KautzBasis(basis.poles, n_functions, basis.feedthrough)
             problem = Problem(dataset, model, basis=basis, metrics=problem.metrics, noise=problem.noise)
             problem.space, problem.effects, problem.run_store = space, checked.effects, store
@@ -250,8 +267,18 @@ def problem_for(dataset, model, space=None, metrics=None, executor=None, *, effe
     return problem
 
 
-def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: int = 0, executor=None,
-               progress: bool = False, log=info, coarse: bool = False) -> tuple[dict, int]:
+def find_start(
+    dataset,
+    problem: Problem,
+    space,
+    *,
+    n_points: int = 64,
+    seed: int = 0,
+    executor=None,
+    progress: bool = False,
+    log=info,
+    coarse: bool = False,
+) -> tuple[dict, int]:
     """(theta, model runs): where ``sample`` and ``find_discrepancy`` start.
 
     The model's own ``start(dataset, executor, progress)`` when it offers one
@@ -265,15 +292,23 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
         accepts = inspect.signature(hook).parameters
         kw = {"coarse": True} if coarse and "coarse" in accepts else {}
         if problem.run_store is not None and "store" in accepts:
-            kw["store"] = problem.run_store       # its runs kept and found like every other step's
+            kw["store"] = problem.run_store  # its runs kept and found like every other step's
         return hook(dataset, executor=executor, progress=progress, **kw)
     log(f"start: the two-stage calibration (Sobol' designs of {n_points} points, then least squares)")
     names, runs = problem.linear_parameters, 0
     if names is None:
         names, problem.linear_sensitivity, runs = screen_linear(problem, space, executor)
         problem.linear_parameters = tuple(names)
-    found = two_stage(problem, space, names, n_start=n_points, seed=seed, executor=executor, progress=progress,
-                      **({"n_best": 2, "polish": False} if coarse else {}))
+    found = two_stage(
+        problem,
+        space,
+        names,
+        n_start=n_points,
+        seed=seed,
+        executor=executor,
+        progress=progress,
+        **({"n_best": 2, "polish": False} if coarse else {}),
+    )
     return space.to_parameters(found.x), runs + found.n_model_runs
 
 
@@ -281,12 +316,12 @@ def find_start(dataset, problem: Problem, space, *, n_points: int = 64, seed: in
 class TwoStage:
     """What :func:`two_stage` found (internal coordinates)."""
 
-    x1: np.ndarray          # after stage 1
-    x: np.ndarray           # after stage 2
-    unidentified: dict      # stage -> directions (:func:`unidentified_directions`)
+    x1: np.ndarray  # after stage 1
+    x: np.ndarray  # after stage 2
+    unidentified: dict  # stage -> directions (:func:`unidentified_directions`)
     n_model_runs: int
-    disagreement: list = field(default_factory=list)    # :func:`bayes_update.core.checks.test_disagreement`
-    covariance: np.ndarray | None = None    # Gauss-Newton covariance of x at the end of stage 2 (noise units)
+    disagreement: list = field(default_factory=list)  # :func:`bayes_update.core.checks.test_disagreement`
+    covariance: np.ndarray | None = None  # Gauss-Newton covariance of x at the end of stage 2 (noise units)
 
 
 #: the coarse start's linear stage stops when an iteration gains less than this in log L: its
@@ -295,9 +330,19 @@ class TwoStage:
 COARSE_TOLERANCE = 2.0
 
 
-def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_best: int = 3,
-              max_iterations: int = 40, seed: int = 0, executor=None, progress: bool = True,
-              polish: bool = True) -> TwoStage:
+def two_stage(
+    problem: Problem,
+    space,
+    linear_names,
+    *,
+    n_start: int = 64,
+    n_best: int = 3,
+    max_iterations: int = 40,
+    seed: int = 0,
+    executor=None,
+    progress: bool = True,
+    polish: bool = True,
+) -> TwoStage:
     """Stages 2-4 of the module docstring on a built problem; without ``polish`` (a start
     for the posterior's MAP) stage 2 ends at the best of its starts."""
     box = space.box()
@@ -313,13 +358,23 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     # without polish (a start for the posterior's search) stage 1 stops when an iteration gains
     # less than COARSE_TOLERANCE in log L, forward differences, and searches from the next best
     # start only while a search ends on a bound
-    mode1 = find_mode(fun1, starts, lower[list(free1)], upper[list(free1)], steps[list(free1)], executor,
-                      max_iterations, **({} if polish else {"cost_tolerance": COARSE_TOLERANCE, "central": False,
-                                                            "first_inside": True}))
+    mode1 = find_mode(
+        fun1,
+        starts,
+        lower[list(free1)],
+        upper[list(free1)],
+        steps[list(free1)],
+        executor,
+        max_iterations,
+        **({} if polish else {"cost_tolerance": COARSE_TOLERANCE, "central": False, "first_inside": True}),
+    )
     runs += n + mode1.n_evaluations
     x1 = map1.full(mode1.x)
-    unident = {"linear": unidentified_directions(mode1.jacobian, (upper - lower)[list(free1)], linear_names,
-                                                  _noise_rows(problem, fun1))}
+    unident = {
+        "linear": unidentified_directions(
+            mode1.jacobian, (upper - lower)[list(free1)], linear_names, _noise_rows(problem, fun1)
+        )
+    }
     # stage 2: everything on both tests, from stage 1's point and the best points of a design over
     # the other parameters at stage 1's values (the paper's second grid: the nonlinear misfit can be
     # a narrow valley in them, which a design over all parameters would miss)
@@ -329,9 +384,18 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     rest = tuple(i for i in free2 if i not in free1) or free2
     map_rest = _PointMap(space, x1, rest)
     # without polish half the design (over the parameters the linear test leaves free)
-    starts, n, start_costs = _starts(_residual(problem, ("linear", "nonlinear"), map_rest, weighted), space, rest,
-                                     n_start if polish else max(4, n_start // 2), n_best - 1, seed + 1, executor,
-                                     progress, "stage 2 design", costs=True)
+    starts, n, start_costs = _starts(
+        _residual(problem, ("linear", "nonlinear"), map_rest, weighted),
+        space,
+        rest,
+        n_start if polish else max(4, n_start // 2),
+        n_best - 1,
+        seed + 1,
+        executor,
+        progress,
+        "stage 2 design",
+        costs=True,
+    )
     starts = [map_rest.full(x) for x in starts]
     if not polish:
         # the design's points are fun2's own (the same residual at the same full point): only x1 is run
@@ -347,10 +411,17 @@ def two_stage(problem: Problem, space, linear_names, *, n_start: int = 64, n_bes
     # each test's independent directions (its compared regressors per sensor): its own misfit beyond
     # the noise widens its sd (bayes_update.core.checks.test_disagreement)
     dof = {problem.tests[st].name: problem.n_regressors(st) * len(problem.sensors) for st in ("linear", "nonlinear")}
-    disagree = test_disagreement(mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names,
-                                 upper - lower, dof)
-    return TwoStage(x1=x1, x=mode2.x, unidentified=unident, n_model_runs=runs, disagreement=disagree,
-                    covariance=gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower))
+    disagree = test_disagreement(
+        mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names, upper - lower, dof
+    )
+    return TwoStage(
+        x1=x1,
+        x=mode2.x,
+        unidentified=unident,
+        n_model_runs=runs,
+        disagreement=disagree,
+        covariance=gauss_newton_covariance(mode2.jacobian * rows[:, None], upper - lower),
+    )
 
 
 #: the settings of :func:`calibrate_model` (a ``[calibrate]`` table of ``--config`` for a model of your own)
@@ -369,10 +440,23 @@ def check_settings(settings: dict, where: str = "calibrate") -> dict:
     return dict(settings)
 
 
-def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SETTINGS["n_start"],
-                    n_best: int = SETTINGS["n_best"], max_iterations: int = SETTINGS["max_iterations"],
-                    seed: int = SETTINGS["seed"], space=None, executor=None, workers=None,
-                    progress: bool = True, log=info, cache_dir=None, uncertainty: bool = True) -> Calibration:
+def calibrate_model(
+    dataset,
+    model,
+    *,
+    metrics: str = "full",
+    n_start: int = SETTINGS["n_start"],
+    n_best: int = SETTINGS["n_best"],
+    max_iterations: int = SETTINGS["max_iterations"],
+    seed: int = SETTINGS["seed"],
+    space=None,
+    executor=None,
+    workers=None,
+    progress: bool = True,
+    log=info,
+    cache_dir=None,
+    uncertainty: bool = True,
+) -> Calibration:
     """The two-stage calibration of the module docstring.
 
     Parameters
@@ -397,14 +481,23 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SET
     with executor_for(executor, workers) as pool:
         problem = problem_for(dataset, model, space, metrics=metrics, executor=pool, store=store)
         space, runs = problem.space, 1 + problem.n_screen_runs
-        if problem.linear_parameters is None:        # the paper's set: no J1 to adapt, screen here
+        if problem.linear_parameters is None:  # the paper's set: no J1 to adapt, screen here
             problem.linear_parameters, problem.linear_sensitivity, n = screen_linear(problem, space, pool)
             runs += n
         lin_names, sens = list(problem.linear_parameters), problem.linear_sensitivity
         n_functions = tuple(problem.basis.n_functions[k] for k in (1, 2, 3))
         log(f"linear parameters (screen): {', '.join(lin_names)}; J = {n_functions}")
-        found = two_stage(problem, space, lin_names, n_start=n_start, n_best=n_best,
-                          max_iterations=max_iterations, seed=seed, executor=pool, progress=progress)
+        found = two_stage(
+            problem,
+            space,
+            lin_names,
+            n_start=n_start,
+            n_best=n_best,
+            max_iterations=max_iterations,
+            seed=seed,
+            executor=pool,
+            progress=progress,
+        )
         theta = space.to_parameters(found.x)
         metrics_at = problem.evaluate(theta)
         errors = output_errors(problem, theta, executor=pool)
@@ -413,21 +506,34 @@ def calibrate_model(dataset, model, *, metrics: str = "full", n_start: int = SET
         laplace = _laplace(dataset, problem, theta, pool, log) if uncertainty else None
         runs += laplace["n_model_runs"] if laplace else 0
     for d in found.unidentified["nonlinear"]:
-        log("WARNING: the data do not identify the direction " + ", ".join(
-            f"{k} {v:+.2f}" for k, v in d["direction"].items()) + f" (prior-range units; sd "
-            f"{d['sd_over_range']:.2f} of the range): the point returned is one of many along it")
+        log(
+            "WARNING: the data do not identify the direction "
+            + ", ".join(f"{k} {v:+.2f}" for k, v in d["direction"].items())
+            + f" (prior-range units; sd "
+            f"{d['sd_over_range']:.2f} of the range): the point returned is one of many along it"
+        )
     warnings = fit_warnings(problem, theta, errors) + [disagreement_sentence(d) for d in found.disagreement]
     for w in warnings:
         log(f"WARNING: {w}")
-    return Calibration(theta=theta, stage1=space.to_parameters(found.x1), linear_parameters=lin_names,
-                       sensitivity=sens, metrics={"e_lin": metrics_at["e_lin"], "e_nlin": metrics_at["e_nlin"]},
-                       metric_set=problem.metrics, prediction_errors=pred, unidentified=found.unidentified,
-                       noise_sd={st: problem.noise_sd(st) for st in problem.stages},
-                       fit_warnings=warnings, disagreement=found.disagreement,
-                       output_errors={k: {"rel": e, "noise_floor": f} for k, (e, f) in errors.items()},
-                       n_functions=n_functions, n_model_runs=runs,
-                       units={p.name: p.unit for p in space.parameters}, problem=problem,
-                       **_sd_fields(laplace, space, found))
+    return Calibration(
+        theta=theta,
+        stage1=space.to_parameters(found.x1),
+        linear_parameters=lin_names,
+        sensitivity=sens,
+        metrics={"e_lin": metrics_at["e_lin"], "e_nlin": metrics_at["e_nlin"]},
+        metric_set=problem.metrics,
+        prediction_errors=pred,
+        unidentified=found.unidentified,
+        noise_sd={st: problem.noise_sd(st) for st in problem.stages},
+        fit_warnings=warnings,
+        disagreement=found.disagreement,
+        output_errors={k: {"rel": e, "noise_floor": f} for k, (e, f) in errors.items()},
+        n_functions=n_functions,
+        n_model_runs=runs,
+        units={p.name: p.unit for p in space.parameters},
+        problem=problem,
+        **_sd_fields(laplace, space, found),
+    )
 
 
 def _laplace(dataset, problem, theta, executor, log) -> dict | None:
@@ -438,8 +544,10 @@ def _laplace(dataset, problem, theta, executor, log) -> dict | None:
     try:
         return laplace_at(dataset, problem, theta, executor=executor, log=lambda *a: None)
     except problem.failures + (ValueError, np.linalg.LinAlgError) as exc:
-        log(f"WARNING: no Laplace sd at the calibrated point ({type(exc).__name__}: {exc}); the report's sd is the "
-            "fit's white-noise Gauss-Newton sd, not an interval")
+        log(
+            f"WARNING: no Laplace sd at the calibrated point ({type(exc).__name__}: {exc}); the report's sd is the "
+            "fit's white-noise Gauss-Newton sd, not an interval"
+        )
         return None
 
 

@@ -17,16 +17,23 @@
   nonlinear response sampled at 2.5x its band) widens that test's sd, so
   that a model which is merely approximate is not reported as disagreeing.
 """
+
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["FIT_FACTOR", "DISAGREEMENT_SD", "ModelFitError", "disagreement_sentence", "fit_warnings", "output_errors",
-           "test_disagreement"]
+__all__ = [
+    "FIT_FACTOR",
+    "DISAGREEMENT_SD",
+    "ModelFitError",
+    "disagreement_sentence",
+    "fit_warnings",
+    "output_errors",
+    "test_disagreement",
+]
 
 #: a test is missed when its output error exceeds this many times its noise floor ...
 FIT_FACTOR = 3.0
@@ -73,11 +80,10 @@ def output_errors(problem, theta, executor=None) -> dict:
 
     out = {}
     tests = list(problem.tests.values()) + list(problem.validation.values())
-    runs = evaluate_many(_RunOrNone(problem, theta), [t.force for t in tests], executor, batch_size=1,
-                         progress=False)
+    runs = evaluate_many(_RunOrNone(problem, theta), [t.force for t in tests], executor, batch_size=1, progress=False)
     for t, run in zip(tests, runs):
         y = t.response if t.response.ndim == 2 else t.response[:, None]
-        floor = float(np.sqrt(np.mean(np.square(problem.test_noise(t.name) / np.sqrt(np.mean(y ** 2, axis=0))))))
+        floor = float(np.sqrt(np.mean(np.square(problem.test_noise(t.name) / np.sqrt(np.mean(y**2, axis=0))))))
         if run is None:
             out[t.name] = (math.nan, floor)
             continue
@@ -101,19 +107,25 @@ def fit_warnings(problem, theta, errors: dict | None = None) -> list:
     computed."""
     errors = output_errors(problem, theta) if errors is None else errors
     out = []
-    missed = {k: v for k, v in errors.items()
-              if not (v[0] <= max(FIT_FACTOR * v[1], v[1] + FIT_MARGIN))}
+    missed = {k: v for k, v in errors.items() if not (v[0] <= max(FIT_FACTOR * v[1], v[1] + FIT_MARGIN))}
     if missed:
-        out.append("the model misses " + "; ".join(
-            f"test {k} by {100 * e:.1f} % of its rms (its noise allows {100 * f:.1f} %)" for k, (e, f) in missed.items())
+        out.append(
+            "the model misses "
+            + "; ".join(
+                f"test {k} by {100 * e:.1f} % of its rms (its noise allows {100 * f:.1f} %)"
+                for k, (e, f) in missed.items()
+            )
             + ": the model's form may be wrong or an effect missing; run `bayes-update discrepancy` (with the "
-              "model's candidate_effects()) or try another model")
+            "model's candidate_effects()) or try another model"
+        )
     for stage, t in problem.tests.items():
         floor = problem.representation_floor(stage)
         if floor > FLOOR_WARNING:
-            out.append(f"the Volterra projection (orders 1-3) of test {t.name} leaves {100 * floor:.0f} % of its "
-                       "rms unexplained beyond the noise: its metric sees only the rest (a nonlinearity of "
-                       "higher order or a level beyond the series' reach; try a lower level or more functions)")
+            out.append(
+                f"the Volterra projection (orders 1-3) of test {t.name} leaves {100 * floor:.0f} % of its "
+                "rms unexplained beyond the noise: its metric sees only the rest (a nonlinearity of "
+                "higher order or a level beyond the series' reach; try a lower level or more functions)"
+            )
     return out
 
 
@@ -172,14 +184,14 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
         cov = np.linalg.pinv(H, rcond=1e-10)
         step = -cov @ (Jt.T @ rt)
         if dof is not None and test in dof:
-            own = rt + Jt @ step                     # the test's residual at its own best point
+            own = rt + Jt @ step  # the test's residual at its own best point
             nu = max(float(dof[test]) - np.linalg.matrix_rank(H, hermitian=True), 1.0)
             cov = cov * max(1.0, float(own @ own) / nu)
         pref[test] = (step, np.sqrt(np.clip(np.diag(cov), 0.0, None)))
     out = []
     tests = list(pref)
     for i, a in enumerate(tests):
-        for b in tests[i + 1:]:
+        for b in tests[i + 1 :]:
             (xa, sa), (xb, sb) = pref[a], pref[b]
             for k, name in enumerate(names):
                 if not (0 < sa[k] < 0.5 * widths[k] and 0 < sb[k] < 0.5 * widths[k]):
@@ -187,16 +199,24 @@ def test_disagreement(jacobian, residual, blocks: dict, names, widths, dof: dict
                 z = (xa[k] - xb[k]) / math.hypot(sa[k], sb[k])
                 moved = max(float(np.sqrt(np.mean((J[rows, k] * (xa[k] - xb[k])) ** 2))) for rows in blocks.values())
                 if abs(z) > DISAGREEMENT_SD and moved > 1.0:
-                    out.append({"parameter": name, "tests": [a, b], "sd": float(abs(z)),
-                                "shift_from_joint": {a: float(xa[k]), b: float(xb[k])},
-                                "prediction_change_noise_sd": moved})
+                    out.append(
+                        {
+                            "parameter": name,
+                            "tests": [a, b],
+                            "sd": float(abs(z)),
+                            "shift_from_joint": {a: float(xa[k]), b: float(xb[k])},
+                            "prediction_change_noise_sd": moved,
+                        }
+                    )
     return out
 
 
 def disagreement_sentence(d: dict) -> str:
     """One line for a parameter two tests pull apart (:func:`test_disagreement`)."""
     a, b = d["tests"]
-    return (f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
-            f"apart, beyond their noise, a difference that moves a test's prediction by "
-            f"{d['prediction_change_noise_sd']:.2g} noise sd (rms); an amplitude-dependent effect the model lacks "
-            "(damping or stiffness that changes with level) is the usual cause: run `bayes-update discrepancy`")
+    return (
+        f"the tests disagree on {d['parameter']}: {a} and {b} alone would put it {d['sd']:.1f} combined sd "
+        f"apart, beyond their noise, a difference that moves a test's prediction by "
+        f"{d['prediction_change_noise_sd']:.2g} noise sd (rms); an amplitude-dependent effect the model lacks "
+        "(damping or stiffness that changes with level) is the usual cause: run `bayes-update discrepancy`"
+    )

@@ -35,6 +35,7 @@ same spectrum projects like noise; scored under that covariance, a model whose
 residual was smaller in every test lost (2 ln B -44 for a tip spring that
 removed 27 % of a cantilever's linear misfit and 7 % of its nonlinear one).
 """
+
 from __future__ import annotations
 
 import math
@@ -47,10 +48,11 @@ from surrogates.evaluation import evaluate_many
 
 __all__ = ["Scored", "error_covariance", "evidence", "form_scale", "score_model"]
 
+
 @dataclass(frozen=True)
 class Scored:
     log_evidence: float
-    covariance: np.ndarray       # of the internal coordinates (the mode's Laplace, on this error model)
+    covariance: np.ndarray  # of the internal coordinates (the mode's Laplace, on this error model)
 
 
 @dataclass
@@ -72,16 +74,17 @@ def score_model(problem, likelihood, mode, theta, log_prior_density: float, widt
     Jacobian scaled by ``likelihood``'s scales, rows in ``problem.stages`` order;
     ``theta``: its parameters there) under its own error covariance (module
     docstring); one model run per test."""
-    runs = evaluate_many(_Responses(problem), [(st, theta) for st in problem.stages], executor, batch_size=1,
-                         progress=False)
+    runs = evaluate_many(
+        _Responses(problem), [(st, theta) for st in problem.stages], executor, batch_size=1, progress=False
+    )
     a, J, S, row = {}, {}, {}, 0
     for stage, y in zip(problem.stages, runs):
         sc = likelihood.scales[stage]
         n = problem.output(stage, problem.reference_components(stage)).size
         resid = None if y is None else problem.tests[stage].response - problem.compared_response(y)
         S[stage], Q = error_covariance(problem, likelihood, stage, resid)
-        a[stage] = Q.T @ (np.asarray(mode.residual[row:row + n], float) * sc.sd)
-        J[stage] = Q.T @ (np.asarray(mode.jacobian[row:row + n], float) * sc.sd)
+        a[stage] = Q.T @ (np.asarray(mode.residual[row : row + n], float) * sc.sd)
+        J[stage] = Q.T @ (np.asarray(mode.jacobian[row : row + n], float) * sc.sd)
         row += n
     log_z, cov = evidence(a, J, S, log_prior_density, widths)
     return Scored(log_z, cov)
@@ -102,7 +105,7 @@ def error_covariance(problem, likelihood, stage: str, residual=None):
     unabsorbed = sc.model_error_unabsorbed if sc.model_error_unabsorbed is not None else sc.model_error
     res = (likelihood.noise_residuals or {}).get(stage)
     if res is None:
-        S = (sc.noise_mean_square + unabsorbed ** 2) / N * np.eye(N)
+        S = (sc.noise_mean_square + unabsorbed**2) / N * np.eye(N)
     else:
         D, w = res if isinstance(res, tuple) else (res, np.full(len(res), 1.0 / len(res)))
         A = D @ Q
@@ -111,7 +114,7 @@ def error_covariance(problem, likelihood, stage: str, residual=None):
         # the same trace (weight N / (K + N)), so that no direction is taken as noise-free
         K = int(np.count_nonzero(w > 0))
         alpha = N / (K + N)
-        S = (1 - alpha) * S_rep + (alpha * np.trace(S_rep) / N + unabsorbed ** 2 / N) * np.eye(N)
+        S = (1 - alpha) * S_rep + (alpha * np.trace(S_rep) / N + unabsorbed**2 / N) * np.eye(N)
     if residual is not None:
         r = np.asarray(residual, float).reshape(len(residual), -1)
         a = sum(M @ r[:, j] for j, M in enumerate(_coordinate_maps(problem, stage)))
@@ -128,13 +131,13 @@ def form_scale(S_noise, a) -> float:
     lam = np.maximum(lam, 1e-12 * max(float(lam.mean()), 1e-300))
     va2 = (V.T @ np.asarray(a, float)) ** 2
 
-    def slope(c):                        # d(-log L)/dc: negative where a larger c is more likely
+    def slope(c):  # d(-log L)/dc: negative where a larger c is more likely
         return 0.5 * float(np.sum(1.0 / (lam + c) - va2 / (lam + c) ** 2))
 
     if slope(0.0) >= 0.0:
         return 0.0
     hi = max(float(va2.sum()), float(lam.max()))
-    while slope(hi) < 0.0:               # the root lies below |a|^2 (one coordinate holding it all)
+    while slope(hi) < 0.0:  # the root lies below |a|^2 (one coordinate holding it all)
         hi *= 2.0
     return float(optimize.brentq(slope, 0.0, hi, xtol=1e-14 * hi, rtol=1e-10))
 
@@ -155,7 +158,7 @@ def _coordinate_maps(problem, stage: str) -> list:
     maps = []
     for j in range(k):
         M = np.zeros((k * p, B.shape[1]))
-        M[j * p:(j + 1) * p] = w[j] * B / norm
+        M[j * p : (j + 1) * p] = w[j] * B / norm
         maps.append(M)
     return maps
 
@@ -175,6 +178,6 @@ def evidence(a: dict, J: dict, S: dict, log_prior_density: float, widths) -> tup
         va, VJ = V.T @ a[stage], V.T @ J[stage]
         log_l += -0.5 * float(va @ (va / lam)) - 0.5 * float(np.sum(np.log(2 * math.pi * lam)))
         H += (VJ / lam[:, None]).T @ VJ
-    sign, logdet = np.linalg.slogdet(H + np.diag(2.0 * math.pi / widths ** 2))
+    sign, logdet = np.linalg.slogdet(H + np.diag(2.0 * math.pi / widths**2))
     log_z = -math.inf if sign <= 0 else log_l + log_prior_density + 0.5 * d * math.log(2 * math.pi) - 0.5 * logdet
-    return log_z, np.linalg.inv(H + np.diag(1.0 / widths ** 2))
+    return log_z, np.linalg.inv(H + np.diag(1.0 / widths**2))

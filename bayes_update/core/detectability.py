@@ -31,6 +31,7 @@ baseline's mode, so a limit is an estimate: the tests
 (``tests/test_detectability.py``) run the whole workflow on data with the effect
 just above and just below it.
 """
+
 from __future__ import annotations
 
 import math
@@ -69,8 +70,10 @@ class _Point:
         if np.any(r == FAILED_RESIDUAL):
             return None
         try:
-            v = {n: problem.compared_response(problem.run(theta, t.force, model=problem.model))
-                 for n, t in problem.validation.items()}
+            v = {
+                n: problem.compared_response(problem.run(theta, t.force, model=problem.model))
+                for n, t in problem.validation.items()
+            }
         except problem.failures:
             return None
         return r, v
@@ -115,30 +118,48 @@ def detectability(problem, base, fit, lik, effects: dict, executor=None) -> tupl
             for m in magnitudes:
                 xe = space.effects.to_internal({p.name: float(v) for p, v in zip(params, null + m * (far - null))})
                 points.append(np.concatenate([x0, xe]))
-                for i in range(k):               # the effect's Jacobian: a step of 1e-3 of its range, inwards
+                for i in range(k):  # the effect's Jacobian: a step of 1e-3 of its range, inwards
                     step = h[i] if xe[i] + h[i] <= box[i, 1] else -h[i]
                     points.append(points[-1 - i].copy())
                     points[-1][n0 + i] += step
                     shifts.append(step)
             done = evaluate_many(_Point(fun, space), points, executor, progress=False)
             runs += len(points) * (len(problem.stages) + len(problem.validation))
-            return [_rung(problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, points[j * (k + 1)],
-                          done[j * (k + 1)], done[1 + j * (k + 1):(j + 1) * (k + 1)], shifts[j * k:(j + 1) * k],
-                          base_prior, base_widths)
-                    for j, m in enumerate(magnitudes)]
+            return [
+                _rung(
+                    problem,
+                    space,
+                    sizes,
+                    sd,
+                    noise,
+                    r0,
+                    Jb,
+                    Q,
+                    steps,
+                    m,
+                    points[j * (k + 1)],
+                    done[j * (k + 1)],
+                    done[1 + j * (k + 1) : (j + 1) * (k + 1)],
+                    shifts[j * k : (j + 1) * k],
+                    base_prior,
+                    base_widths,
+                )
+                for j, m in enumerate(magnitudes)
+            ]
 
         ladder = rungs(LADDER)
         # named already at the first rung: the limit lies below it; go down until it is not
         # (a limit at the first rung would only be an upper bound)
-        while (_named(*ladder[0][1:]) and ladder[0][0] / RUNG > MIN_MAGNITUDE):
+        while _named(*ladder[0][1:]) and ladder[0][0] / RUNG > MIN_MAGNITUDE:
             lower = tuple(ladder[0][0] / RUNG ** np.arange(3, 0, -1))
             ladder = rungs(lower) + ladder
         out[name] = _limit(ladder, params, null, far)
     return out, runs
 
 
-def _rung(problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, x_at, at, cols, shifts, base_prior,
-          base_widths) -> tuple:
+def _rung(
+    problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, x_at, at, cols, shifts, base_prior, base_widths
+) -> tuple:
     """One ladder point: (m, 2 ln B, held-out z) from the runs at the effect's magnitude
     ``m`` (internal point ``x_at``, its runs ``at``) and its Jacobian's steps (``cols``,
     ``shifts``)."""
@@ -156,7 +177,7 @@ def _rung(problem, space, sizes, sd, noise, r0, Jb, Q, steps, m, x_at, at, cols,
     # before the refit, or a with-model charged the baseline's whole residual, made the limits
     # 2-7x off, either way).
     Qe = _span(np.column_stack([Jb, Je]))
-    r_with, r_wo = r0 - Qe @ (Qe.T @ r0), r0 - perp          # r = (ref - out): the data moved by dout
+    r_with, r_wo = r0 - Qe @ (Qe.T @ r0), r0 - perp  # r = (ref - out): the data moved by dout
     a_with, J_with, S_with, a_wo, J_wo, S_wo, row = {}, {}, {}, {}, {}, {}, 0
     for st, n, s, (S_noise, Qo) in zip(problem.stages, sizes, sd, noise):
         sl = slice(row, row + n)
@@ -186,7 +207,7 @@ def limit_text(record: dict) -> str:
 
 def _span(J) -> np.ndarray:
     U, S, _ = np.linalg.svd(J, full_matrices=False)
-    return U[:, :int(np.sum(S > 1e-8 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
+    return U[:, : int(np.sum(S > 1e-8 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
 
 
 def _base_steps(problem, fit, base, executor) -> dict:
@@ -204,8 +225,12 @@ def _base_steps(problem, fit, base, executor) -> dict:
         return {"runs": len(pts) * len(problem.validation)}
     v0 = done[0][1]
     Jv = {n: np.stack([(d[1][n] - v0[n]) / steps[i] for i, d in enumerate(done[1:])], axis=-1) for n in v0}
-    return {"runs": len(pts) * len(problem.validation), "v0": v0, "Jv": Jv,
-            "gn": np.linalg.pinv(np.asarray(fit.mode.jacobian, float))}
+    return {
+        "runs": len(pts) * len(problem.validation),
+        "v0": v0,
+        "Jv": Jv,
+        "gn": np.linalg.pinv(np.asarray(fit.mode.jacobian, float)),
+    }
 
 
 def _held_out_z(problem, v, steps, dr) -> float | None:
@@ -219,7 +244,7 @@ def _held_out_z(problem, v, steps, dr) -> float | None:
     for n, t in problem.validation.items():
         change = (v[n] - steps["v0"][n]) + steps["Jv"][n] @ dx
         sigma = np.asarray(problem.test_noise(n), float)
-        total += float(np.sum(change.reshape(len(change), -1) ** 2 / sigma ** 2))
+        total += float(np.sum(change.reshape(len(change), -1) ** 2 / sigma**2))
     return 0.5 * math.sqrt(total)
 
 
@@ -232,14 +257,18 @@ def _limit(ladder, params, null, far) -> dict:
     ``below_ladder`` where even its lowest rung is (the limit is then an upper bound)."""
     named = _named
 
-    def margin(two_ln_b, z):     # > 0 where named: the smaller of the two margins, in log
+    def margin(two_ln_b, z):  # > 0 where named: the smaller of the two margins, in log
         if two_ln_b is None:
             return -math.inf
         a = math.log(max(two_ln_b, 1e-3) / DECISIVE)
         return a if z is None else min(a, math.log(max(z, 1e-6) / SIGNIFICANT_SD))
 
-    record = {"ladder": [{"magnitude": m, "two_ln_B": b, "held_out_z": z} for m, b, z in ladder],
-              "detectable_from": None, "magnitude": None, "below_ladder": bool(ladder and named(*ladder[0][1:]))}
+    record = {
+        "ladder": [{"magnitude": m, "two_ln_B": b, "held_out_z": z} for m, b, z in ladder],
+        "detectable_from": None,
+        "magnitude": None,
+        "below_ladder": bool(ladder and named(*ladder[0][1:])),
+    }
     for i, (m, b, z) in enumerate(ladder):
         if not named(b, z):
             continue

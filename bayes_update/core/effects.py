@@ -13,6 +13,7 @@ The naming rules of the discrepancy workflow
 :data:`EXPLAINED_FACTOR`, :func:`misfit_allowance`, :func:`misfit_ratios` and
 the evidence table.
 """
+
 from __future__ import annotations
 
 import math
@@ -24,8 +25,16 @@ from bayes_update.core.held_out import describe
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["DECISIVE", "EXPLAINED_FACTOR", "ExtendedSpace", "WithNulls", "candidate_effects", "evidence_table",
-           "misfit_allowance", "misfit_ratios"]
+__all__ = [
+    "DECISIVE",
+    "EXPLAINED_FACTOR",
+    "ExtendedSpace",
+    "WithNulls",
+    "candidate_effects",
+    "evidence_table",
+    "misfit_allowance",
+    "misfit_ratios",
+]
 
 #: 2 ln B above which the evidence is called decisive (Kass and Raftery 1995: > 6 "strong", > 10 "very strong")
 DECISIVE = 6.0
@@ -51,7 +60,7 @@ def misfit_allowance(lik) -> dict:
     out = {}
     for st, sc in lik.scales.items():
         me = sc.model_error_unabsorbed if sc.model_error_unabsorbed is not None else sc.model_error
-        out[_key(st)] = math.sqrt(sc.noise_mean_square + me ** 2)
+        out[_key(st)] = math.sqrt(sc.noise_mean_square + me**2)
     return out
 
 
@@ -72,30 +81,34 @@ def candidate_effects(model, base_names=()) -> dict:
         raise ModelSpecError(
             f"{kind} has no candidate_effects(): the discrepancy workflow needs it; add a method "
             "candidate_effects(self) -> {effect_name: [Parameter(..., null=value), ...]} whose parameters "
-            "simulate(theta, force, fs) accepts (docs/models.md)")
+            "simulate(theta, force, fs) accepts (docs/models.md)"
+        )
     effects = model.candidate_effects()
     if not isinstance(effects, Mapping) or not effects:
-        raise ModelSpecError(f"{kind}.candidate_effects() must return a non-empty dict "
-                             f"{{effect_name: [Parameter, ...]}}, got {effects!r}")
+        raise ModelSpecError(
+            f"{kind}.candidate_effects() must return a non-empty dict "
+            f"{{effect_name: [Parameter, ...]}}, got {effects!r}"
+        )
     seen = set(base_names)
     out = {}
     for name, params in effects.items():
         params = tuple(params) if not isinstance(params, Parameter) else (params,)
         if not isinstance(name, str) or not name or not params:
-            raise ModelSpecError(f"{kind}.candidate_effects(): effect {name!r} needs a name and at least "
-                                 "one Parameter")
+            raise ModelSpecError(f"{kind}.candidate_effects(): effect {name!r} needs a name and at least one Parameter")
         for p in params:
             if not isinstance(p, Parameter):
-                raise ModelSpecError(f"{kind}.candidate_effects()[{name!r}]: {p!r} is not a "
-                                     "bayes_update.Parameter")
+                raise ModelSpecError(f"{kind}.candidate_effects()[{name!r}]: {p!r} is not a bayes_update.Parameter")
             if p.null is None:
                 raise ModelSpecError(
                     f"{kind}.candidate_effects()[{name!r}]: parameter {p.name!r} has no null value; give "
                     f"Parameter({p.name!r}, {p.low!r}, {p.high!r}, ..., null=<the value that switches the "
-                    "effect off>)")
+                    "effect off>)"
+                )
             if p.name in seen:
-                raise ModelSpecError(f"{kind}.candidate_effects()[{name!r}]: parameter name {p.name!r} is "
-                                     "already used (by the model's parameters or another effect)")
+                raise ModelSpecError(
+                    f"{kind}.candidate_effects()[{name!r}]: parameter name {p.name!r} is "
+                    "already used (by the model's parameters or another effect)"
+                )
             seen.add(p.name)
         out[name] = params
     return out
@@ -107,7 +120,7 @@ class WithNulls:
     member is the wrapped model's (its hooks, units, metric set), and
     ``refined()`` wraps the wrapped model's refined one."""
 
-    wraps_model = True   # messages name the wrapped model (bayes_update.core.model.model_label)
+    wraps_model = True  # messages name the wrapped model (bayes_update.core.model.model_label)
 
     def __init__(self, model, nulls: Mapping):
         self.model, self.nulls = model, dict(nulls)
@@ -155,9 +168,9 @@ class ExtendedSpace:
 
     def to_parameters(self, x) -> dict:
         x = np.asarray(x, float)
-        theta = self.base.from_internal(x[:self.n_base])
+        theta = self.base.from_internal(x[: self.n_base])
         if self.effects is not None:
-            theta.update(self.effects.from_internal(x[self.n_base:]))
+            theta.update(self.effects.from_internal(x[self.n_base :]))
         return theta
 
     from_internal = to_parameters
@@ -171,8 +184,8 @@ class ExtendedSpace:
         (:meth:`ParameterSet.log_normalised_prior`) and a uniform density per
         added coordinate."""
         x = np.asarray(x, float)
-        lp = self.base.log_normalised_prior(x[:self.n_base])
-        return lp - float(np.sum(np.log(self.widths()[self.n_base:])))
+        lp = self.base.log_normalised_prior(x[: self.n_base])
+        return lp - float(np.sum(np.log(self.widths()[self.n_base :])))
 
     def values(self, x, cov) -> dict:
         """{added parameter: mode, sd, Laplace interval (mode +- 2 sd), null, unit} in
@@ -183,11 +196,24 @@ class ExtendedSpace:
             lo, hi = x[i] - 2 * sd[i], x[i] + 2 * sd[i]
             if p.log:
                 m = math.exp(x[i])
-                out[p.name] = {"mode": m, "sd": m * float(sd[i]), "interval": [math.exp(lo), math.exp(hi)],
-                               "null": p.null, "unit": p.unit, "prior": [p.low, p.high], "log": True}
+                out[p.name] = {
+                    "mode": m,
+                    "sd": m * float(sd[i]),
+                    "interval": [math.exp(lo), math.exp(hi)],
+                    "null": p.null,
+                    "unit": p.unit,
+                    "prior": [p.low, p.high],
+                    "log": True,
+                }
             else:
-                out[p.name] = {"mode": float(x[i]), "sd": float(sd[i]), "interval": [float(lo), float(hi)],
-                               "null": p.null, "unit": p.unit, "prior": [p.low, p.high]}
+                out[p.name] = {
+                    "mode": float(x[i]),
+                    "sd": float(sd[i]),
+                    "interval": [float(lo), float(hi)],
+                    "null": p.null,
+                    "unit": p.unit,
+                    "prior": [p.low, p.high],
+                }
         return out
 
 
@@ -198,34 +224,49 @@ def evidence_table(res) -> str:
     lines = []
     for i, rnd in enumerate(res.rounds):
         base = " + ".join(["baseline"] + rnd["base"])
-        lines += [f"Round {i + 1}: candidates added to {base}", "",
-                  "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null "
-                  "| held-out error per test, before -> after (gain in sd of its noise) | note |",
-                  "|---|---|---|---|---|---|---|"]
+        lines += [
+            f"Round {i + 1}: candidates added to {base}",
+            "",
+            "| candidate | 2 ln B | gain in log L | fitted effect parameters (mode +- Laplace sd) | excludes null "
+            "| held-out error per test, before -> after (gain in sd of its noise) | note |",
+            "|---|---|---|---|---|---|---|",
+        ]
         for c in rnd["candidates"]:
             pars = ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in c["parameters"].items())
             held = c.get("held_out")
-            lines.append(f"| {c['name']} | {_two_ln_b(c)} | {c['delta_log_likelihood']:.1f} | {pars} | "
-                         f"{'yes' if c['excludes_null'] else 'no'} | {describe(held)} | {_note(c)} |")
+            lines.append(
+                f"| {c['name']} | {_two_ln_b(c)} | {c['delta_log_likelihood']:.1f} | {pars} | "
+                f"{'yes' if c['excludes_null'] else 'no'} | {describe(held)} | {_note(c)} |"
+            )
         lines.append("")
         if rnd.get("pairs"):
-            lines += ["The strongest candidate on a bound of its prior, fitted with each other decisive one:", "",
-                      "| pair | 2 ln B | partner alone | members (mode +- Laplace sd; where) | held-out error per test "
-                      "(gain in sd) | named |",
-                      "|---|---|---|---|---|---|"]
+            lines += [
+                "The strongest candidate on a bound of its prior, fitted with each other decisive one:",
+                "",
+                "| pair | 2 ln B | partner alone | members (mode +- Laplace sd; where) | held-out error per test "
+                "(gain in sd) | named |",
+                "|---|---|---|---|---|---|",
+            ]
             for c in rnd["pairs"]:
                 members = "; ".join(
                     ", ".join(f"{k} = {v['mode']:.4g} +- {v['sd']:.2g} {v['unit']}" for k, v in m["parameters"].items())
                     + (" (at its null)" if m["at_null"] else " (on a bound)" if m["at_bound"] else "")
-                    for m in c["members"].values())
+                    for m in c["members"].values()
+                )
                 held = c.get("held_out")
-                lines.append(f"| {' + '.join(c['names'])} | {c['two_ln_B']:.1f} | {c['partner_alone']:.1f} | "
-                             f"{members} | {describe(held)} | "
-                             f"{'yes' if c['named'] else 'no'} |")
+                lines.append(
+                    f"| {' + '.join(c['names'])} | {c['two_ln_B']:.1f} | {c['partner_alone']:.1f} | "
+                    f"{members} | {describe(held)} | "
+                    f"{'yes' if c['named'] else 'no'} |"
+                )
             lines.append("")
     if getattr(res, "detectability", None):
-        lines += ["What these tests would name (linearised about the baseline, "
-                  "`bayes_update.core.detectability`):", "", "| candidate | detectable from |", "|---|---|"]
+        lines += [
+            "What these tests would name (linearised about the baseline, `bayes_update.core.detectability`):",
+            "",
+            "| candidate | detectable from |",
+            "|---|---|",
+        ]
         for e, d in res.detectability.items():
             lines.append(f"| {e} | {d['text']} |")
         lines.append("")
@@ -235,11 +276,13 @@ def evidence_table(res) -> str:
 
 
 #: the naming rule in words (the evidence table and discrepancy.json)
-NAMING_RULE = (f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
-               "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
-               "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
-               "(validation) tests predicted better, by more than 3 sd of what their noise could give, and none of them "
-               "worse by more than 3 sd of its own")
+NAMING_RULE = (
+    f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
+    "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
+    "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
+    "(validation) tests predicted better, by more than 3 sd of what their noise could give, and none of them "
+    "worse by more than 3 sd of its own"
+)
 
 
 def _two_ln_b(row) -> str:
@@ -250,15 +293,19 @@ def _note(row) -> str:
     if row.get("failed_fit"):
         return "the fit ended below the model without it, twice: not evidence"
     if row.get("at_null"):
-        return "fitted at its null value" + (" (the data pin it there: its Occam factor)"
-                                              if row["two_ln_B"] < -DECISIVE else "")
+        return "fitted at its null value" + (
+            " (the data pin it there: its Occam factor)" if row["two_ln_B"] < -DECISIVE else ""
+        )
     if row.get("at_bound"):
         return "on a bound of its prior"
     held = row.get("held_out")
     if row["two_ln_B"] > DECISIVE and held is not None and not held["improves"]:
         worse = [t for t, v in held["tests"].items() if v.get("z", 0.0) <= -3.0]
-        return ("decisive, but the held-out tests are not predicted better" if not worse else
-                f"decisive, but it predicts {', '.join(worse)} worse")
+        return (
+            "decisive, but the held-out tests are not predicted better"
+            if not worse
+            else f"decisive, but it predicts {', '.join(worse)} worse"
+        )
     return ""
 
 
@@ -272,7 +319,7 @@ class NamingVerdict:
 
     @property
     def verdict(self) -> str:
-        """"named", "no missing effect" (the baseline explains the data) or "no
+        """ "named", "no missing effect" (the baseline explains the data) or "no
         candidate explains the gap"."""
         if self.named:
             return "named"
@@ -286,9 +333,11 @@ class NamingVerdict:
         out = {"misfit_ratio": dict(self.misfit_ratio), "closed": bool(self.explains_gap)}
         if g.get("held_out_relative_error") is not None:
             floor = g.get("held_out_noise_floor") or 0.0
-            out.update(held_out_error_beyond_noise=g["held_out_error_beyond_noise"],
-                       held_out_relative_error=g["held_out_relative_error"],
-                       held_out_times_noise=g["held_out_relative_error"] / floor if floor > 0 else None)
+            out.update(
+                held_out_error_beyond_noise=g["held_out_error_beyond_noise"],
+                held_out_relative_error=g["held_out_relative_error"],
+                held_out_times_noise=g["held_out_relative_error"] / floor if floor > 0 else None,
+            )
         return out
 
     def gap_sentence(self) -> str:
@@ -298,17 +347,28 @@ class NamingVerdict:
         held = ""
         if r.get("held_out_relative_error") is not None:
             times = r.get("held_out_times_noise")
-            held = (f"; the held-out tests' error is {100 * r['held_out_relative_error']:.3g} %, "
-                    f"{100 * r['held_out_error_beyond_noise']:.3g} % beyond their noise"
-                    + (f" ({times:.2g} times the noise's)" if times is not None else ""))
+            held = (
+                f"; the held-out tests' error is {100 * r['held_out_relative_error']:.3g} %, "
+                f"{100 * r['held_out_error_beyond_noise']:.3g} % beyond their noise"
+                + (f" ({times:.2g} times the noise's)" if times is not None else "")
+            )
         what = "with " + (" + ".join(self.named) if self.named else "the baseline alone")
         if r["closed"]:
             return f"The gap is closed {what}: misfit {ratios} what noise and model error allow{held}."
-        return (f"A gap remains {what}: misfit {ratios} what noise and model error allow{held}: "
-                "something outside the catalogue (or outside the model's form)")
+        return (
+            f"A gap remains {what}: misfit {ratios} what noise and model error allow{held}: "
+            "something outside the catalogue (or outside the model's form)"
+        )
 
     def decision_json(self) -> dict:
-        return {"named": list(self.named), "named_effect": self.named_effect, "verdict": self.verdict,
-                "explains_gap": bool(self.explains_gap), "misfit_ratio": self.misfit_ratio,
-                "explained_factor": EXPLAINED_FACTOR, "gap_remaining": self.gap_remaining(),
-                "gap_sentence": self.gap_sentence(), "decision_rule": NAMING_RULE}
+        return {
+            "named": list(self.named),
+            "named_effect": self.named_effect,
+            "verdict": self.verdict,
+            "explains_gap": bool(self.explains_gap),
+            "misfit_ratio": self.misfit_ratio,
+            "explained_factor": EXPLAINED_FACTOR,
+            "gap_remaining": self.gap_remaining(),
+            "gap_sentence": self.gap_sentence(),
+            "decision_rule": NAMING_RULE,
+        }

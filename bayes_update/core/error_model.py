@@ -24,6 +24,7 @@ sample needs only the marginal variance there):
     a, a cubic spring's as a^2); where one test does, the variance averaged over
     p uniform in [0, 2].
 """
+
 from __future__ import annotations
 
 import math
@@ -53,11 +54,14 @@ class ErrorModel:
     def sd(self, response_rms) -> np.ndarray:
         """The total error's sd per sensor for a response of that rms per sensor."""
         flat = 0.0 if self.form_sd is None else self.form_sd
-        return np.sqrt(self.noise_sd ** 2 + flat ** 2 + (self.form_share * np.asarray(response_rms, float)) ** 2)
+        return np.sqrt(self.noise_sd**2 + flat**2 + (self.form_share * np.asarray(response_rms, float)) ** 2)
 
     def to_dict(self, sensors) -> dict:
-        out = {"noise_sd": dict(zip(sensors, map(float, self.noise_sd))),
-               "model_form_share": dict(zip(sensors, map(float, self.form_share))), "model_form_source": self.source}
+        out = {
+            "noise_sd": dict(zip(sensors, map(float, self.noise_sd))),
+            "model_form_share": dict(zip(sensors, map(float, self.form_share))),
+            "model_form_source": self.source,
+        }
         if self.form_sd is not None:
             out["model_form_sd"] = dict(zip(sensors, map(float, self.form_sd)))
         return out
@@ -76,14 +80,18 @@ def error_models(problem, likelihood) -> dict:
     for stage, test in problem.tests.items():
         rms = (likelihood.scales[stage].model_form_rms or {}) if stage in likelihood.scales else {}
         y = test.response.reshape(len(test.response), -1)
-        known[test.name] = (_level(test.force), np.array([rms.get(s, 0.0) for s in sensors], float),
-                            np.sqrt(np.mean(y ** 2, axis=0)))
+        known[test.name] = (
+            _level(test.force),
+            np.array([rms.get(s, 0.0) for s in sensors], float),
+            np.sqrt(np.mean(y**2, axis=0)),
+        )
     out = {}
     for test in list(problem.tests.values()) + list(problem.validation.values()):
         noise = np.asarray(problem.test_noise(test.name), float)
         if test.name in known:
-            out[test.name] = ErrorModel(noise, known[test.name][1], "the residual at its own best point beyond "
-                                                                    "the noise")
+            out[test.name] = ErrorModel(
+                noise, known[test.name][1], "the residual at its own best point beyond the noise"
+            )
         else:
             flat, share, source = carried_error(_level(test.force), list(known.values()))
             out[test.name] = ErrorModel(noise, share, source, flat)
@@ -100,9 +108,9 @@ def carried_error(level: float, known: list) -> tuple[np.ndarray, np.ndarray, st
     """``(form_sd, form_share, how)`` at force level ``level`` from ``[(level_k, share_k,
     rms_k)]`` of the estimation tests, per sensor (module docstring)."""
     levels = np.array([k[0] for k in known])
-    excess = np.array([k[1] * k[2] for k in known])            # (tests, sensors) absolute excess
+    excess = np.array([k[1] * k[2] for k in known])  # (tests, sensors) absolute excess
     flat = excess.min(axis=0)
-    growing = np.sqrt(np.maximum(excess ** 2 - flat ** 2, 0.0)) / np.array([k[2] for k in known])
+    growing = np.sqrt(np.maximum(excess**2 - flat**2, 0.0)) / np.array([k[2] for k in known])
     share = np.zeros_like(flat)
     for j in range(len(flat)):
         has = np.flatnonzero(growing[:, j] > FLOOR)
@@ -115,10 +123,23 @@ def carried_error(level: float, known: list) -> tuple[np.ndarray, np.ndarray, st
             continue
         else:
             lo, hi = has[np.argmin(levels[has])], has[np.argmax(levels[has])]
-            p = float(np.clip(np.log(growing[hi, j] / growing[lo, j]) / math.log(levels[hi] / levels[lo]),
-                              0.0, MAX_EXPONENT)) if levels[hi] > levels[lo] else 0.0
+            p = (
+                float(
+                    np.clip(
+                        np.log(growing[hi, j] / growing[lo, j]) / math.log(levels[hi] / levels[lo]), 0.0, MAX_EXPONENT
+                    )
+                )
+                if levels[hi] > levels[lo]
+                else 0.0
+            )
             i = hi if level >= levels[hi] else lo if level <= levels[lo] else hi
         share[j] = growing[i, j] * (level / levels[i]) ** p
-    how = ("interpolated" if levels.min() <= level <= levels.max() else "extrapolated")
-    return flat, share, (f"{how} in level (force rms {level:.3g}) from the estimation tests': a part that does "
-                         "not grow with the level and one that does (power law)")
+    how = "interpolated" if levels.min() <= level <= levels.max() else "extrapolated"
+    return (
+        flat,
+        share,
+        (
+            f"{how} in level (force rms {level:.3g}) from the estimation tests': a part that does "
+            "not grow with the level and one that does (power law)"
+        ),
+    )

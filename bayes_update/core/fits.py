@@ -2,6 +2,7 @@
 model (the baseline plus added effects) at its least-squares mode with its
 Laplace evidence, where its effect's parameters sit (at the null, on a bound),
 the naming rule for one candidate, and the gap a fit leaves on the tests."""
+
 from __future__ import annotations
 
 import math
@@ -9,26 +10,35 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from bayes_update.core.effects import DECISIVE, ExtendedSpace
 from bayes_update.core.comparison import score_model
+from bayes_update.core.effects import DECISIVE, ExtendedSpace
 from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
-__all__ = ["AT_VALUE", "GAP_LABELS", "Fit", "failed_fit", "fit_model", "gap", "names_effect", "names_pair",
-           "noise_floor"]
+__all__ = [
+    "AT_VALUE",
+    "GAP_LABELS",
+    "Fit",
+    "failed_fit",
+    "fit_model",
+    "gap",
+    "names_effect",
+    "names_pair",
+    "noise_floor",
+]
 
 
 @dataclass
 class Fit:
     """One model (baseline + added effects) at its mode."""
 
-    names: list                  # added effects, in order
+    names: list  # added effects, in order
     space: ExtendedSpace
     mode: ModeResult
     log_evidence: float
     covariance: np.ndarray
-    metrics: dict                # e_lin, e_nlin at the mode
+    metrics: dict  # e_lin, e_nlin at the mode
 
     @property
     def theta(self) -> dict:
@@ -37,17 +47,22 @@ class Fit:
     def to_json(self, effects: dict) -> dict:
         values = self.space.values(self.mode.x, self.covariance)
         base = {n: v for n, v in self.theta.items() if n in self.space.base.names}
-        sd = np.sqrt(np.diag(self.covariance))[:self.space.n_base]
-        return {"parameters": {n: {"mode": base[n], "unit": self.space.base[n].unit,
-                                   "sd_internal": float(s), "coordinate": c}
-                               for n, s, c in zip(self.space.base.names, sd, self.space.base.coordinate_names)},
-                "effects": {e: {p.name: values[p.name] for p in effects[e]} for e in self.names},
-                "e_lin": self.metrics["e_lin"], "e_nlin": self.metrics["e_nlin"], "log_evidence": self.log_evidence}
+        sd = np.sqrt(np.diag(self.covariance))[: self.space.n_base]
+        return {
+            "parameters": {
+                n: {"mode": base[n], "unit": self.space.base[n].unit, "sd_internal": float(s), "coordinate": c}
+                for n, s, c in zip(self.space.base.names, sd, self.space.base.coordinate_names)
+            },
+            "effects": {e: {p.name: values[p.name] for p in effects[e]} for e in self.names},
+            "e_lin": self.metrics["e_lin"],
+            "e_nlin": self.metrics["e_nlin"],
+            "log_evidence": self.log_evidence,
+        }
 
 
-
-def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None,
-              iterations: int | None = None) -> Fit:
+def fit_model(
+    problem: Problem, space: ExtendedSpace, names, lik, starts, settings, executor=None, iterations: int | None = None
+) -> Fit:
     """Mode, Laplace covariance and log evidence of the baseline + the parameters of ``space``
     (``iterations``: per start, default ``settings.max_iterations``); the model run once more
     per test at its mode for its own error covariance (:func:`~bayes_update.core.comparison.score_model`)."""
@@ -56,16 +71,28 @@ def fit_model(problem: Problem, space: ExtendedSpace, names, lik, starts, settin
     box = space.box()
     lo, hi = box[:, 0], box[:, 1]
     tol = settings.cost_tolerance
-    mode = find_mode(fun, starts, lo, hi, 1e-4 * (hi - lo), executor,
-                     max_iterations=iterations or settings.max_iterations, cost_tolerance=tol, central=tol is None)
+    mode = find_mode(
+        fun,
+        starts,
+        lo,
+        hi,
+        1e-4 * (hi - lo),
+        executor,
+        max_iterations=iterations or settings.max_iterations,
+        cost_tolerance=tol,
+        central=tol is None,
+    )
     # each model scored under its own error covariance: the noise and what its own mode leaves
     # beyond it (bayes_update.core.comparison; one run per test)
-    scored = score_model(problem, lik, mode, space.to_parameters(mode.x), space.log_prior_density(mode.x), hi - lo,
-                         executor)
+    scored = score_model(
+        problem, lik, mode, space.to_parameters(mode.x), space.log_prior_density(mode.x), hi - lo, executor
+    )
     cov, logz = scored.covariance, scored.log_evidence
     r, n = mode.residual, len(mode.residual) // len(stages)
-    metrics = {("e_lin" if st == "linear" else "e_nlin"):
-               float(np.linalg.norm(r[i * n:(i + 1) * n]) * lik.scales[st].sd) for i, st in enumerate(stages)}
+    metrics = {
+        ("e_lin" if st == "linear" else "e_nlin"): float(np.linalg.norm(r[i * n : (i + 1) * n]) * lik.scales[st].sd)
+        for i, st in enumerate(stages)
+    }
     return Fit(list(names), space, mode, logz, cov, metrics)
 
 
@@ -86,8 +113,12 @@ def _member(fit: Fit, k: int, end: int | None) -> tuple:
     their Laplace sd), all internal coordinates."""
     stop = len(fit.mode.x) if end is None else end
     s, n = slice(stop - k, stop), fit.space.n_base
-    return (fit.mode.x[s], fit.space.null_internal()[s.start - n:s.stop - n], fit.space.box()[s],
-            np.sqrt(np.diag(fit.covariance))[s])
+    return (
+        fit.mode.x[s],
+        fit.space.null_internal()[s.start - n : s.stop - n],
+        fit.space.box()[s],
+        np.sqrt(np.diag(fit.covariance))[s],
+    )
 
 
 def effect_excludes_null(fit: Fit, k: int, end: int | None = None) -> bool:
@@ -139,8 +170,14 @@ def names_effect(row: dict) -> bool:
     :mod:`bayes_update.core.comparison`), a parameter more than 2 sd from its null, the fit neither at its null
     nor on a bound of its prior nor failed, and the held-out tests predicted better
     beyond their noise (:mod:`bayes_update.core.held_out`)."""
-    return bool(row["two_ln_B"] is not None and row["two_ln_B"] > DECISIVE and row["excludes_null"]
-                and not row["at_null"] and not row["at_bound"] and _improves_held_out(row))
+    return bool(
+        row["two_ln_B"] is not None
+        and row["two_ln_B"] > DECISIVE
+        and row["excludes_null"]
+        and not row["at_null"]
+        and not row["at_bound"]
+        and _improves_held_out(row)
+    )
 
 
 def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
@@ -151,22 +188,25 @@ def names_pair(row: dict, partner_alone: float, first_alone: float) -> bool:
     must add what the other cannot), each member more than 2 sd from its
     null, neither at its null nor on a bound, and the held-out tests predicted
     better beyond their noise."""
-    return bool(row["two_ln_B"] > DECISIVE and row["two_ln_B"] - partner_alone > DECISIVE
-                and row["two_ln_B"] - first_alone > DECISIVE
-                and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"]
-                        for m in row["members"].values()) and _improves_held_out(row))
+    return bool(
+        row["two_ln_B"] > DECISIVE
+        and row["two_ln_B"] - partner_alone > DECISIVE
+        and row["two_ln_B"] - first_alone > DECISIVE
+        and all(m["excludes_null"] and not m["at_null"] and not m["at_bound"] for m in row["members"].values())
+        and _improves_held_out(row)
+    )
 
 
-def best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor,
-                       n_best: int = 2) -> tuple[list, int]:
+def best_extra_starts(problem: Problem, space: ExtendedSpace, lik, x0, executor, n_best: int = 2) -> tuple[list, int]:
     """(the ``n_best`` lowest-cost of the model's ``extra_starts(x0)``, model runs);
     none if it offers none."""
     extra = getattr(problem.model, "extra_starts", None)
     grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
     if not grid:
         return [], 0
-    fun = ResidualFunction(problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages),
-                           SpacePoint(space, problem.model))
+    fun = ResidualFunction(
+        problem, problem.stages, tuple(lik.scales[s].sd for s in problem.stages), SpacePoint(space, problem.model)
+    )
     cost = [0.5 * float(r @ r) for r in evaluate_many(fun, grid, executor, progress=False)]
     return [grid[i] for i in np.argsort(cost)[:n_best]], len(grid) * len(problem.stages)
 
@@ -176,7 +216,7 @@ def noise_floor(problem: Problem, test) -> float:
     sensor's measurement noise (:meth:`Problem.test_noise`) over its rms, the
     rms over the sensors [-]."""
     y = test.response if test.response.ndim == 2 else test.response[:, None]
-    ratios = problem.test_noise(test.name) / np.sqrt(np.mean(y ** 2, axis=0))
+    ratios = problem.test_noise(test.name) / np.sqrt(np.mean(y**2, axis=0))
     return float(np.sqrt(np.mean(np.square(ratios))))
 
 
@@ -195,11 +235,14 @@ def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
     (:data:`GAP_LABELS`): ``held_out_error_beyond_noise`` is sqrt(rel^2 - floor^2)
     averaged over the tests (the noise alone gives rel = floor, which no model
     removes), ``held_out_relative_error`` the raw mean, ``held_out_tests`` per test."""
-    out = {"e_lin": fit.metrics["e_lin"], "e_nlin": fit.metrics["e_nlin"],
-           "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"]}
+    out = {
+        "e_lin": fit.metrics["e_lin"],
+        "e_nlin": fit.metrics["e_nlin"],
+        "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"],
+    }
     val = problem.prediction_errors(fit.theta)
     if val:
-        excess = [math.sqrt(max(v ** 2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
+        excess = [math.sqrt(max(v**2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
         out["held_out_error_beyond_noise"] = float(np.mean(excess))
         out["held_out_relative_error"] = float(np.mean(list(val.values())))
         out["held_out_noise_floor"] = float(np.mean([floors.get(k) or 0.0 for k in val]))
@@ -218,6 +261,11 @@ def signature_changes(model, named, d0, d1, gap0, gap1) -> dict:
             continue
         key, meaning, before = got
         after = sig(name, d1, gap1)[2]
-        out[name] = {"signature": key, "meaning": meaning, "before": before, "after": after,
-                     "shrank": bool(before is not None and after is not None and after < before)}
+        out[name] = {
+            "signature": key,
+            "meaning": meaning,
+            "before": before,
+            "after": after,
+            "shrank": bool(before is not None and after is not None and after < before),
+        }
     return out

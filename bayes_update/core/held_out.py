@@ -19,6 +19,7 @@ prediction as far as any record can tell: no improvement, whatever z says (where
 model leaves a residual many times its noise, an effect at its null, 1e-10, moved the
 responses by 1e-6 of the noise and scored z = +2275).
 """
+
 from __future__ import annotations
 
 import math
@@ -70,18 +71,27 @@ def held_out_comparison(problem, before: dict | None, after: dict | None) -> dic
         y = t.response.reshape(len(t.response), -1)
         m0, m1 = before[name].reshape(y.shape), after[name].reshape(y.shape)
         sigma = np.asarray(problem.test_noise(name), float).reshape(-1)
-        g = float(np.sum((np.sum((y - m0) ** 2, axis=0) - np.sum((y - m1) ** 2, axis=0)) / sigma ** 2))
-        v = 4.0 * float(np.sum(np.sum((m1 - m0) ** 2, axis=0) / sigma ** 2))
+        g = float(np.sum((np.sum((y - m0) ** 2, axis=0) - np.sum((y - m1) ** 2, axis=0)) / sigma**2))
+        v = 4.0 * float(np.sum(np.sum((m1 - m0) ** 2, axis=0) / sigma**2))
         gain, var = gain + g, var + v
         rel = [np.linalg.norm(y - m, axis=0) / np.linalg.norm(y, axis=0) for m in (m0, m1)]
-        tests[name] = {"before": float(np.sqrt(np.mean(rel[0] ** 2))), "after": float(np.sqrt(np.mean(rel[1] ** 2))),
-                       "z": g / math.sqrt(v) if v > 0 else 0.0}
+        tests[name] = {
+            "before": float(np.sqrt(np.mean(rel[0] ** 2))),
+            "after": float(np.sqrt(np.mean(rel[1] ** 2))),
+            "z": g / math.sqrt(v) if v > 0 else 0.0,
+        }
     sd = math.sqrt(var)
     z = gain / sd if sd > 0 else 0.0
     distinct = sd >= 1.0
     none_worse = all(t["z"] > -SIGNIFICANT_SD for t in tests.values())
-    return {"gain": gain, "sd": sd, "z": z, "distinct": distinct,
-            "improves": bool(distinct and z > SIGNIFICANT_SD and none_worse), "tests": tests}
+    return {
+        "gain": gain,
+        "sd": sd,
+        "z": z,
+        "distinct": distinct,
+        "improves": bool(distinct and z > SIGNIFICANT_SD and none_worse),
+        "tests": tests,
+    }
 
 
 def describe(comparison: dict | None) -> str:
@@ -91,7 +101,9 @@ def describe(comparison: dict | None) -> str:
     the noise only, and one test's drop can hide another's rise."""
     if comparison is None:
         return "-"
-    tests = ", ".join(f"{t} {100 * v['before']:.3g} -> {100 * v['after']:.3g} %" for t, v in comparison["tests"].items())
+    tests = ", ".join(
+        f"{t} {100 * v['before']:.3g} -> {100 * v['after']:.3g} %" for t, v in comparison["tests"].items()
+    )
     if not comparison.get("distinct", True):
         return f"{tests} (the same prediction within the noise)"
     return f"{tests} ({comparison['z']:+.1f} sd)"

@@ -2,6 +2,7 @@
 calibration's chi-square hardly changes along (:func:`unidentified_directions`), the
 Gauss-Newton covariance at its end, and the parameters' sds through their transform
 (step 4 of :mod:`bayes_update.core.calibrate`)."""
+
 from __future__ import annotations
 
 import math
@@ -26,8 +27,12 @@ def unidentified_directions(jacobian, widths, names, rows_to_noise=None) -> list
     for s, v in zip(S, Vt):
         if s < IDENTIFIED_SINGULAR_VALUE:
             v = v * np.sign(v[np.argmax(np.abs(v))])
-            out.append({"direction": {n: round(float(c), 4) for n, c in zip(names, v)},
-                        "sd_over_range": float(1.0 / s) if s > 0 else math.inf})
+            out.append(
+                {
+                    "direction": {n: round(float(c), 4) for n, c in zip(names, v)},
+                    "sd_over_range": float(1.0 / s) if s > 0 else math.inf,
+                }
+            )
     return out
 
 

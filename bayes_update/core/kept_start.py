@@ -6,6 +6,7 @@ many points and ended at its best; ``sample`` then needs no start search of its
 own: the best of those points by calibrate's own objective is its start, and the
 runs there are read, not made.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -37,13 +38,14 @@ def kept_start(problem) -> tuple[dict, int] | None:
     if store is None:
         return None
     stages = problem.stages
-    found = store.points(problem.model, [problem.tests[st].force for st in stages], problem.fs,
-                         exclude_source=store.source)
+    found = store.points(
+        problem.model, [problem.tests[st].force for st in stages], problem.fs, exclude_source=store.source
+    )
     best, best_cost, n = None, np.inf, 0
     for theta, responses in found:
         try:
             x = space.to_internal(theta)
-        except (KeyError, ValueError):      # another prior's parameters
+        except (KeyError, ValueError):  # another prior's parameters
             continue
         if not np.isfinite(space.log_prior(x)[0]):
             continue

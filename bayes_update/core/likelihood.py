@@ -47,11 +47,13 @@ it is budgeted as one standard deviation in *any* direction, not spread over
 nu of them: a bias of that size then shifts any parameter by at most one
 posterior sd.
 """
+
 from __future__ import annotations
 
-import math
 import dataclasses
+import math
 from dataclasses import asdict, dataclass, field
+
 import numpy as np
 
 from bayes_update.core.metrics import STAGE_ORDERS
@@ -67,22 +69,22 @@ class StageScale:
     """Noise and model-error scale of one metric (all dimensionless, relative)."""
 
     stage: str
-    noise_mean_square: float   # mean of e^2 over the noise replicates at the estimate
-    noise_dof: float           # nu: effective directions of the noise
-    model_error: float         # e_model: model against its refined version at the estimate
+    noise_mean_square: float  # mean of e^2 over the noise replicates at the estimate
+    noise_dof: float  # nu: effective directions of the noise
+    model_error: float  # e_model: model against its refined version at the estimate
     n_regressors: int
     n_replicates: int
-    noise_levels: dict = field(default_factory=dict)   # channel -> {sd, unit, method, detail} the bootstrap added
-    span_variance: float | None = None   # noise variance per direction in the span of the parameters' sensitivities
+    noise_levels: dict = field(default_factory=dict)  # channel -> {sd, unit, method, detail} the bootstrap added
+    span_variance: float | None = None  # noise variance per direction in the span of the parameters' sensitivities
     span_rank: int | None = None
-    model_error_unabsorbed: float | None = None   # the part of e_model no parameter change can take up
-    model_error_source: str | None = None   # what e_model was measured against, or why it is zero
+    model_error_unabsorbed: float | None = None  # the part of e_model no parameter change can take up
+    model_error_source: str | None = None  # what e_model was measured against, or why it is zero
     #: the model-form error's variance per direction of the span (its draws at the mode,
     #: bayes_update.core.model_form), in the units of span_variance; 0 where not measured
     model_form_variance: float = 0.0
     #: {sensor: rms of the residual's excess over the noise at the mode / the record's rms}
     model_form_rms: dict | None = None
-    model_form_source: str | None = None    # how the model-form error was measured, or why not
+    model_form_source: str | None = None  # how the model-form error was measured, or why not
 
     @property
     def noise_sd(self) -> float:
@@ -100,7 +102,7 @@ class StageScale:
     @property
     def sd(self) -> float:
         """s = sqrt(s_n^2 + s_form^2 + e_model^2): the metric's scale in the likelihood."""
-        return math.sqrt(self.noise_sd ** 2 + self.model_form_variance + self.model_error ** 2)
+        return math.sqrt(self.noise_sd**2 + self.model_form_variance + self.model_error**2)
 
     def to_dict(self) -> dict:
         return {**asdict(self), "noise_sd": self.noise_sd, "model_form_sd": self.model_form_sd, "sd": self.sd}
@@ -118,7 +120,7 @@ class Likelihood:
     (:func:`errors_at_mode`).  :func:`bayes_update.core.adjustment.curvature_adjustment`
     needs both (:meth:`error_rows`); none of these is pickled (workers need only the scales)."""
 
-    scales: dict   # stage -> StageScale
+    scales: dict  # stage -> StageScale
     noise_residuals: dict | None = field(default=None, compare=False, repr=False)
     #: stage -> :class:`~bayes_update.core.span.Sensitivity` at the point the scales were measured (the sensitivity
     #: span's runs), which a mode search from that point takes as its first Jacobian
@@ -129,8 +131,13 @@ class Likelihood:
     form_residuals: dict | None = field(default=None, compare=False, repr=False)
 
     def __getstate__(self):
-        return {"scales": self.scales, "noise_residuals": None, "sensitivities": None, "noise_spectra": None,
-                "form_residuals": None}
+        return {
+            "scales": self.scales,
+            "noise_residuals": None,
+            "sensitivities": None,
+            "noise_spectra": None,
+            "form_residuals": None,
+        }
 
     def error_rows(self, stage: str):
         """``(D, w)``: the noise replicates' rows and, where measured, the model-form
@@ -163,17 +170,31 @@ class Likelihood:
     def restricted(self, stages) -> "Likelihood":
         def part(d):
             return {s: d[s] for s in stages if s in d} if d else None
-        return Likelihood({s: self.scales[s] for s in stages}, part(self.noise_residuals),
-                          noise_spectra=part(self.noise_spectra), form_residuals=part(self.form_residuals))
+
+        return Likelihood(
+            {s: self.scales[s] for s in stages},
+            part(self.noise_residuals),
+            noise_spectra=part(self.noise_spectra),
+            form_residuals=part(self.form_residuals),
+        )
 
     def unabsorbed(self) -> "Likelihood":
         """The same noise with only the unabsorbed part of the model error
         (orthogonal to the parameters' sensitivities): the misfit a model
         comparison should count as explained.  The posterior keeps the whole
         model error, so that its bias moves a parameter by at most one sd."""
-        return Likelihood({st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
-                           if sc.model_error_unabsorbed is not None else sc for st, sc in self.scales.items()},
-                          self.noise_residuals, self.sensitivities, self.noise_spectra, self.form_residuals)
+        return Likelihood(
+            {
+                st: dataclasses.replace(sc, model_error=sc.model_error_unabsorbed)
+                if sc.model_error_unabsorbed is not None
+                else sc
+                for st, sc in self.scales.items()
+            },
+            self.noise_residuals,
+            self.sensitivities,
+            self.noise_spectra,
+            self.form_residuals,
+        )
 
     def log_likelihood(self, metrics: dict) -> float:
         """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""
@@ -219,14 +240,23 @@ def noise_scale_from_replicates(e2, max_dof: int) -> tuple[float, float]:
         raise ValueError("need at least 4 finite non-negative replicate values of e^2")
     mean = float(e2.mean())
     var = float(e2.var(ddof=1))
-    nu = float(np.clip(2 * mean ** 2 / var, 1.0, max_dof)) if var > 0 else float(max_dof)
+    nu = float(np.clip(2 * mean**2 / var, 1.0, max_dof)) if var > 0 else float(max_dof)
     return mean, nu
 
 
-def estimate_likelihood(problem: Problem, params, *, refined=None,
-                        model_error: bool = True, n_replicates: int = 32, seed=0,
-                        stages=None, space=None, model_replicates: int | None = None,
-                        executor=None) -> Likelihood:
+def estimate_likelihood(
+    problem: Problem,
+    params,
+    *,
+    refined=None,
+    model_error: bool = True,
+    n_replicates: int = 32,
+    seed=0,
+    stages=None,
+    space=None,
+    model_replicates: int | None = None,
+    executor=None,
+) -> Likelihood:
     """Measure the likelihood scales at the estimate ``params`` (module docstring).
 
     n_replicates : noise replicates per stage (K model runs each, unless
@@ -251,33 +281,42 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
     ref_model, error_source = None, "off (model_error=False)"
     if model_error:
         ref_model = refined if refined is not None else problem.refined_model()
-        error_source = (f"{type(ref_model).__name__} (refined)" if refined is not None
-                        else problem.refinement_source())
+        error_source = f"{type(ref_model).__name__} (refined)" if refined is not None else problem.refinement_source()
     space = space if space is not None else problem.default_space()
     # every random draw first, stage by stage in a fixed order, then every model run of every
     # stage in one call to the executor (the workers never wait for a stage), then the sums
     plans, tasks = [], []
     for i, stage in enumerate(stages):
-        plan = draw_replicates(problem, stage, int(n_replicates), model_replicates,
-                                np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,))))
+        plan = draw_replicates(
+            problem,
+            stage,
+            int(n_replicates),
+            model_replicates,
+            np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(i,))),
+        )
         plan["x"], plan["h"], plan["steps"], points = derivative_points(space, params)
-        kinds = ([("force", plan["force"])] + [("force", f) for f in plan["forces"]]
-                 + [("output", x) for x in points] + ([("refined", plan["force"])] if ref_model is not None else []))
+        kinds = (
+            [("force", plan["force"])]
+            + [("force", f) for f in plan["forces"]]
+            + [("output", x) for x in points]
+            + ([("refined", plan["force"])] if ref_model is not None else [])
+        )
         plan["slice"] = slice(len(tasks), len(tasks) + len(kinds))
         tasks += [(kind, stage, arg) for kind, arg in kinds]
         plans.append(plan)
     # the refined model's runs (the longest) first, so that none is left alone at the end
     order = sorted(range(len(tasks)), key=lambda j: tasks[j][0] != "refined")
-    done = evaluate_many(ScalesRun(problem, params, space, ref_model), [tasks[j] for j in order], executor,
-                         batch_size=1, progress=False)
+    done = evaluate_many(
+        ScalesRun(problem, params, space, ref_model), [tasks[j] for j in order], executor, batch_size=1, progress=False
+    )
     results = [None] * len(tasks)
     for j, value in zip(order, done):
         results[j] = value
     scales, residuals, sensitivities, spectra = {}, {}, {}, {}
     for stage, plan in zip(stages, plans):
         res = results[plan["slice"]]
-        v0, runs = res[0], res[1:1 + len(plan["forces"])]
-        outs = res[1 + len(plan["forces"]):1 + len(plan["forces"]) + len(plan["x"])]
+        v0, runs = res[0], res[1 : 1 + len(plan["forces"])]
+        outs = res[1 + len(plan["forces"]) : 1 + len(plan["forces"]) + len(plan["x"])]
         ref_norm = np.linalg.norm(problem.output(stage, problem.reference_components(stage)))
         # the replicate's difference is projected on the recorded force's regressors, not on
         # its noisy force's: y_meas and v share v0, so the regressors' own change with the
@@ -293,7 +332,7 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
             lti = lti_fit(plan["probe"], runs[0] - v0)
             D, w = control_variate_rows(row, lti, plan["cheap"], plan["pairs"], runs[1:], v0)
             changes = [lti(du) for du, _ in plan["cheap"][:SPECTRUM_REPLICATES]]
-        else:              # every replicate a model run (none needed without force noise)
+        else:  # every replicate a model run (none needed without force noise)
             runs = runs if plan["forces"] else [v0] * len(plan["cheap"])
             D = np.array([row(noise, v - v0) for (_, noise), v in zip(plan["cheap"], runs)])
             w = np.full(len(D), 1.0 / len(D))
@@ -301,9 +340,9 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
         # the noise's spectrum in a replicate's time-domain residual (sensor noise and the response
         # to the force noise): what the model-form error at the mode is measured beyond
         spectra[stage] = np.mean([periodogram(noise - dv) for (_, noise), dv in zip(plan["cheap"], changes)], axis=0)
-        e2 = np.sum(D ** 2, axis=1)
+        e2 = np.sum(D**2, axis=1)
         n_reg = problem.n_regressors(stage)
-        _, nu = noise_scale_from_replicates(e2[w > 0][:int(n_replicates)], n_reg)   # nu: reported only
+        _, nu = noise_scale_from_replicates(e2[w > 0][: int(n_replicates)], n_reg)  # nu: reported only
         mean = float(w @ e2)
         y0 = problem.output(stage, problem.components(stage, v0))
         sens = derivative_from(plan["x"], plan["h"], plan["steps"], y0, outs)
@@ -316,12 +355,19 @@ def estimate_likelihood(problem: Problem, params, *, refined=None,
             e_model = float(np.linalg.norm(d) / ref_norm)
             e_perp = float(np.linalg.norm(d - Q @ (Q.T @ d)) / ref_norm)
         residuals[stage] = (D, w)
-        scales[stage] = StageScale(stage=stage, noise_mean_square=mean, noise_dof=nu, model_error=e_model,
-                                   n_regressors=n_reg, n_replicates=int(n_replicates),
-                                   noise_levels=_noise_levels(plan["estimates"], problem.sensors),
-                                   span_variance=span_var, span_rank=int(Q.shape[1]),
-                                   model_error_unabsorbed=e_perp,
-                                   model_error_source=error_source)
+        scales[stage] = StageScale(
+            stage=stage,
+            noise_mean_square=mean,
+            noise_dof=nu,
+            model_error=e_model,
+            n_regressors=n_reg,
+            n_replicates=int(n_replicates),
+            noise_levels=_noise_levels(plan["estimates"], problem.sensors),
+            span_variance=span_var,
+            span_rank=int(Q.shape[1]),
+            model_error_unabsorbed=e_perp,
+            model_error_source=error_source,
+        )
     return Likelihood(scales, residuals, sensitivities, spectra)
 
 
@@ -346,8 +392,17 @@ def _call(task):
     return task()
 
 
-def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, jacobian, executor=None,
-                   seed=0, n_draws: int = FORM_DRAWS, own_points: dict | None = None) -> Likelihood:
+def errors_at_mode(
+    problem: Problem,
+    likelihood: Likelihood,
+    params,
+    residual,
+    jacobian,
+    executor=None,
+    seed=0,
+    n_draws: int = FORM_DRAWS,
+    own_points: dict | None = None,
+) -> Likelihood:
     """``likelihood`` with its model errors measured at the mode ``params``; the noise terms stay.
 
     * The discretisation error (where the model has ``refined()``): the model
@@ -380,11 +435,13 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
     stages = problem.stages
     # per stage the model at the mode and at the stage's own point (its better residual is taken:
     # a Gauss-Newton step along a direction the test barely pins may overshoot), and the refined model
-    tasks = ([_RunAt(problem, params, None, st) for st in stages] +
-             [_RunAt(problem, own[st], None, st) for st in stages if st in own] +
-             ([_RunAt(problem, params, ref_model, st) for st in stages] if ref_model is not None else []))
+    tasks = (
+        [_RunAt(problem, params, None, st) for st in stages]
+        + [_RunAt(problem, own[st], None, st) for st in stages if st in own]
+        + ([_RunAt(problem, params, ref_model, st) for st in stages] if ref_model is not None else [])
+    )
     runs = evaluate_many(_call, tasks, executor, batch_size=1, progress=False)
-    at_mode, runs = runs[:len(stages)], runs[len(stages):]
+    at_mode, runs = runs[: len(stages)], runs[len(stages) :]
     at_own = {st: runs.pop(0) for st in stages if st in own}
     refined_runs = runs
     scales, forms, row = {}, {}, 0
@@ -392,14 +449,16 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
         sc = likelihood.scales[stage]
         ref = problem.output(stage, problem.reference_components(stage))
         norm, n = np.linalg.norm(ref), ref.size
-        r, J = np.asarray(residual[row:row + n], float), np.asarray(jacobian[row:row + n], float)
+        r, J = np.asarray(residual[row : row + n], float), np.asarray(jacobian[row : row + n], float)
         row += n
         Q = _column_span(J)
         changes = {}
         if ref_model is not None:
             d = ref - r * norm * sc.sd - problem.output(stage, problem.components(stage, refined_runs[i]))
-            changes.update(model_error=float(np.linalg.norm(d) / norm),
-                           model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm))
+            changes.update(
+                model_error=float(np.linalg.norm(d) / norm),
+                model_error_unabsorbed=float(np.linalg.norm(d - Q @ (Q.T @ d)) / norm),
+            )
         spectrum = (likelihood.noise_spectra or {}).get(stage)
         test = problem.tests[stage]
         where, resid = _best_residual(problem, test, at_mode[i], at_own.get(stage))
@@ -413,14 +472,17 @@ def errors_at_mode(problem: Problem, likelihood: Likelihood, params, residual, j
             D = np.array([problem.output(stage, problem.components(stage, dk)) / norm for dk in draws])
             forms[stage] = (D, np.full(len(D), 1.0 / len(D)))
             y = test.response.reshape(len(test.response), -1)
-            rel = np.sqrt(np.mean(excess.reshape(len(excess), -1) ** 2, axis=0) / np.mean(y ** 2, axis=0))
-            changes.update(model_form_variance=float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / max(Q.shape[1], 1)),
-                           model_form_rms={name: float(v) for (name, _), v in zip(problem.sensors, rel)},
-                           model_form_source=f"the test's residual at {where} beyond the noise's spectrum "
-                                             f"({n_draws} random-phase draws)")
+            rel = np.sqrt(np.mean(excess.reshape(len(excess), -1) ** 2, axis=0) / np.mean(y**2, axis=0))
+            changes.update(
+                model_form_variance=float(np.mean(np.sum((D @ Q) ** 2, axis=1)) / max(Q.shape[1], 1)),
+                model_form_rms={name: float(v) for (name, _), v in zip(problem.sensors, rel)},
+                model_form_source=f"the test's residual at {where} beyond the noise's spectrum "
+                f"({n_draws} random-phase draws)",
+            )
         scales[stage] = dataclasses.replace(sc, **changes)
-    return Likelihood(scales, likelihood.noise_residuals, likelihood.sensitivities, likelihood.noise_spectra,
-                      forms or None)
+    return Likelihood(
+        scales, likelihood.noise_residuals, likelihood.sensitivities, likelihood.noise_spectra, forms or None
+    )
 
 
 def _best_residual(problem, test, at_mode, at_own):
@@ -431,7 +493,7 @@ def _best_residual(problem, test, at_mode, at_own):
         if run is None:
             continue
         r = test.response - problem.compared_response(run)
-        if best is None or np.sum(r ** 2) < np.sum(best[1] ** 2):
+        if best is None or np.sum(r**2) < np.sum(best[1] ** 2):
             best = (where, r)
     return best if best is not None else (None, None)
 
@@ -439,7 +501,7 @@ def _best_residual(problem, test, at_mode, at_own):
 def _column_span(J) -> np.ndarray:
     """An orthonormal basis of the columns of J (singular values above 1e-6 of the largest)."""
     U, S, _ = np.linalg.svd(J, full_matrices=False)
-    return U[:, :int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
+    return U[:, : int(np.sum(S > 1e-6 * S[0]))] if S.size and S[0] > 0 else U[:, :0]
 
 
 def _noise_levels(estimates: dict, sensors) -> dict:
@@ -451,8 +513,14 @@ def _noise_levels(estimates: dict, sensors) -> dict:
     return {ch: {**estimates[ch].to_dict(), "unit": units[ch]} for ch in ["force"] + [n for n, _ in sensors]}
 
 
-def likelihood_runs(problem: Problem, n_replicates: int, space=None, model_error: bool = True,
-                    stages=None, model_replicates: int | None = None) -> int:
+def likelihood_runs(
+    problem: Problem,
+    n_replicates: int,
+    space=None,
+    model_error: bool = True,
+    stages=None,
+    model_replicates: int | None = None,
+) -> int:
     """Model runs :func:`estimate_likelihood` takes: per stage one at the
     estimate, ``n_replicates`` (or the LTI probe and ``model_replicates``; none
     without force noise), d for the sensitivity span and one of the refined

@@ -6,6 +6,7 @@ lines go (stderr, ``--log-file``).  In a script or a notebook, nothing shows
 until logging is configured, e.g. ``logging.basicConfig(level=logging.INFO)``,
 or pass ``log=print`` to the verb.
 """
+
 from __future__ import annotations
 
 import logging

@@ -17,8 +17,8 @@ it a metric compares is a declared *metric set* (:data:`METRIC_SETS`):
     (:mod:`bayes_update.core.calibrate`), each test is weighted by its
     measured noise (:meth:`Problem.noise_sd`), not by its energy.
 """
-from __future__ import annotations
 
+from __future__ import annotations
 
 import numpy as np
 
@@ -31,8 +31,7 @@ STAGES = ("linear", "nonlinear")
 #: Kernel orders fitted on each stage's test.
 STAGE_ORDERS = {"linear": (1,), "nonlinear": (1, 2, 3)}
 #: Kernel orders each metric set compares, per stage (module docstring).
-METRIC_SETS = {"paper": {"linear": (1,), "nonlinear": (2, 3)},
-               "full": {"linear": (1,), "nonlinear": (1, 2, 3)}}
+METRIC_SETS = {"paper": {"linear": (1,), "nonlinear": (2, 3)}, "full": {"linear": (1,), "nonlinear": (1, 2, 3)}}
 
 
 def relative_error(reference, model) -> float:

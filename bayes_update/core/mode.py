@@ -18,6 +18,7 @@ Each evaluation is a picklable :class:`ResidualFunction`; what a point means
 the mode of the baseline model and of a model extended by an effect
 (:mod:`bayes_update.core.discrepancy`).
 """
+
 from __future__ import annotations
 
 import math
@@ -86,12 +87,12 @@ class ResidualFunction:
 
 @dataclass
 class ModeResult:
-    x: np.ndarray            # the mode
-    cost: float              # -log L at the mode (1/2 ||r||^2)
-    jacobian: np.ndarray     # dr/dx at the mode (central differences)
-    residual: np.ndarray     # r at the mode
+    x: np.ndarray  # the mode
+    cost: float  # -log L at the mode (1/2 ||r||^2)
+    jacobian: np.ndarray  # dr/dx at the mode (central differences)
+    residual: np.ndarray  # r at the mode
     n_evaluations: int
-    starts: list             # [(x0, x_end, cost)] of every start
+    starts: list  # [(x0, x_end, cost)] of every start
 
     @property
     def precision(self) -> np.ndarray:
@@ -117,10 +118,10 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
     d = len(x)
     pts, signs = [], []
     for i in range(d):
-        for s in ((1.0, -1.0) if central else (1.0,)):
+        for s in (1.0, -1.0) if central else (1.0,):
             step = s * h[i]
             if not lower[i] <= x[i] + step <= upper[i]:
-                step = -step                         # at a bound: step inwards
+                step = -step  # at a bound: step inwards
             p = x.copy()
             p[i] += step
             pts.append(p)
@@ -132,7 +133,7 @@ def _jacobian(fun, x, r0, h, lower, upper, executor, central: bool) -> tuple[np.
             (_, a), (_, b) = signs[2 * i], signs[2 * i + 1]
             if a == -b:
                 J[:, i] = (vals[2 * i] - vals[2 * i + 1]) / (a - b)
-            else:                                     # both steps went inwards: forward difference
+            else:  # both steps went inwards: forward difference
                 J[:, i] = (vals[2 * i] - r0) / a
     else:
         for i, (_, step) in enumerate(signs):
@@ -157,14 +158,25 @@ def _residual(fun: ResidualFunction, x, executor) -> np.ndarray:
     are serial: one point at a time, its stages side by side)."""
     if executor is None or len(fun.stages) < 2:
         return fun(x)
-    parts = evaluate_many(_OneStage(fun), [(i, x) for i in range(len(fun.stages))], executor, batch_size=1,
-                          progress=False)
+    parts = evaluate_many(
+        _OneStage(fun), [(i, x) for i in range(len(fun.stages))], executor, batch_size=1, progress=False
+    )
     return np.concatenate(parts)
 
 
-def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
-              max_iterations: int = 40, cost_tolerance: float | None = None,
-              central: bool = True, first_inside: bool = False, known=None) -> ModeResult:
+def find_mode(
+    fun: ResidualFunction,
+    starts,
+    lower,
+    upper,
+    steps,
+    executor=None,
+    max_iterations: int = 40,
+    cost_tolerance: float | None = None,
+    central: bool = True,
+    first_inside: bool = False,
+    known=None,
+) -> ModeResult:
     """Minimise ``1/2 ||fun(x)||^2`` in the box [lower, upper] from each start.
 
     Parameters
@@ -220,11 +232,22 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
     for x0 in starts:
         x0 = np.clip(np.asarray(x0, float), lower, upper)
         ftol, stop = 1e-6, None
-        if cost_tolerance is not None:       # the callback stops it (scipy's ftol would stop no earlier)
+        if cost_tolerance is not None:  # the callback stops it (scipy's ftol would stop no earlier)
             r0 = f(x0)
             ftol, stop = 1e-10, _AbsoluteTolerance(0.5 * float(r0 @ r0), cost_tolerance)
-        opt = least_squares(f, x0, jac=jac, bounds=(lower, upper), method="trf", x_scale=scale,
-                            max_nfev=max_iterations, xtol=1e-6, ftol=ftol, gtol=1e-8, callback=stop)
+        opt = least_squares(
+            f,
+            x0,
+            jac=jac,
+            bounds=(lower, upper),
+            method="trf",
+            x_scale=scale,
+            max_nfev=max_iterations,
+            xtol=1e-6,
+            ftol=ftol,
+            gtol=1e-8,
+            callback=stop,
+        )
         runs.append((x0, opt.x.copy(), float(opt.cost)))
         if best is None or opt.cost < best.cost:
             best = opt
@@ -240,8 +263,7 @@ def find_mode(fun: ResidualFunction, starts, lower, upper, steps, executor=None,
         # trf leaves the residual and the forward-difference Jacobian (our jac) at its end point:
         # the same numbers a new evaluation would give, without its d + 1 runs
         r, J = np.asarray(best.fun, float).copy(), np.asarray(best.jac, float).copy()
-    return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0],
-                      starts=runs)
+    return ModeResult(x=x, cost=0.5 * float(r @ r), jacobian=J, residual=r, n_evaluations=count[0], starts=runs)
 
 
 def known_point(fun: ResidualFunction, sensitivities: dict | None, x0, steps):
@@ -255,8 +277,12 @@ def known_point(fun: ResidualFunction, sensitivities: dict | None, x0, steps):
     r, J = [], []
     for stage, s in zip(fun.stages, fun.scales):
         sens = sensitivities.get(stage)
-        if sens is None or sens.x.shape != x0.shape or not np.array_equal(sens.x, x0) or \
-                not np.allclose(sens.steps, steps, rtol=1e-12, atol=0.0):
+        if (
+            sens is None
+            or sens.x.shape != x0.shape
+            or not np.array_equal(sens.x, x0)
+            or not np.allclose(sens.steps, steps, rtol=1e-12, atol=0.0)
+        ):
             return None
         r0, divisor = fun.scaled(stage, s, sens.output)
         r.append(r0)
@@ -298,7 +324,7 @@ def laplace_log_evidence(mode: ModeResult, log_prior_density: float, widths) -> 
     the textbook Laplace evidence.  ``log_prior_density`` is the prior's log
     density at the mode (minus the log of the box's volume)."""
     widths = np.asarray(widths, float)
-    P = mode.precision + np.diag(2.0 * math.pi / widths ** 2)
+    P = mode.precision + np.diag(2.0 * math.pi / widths**2)
     sign, logdet = np.linalg.slogdet(P)
     if sign <= 0:
         return -math.inf

@@ -58,9 +58,25 @@ import numpy as np
 
 from bayes_update.core.parameters import Parameter, ParameterSet
 
-__all__ = ["BUILTIN_MODELS", "CALLABLE_HOOKS", "VALUE_HOOKS", "Model", "ModelError", "ModelRunError", "ModelSpecError",
-           "check_contract", "check_model", "check_model_on", "check_response", "check_run", "describe_theta",
-           "load_model", "model_label", "run_error", "unwrapped"]
+__all__ = [
+    "BUILTIN_MODELS",
+    "CALLABLE_HOOKS",
+    "VALUE_HOOKS",
+    "Model",
+    "ModelError",
+    "ModelRunError",
+    "ModelSpecError",
+    "check_contract",
+    "check_model",
+    "check_model_on",
+    "check_response",
+    "check_run",
+    "describe_theta",
+    "load_model",
+    "model_label",
+    "run_error",
+    "unwrapped",
+]
 
 
 @runtime_checkable
@@ -92,8 +108,10 @@ class ModelRunError(ModelSpecError):
 
 
 #: what to do where a model cannot run (the end of every :class:`ModelRunError`)
-RUN_REMEDY = ("where the model cannot run, raise bayes_update.ModelError (that point then gets no "
-              "likelihood and the run goes on); never return NaN")
+RUN_REMEDY = (
+    "where the model cannot run, raise bayes_update.ModelError (that point then gets no "
+    "likelihood and the run goes on); never return NaN"
+)
 
 
 def unwrapped(model):
@@ -118,7 +136,7 @@ def _units_of(model) -> dict:
         for ps in (effects() if callable(effects) else {}).values():
             for p in ps:
                 units.setdefault(p.name, getattr(p, "unit", ""))
-    except Exception:      # only for a message: a model that cannot say gets its values without units
+    except Exception:  # only for a message: a model that cannot say gets its values without units
         pass
     return units
 
@@ -149,6 +167,7 @@ def run_error(model, theta, what: str, remedy: str = RUN_REMEDY) -> ModelRunErro
 # built-in names of --model: "module:NAME" specs, filled in as models ship
 BUILTIN_MODELS: dict[str, str] = {}
 
+
 def load_model(spec):
     """A model from ``spec``: a model object (returned as is), a built-in name
     (:data:`BUILTIN_MODELS`), ``path/to/file.py:NAME`` or ``package.module:NAME``,
@@ -159,8 +178,10 @@ def load_model(spec):
         spec = BUILTIN_MODELS[spec]
     where, sep, name = spec.rpartition(":")
     if not sep or not where or not name:
-        raise ModelSpecError(f"--model {spec!r}: expected path/to/file.py:NAME or package.module:NAME"
-                             + (f", or one of {sorted(BUILTIN_MODELS)}" if BUILTIN_MODELS else ""))
+        raise ModelSpecError(
+            f"--model {spec!r}: expected path/to/file.py:NAME or package.module:NAME"
+            + (f", or one of {sorted(BUILTIN_MODELS)}" if BUILTIN_MODELS else "")
+        )
     module = _import(where, spec)
     if not hasattr(module, name):
         public = sorted(n for n in vars(module) if not n.startswith("_"))
@@ -170,8 +191,10 @@ def load_model(spec):
         try:
             inspect.signature(obj).bind()
         except TypeError:
-            raise ModelSpecError(f"--model {spec!r}: {name} needs arguments; give a class or factory that "
-                                 "takes none (wrap yours in a function)") from None
+            raise ModelSpecError(
+                f"--model {spec!r}: {name} needs arguments; give a class or factory that "
+                "takes none (wrap yours in a function)"
+            ) from None
         except ValueError:
             pass  # no signature to inspect (a builtin): just call it
         obj = obj()
@@ -187,8 +210,9 @@ def _import(where: str, spec: str):
     try:
         return importlib.import_module(where)
     except ImportError as exc:
-        raise ModelSpecError(f"--model {spec!r}: cannot import module {where!r} ({exc}); "
-                             "is it installed, or on PYTHONPATH?") from exc
+        raise ModelSpecError(
+            f"--model {spec!r}: cannot import module {where!r} ({exc}); is it installed, or on PYTHONPATH?"
+        ) from exc
 
 
 def _same_file(a, b) -> bool:
@@ -217,24 +241,26 @@ def _import_file(path: Path, spec: str):
         if loaded is not None:
             if _same_file(getattr(loaded, "__file__", None), path):
                 return loaded
-            name = None                             # another module of that name is imported
+            name = None  # another module of that name is imported
         else:
             try:
                 found = importlib.util.find_spec(name)
             except (ImportError, ValueError):
                 found = None
             if found is not None and not _same_file(found.origin, path):
-                name = None                         # the name would import another module
+                name = None  # the name would import another module
     synthetic = name is None
     if synthetic:
-        name = f"_bayes_update_user_model_{stem if stem.isidentifier() else 'file'}_" \
-               f"{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+        name = (
+            f"_bayes_update_user_model_{stem if stem.isidentifier() else 'file'}_"
+            f"{hashlib.sha256(str(path).encode()).hexdigest()[:8]}"
+        )
         if name in sys.modules and _same_file(getattr(sys.modules[name], "__file__", None), path):
             return sys.modules[name]
     mod_spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(mod_spec)
     sys.modules[name] = module
-    sys.path.insert(0, folder)                      # as `python file.py` has it, while it loads
+    sys.path.insert(0, folder)  # as `python file.py` has it, while it loads
     ok = False
     try:
         with _numba_cache_apart(name) if synthetic else contextlib.nullcontext():
@@ -242,10 +268,9 @@ def _import_file(path: Path, spec: str):
         ok = True
     except Exception as exc:
         del sys.modules[name]
-        raise ModelSpecError(f"--model {spec!r}: importing {path} failed: "
-                             f"{type(exc).__name__}: {exc}") from exc
+        raise ModelSpecError(f"--model {spec!r}: importing {path} failed: {type(exc).__name__}: {exc}") from exc
     finally:
-        sys.path.remove(folder)                     # the copy inserted above
+        sys.path.remove(folder)  # the copy inserted above
         if ok and folder not in sys.path:
             sys.path.append(folder)
     return module
@@ -316,8 +341,9 @@ def _valid_value(name: str, value) -> bool:
     if name == "remove_offsets":
         return isinstance(value, (bool, np.bool_))
     if name == "internal_names":
-        return (isinstance(value, Sequence) and not isinstance(value, str)
-                and all(isinstance(v, str) and v for v in value))
+        return (
+            isinstance(value, Sequence) and not isinstance(value, str) and all(isinstance(v, str) and v for v in value)
+        )
     if name == "internal_units":
         return isinstance(value, Mapping)
     return isinstance(value, str)
@@ -330,13 +356,19 @@ def _check_required(model, kind: str) -> None:
         near = difflib.get_close_matches(name, _public_names(model), n=1, cutoff=0.6)
         hint = f" ({near[0]!r} is defined: is that it, misspelt?)" if near else ""
         if name == "parameters":
-            raise ModelSpecError(f"{kind} has no 'parameters'{hint}: declare them, e.g. "
-                                 "parameters = [bayes_update.Parameter('k', 1e3, 1e5, unit='N/m')]")
-        raise ModelSpecError(f"{kind} has no simulate(theta, force, fs) method{hint}: define it, returning the "
-                             f"response at the sensors, one value per force sample ({CONTRACT_DOC})")
+            raise ModelSpecError(
+                f"{kind} has no 'parameters'{hint}: declare them, e.g. "
+                "parameters = [bayes_update.Parameter('k', 1e3, 1e5, unit='N/m')]"
+            )
+        raise ModelSpecError(
+            f"{kind} has no simulate(theta, force, fs) method{hint}: define it, returning the "
+            f"response at the sensors, one value per force sample ({CONTRACT_DOC})"
+        )
     if not callable(getattr(model, "simulate")):
-        raise ModelSpecError(f"{kind}.simulate is a {type(model.simulate).__name__}, not a method: define "
-                             f"simulate(self, theta, force, fs) ({CONTRACT_DOC})")
+        raise ModelSpecError(
+            f"{kind}.simulate is a {type(model.simulate).__name__}, not a method: define "
+            f"simulate(self, theta, force, fs) ({CONTRACT_DOC})"
+        )
 
 
 def _public_names(model) -> list:
@@ -352,11 +384,13 @@ def _check_hooks(model, kind: str) -> None:
             raise ModelSpecError(
                 f"{kind}.{name} is {value!r} ({type(value).__name__}), not a method: the framework calls "
                 f"{how} when the model has it ({CONTRACT_DOC}, optional members); define it as a method, or "
-                "delete it when the model has none")
+                "delete it when the model has none"
+            )
     for name, what in VALUE_HOOKS.items():
         if name in present and not _valid_value(name, getattr(model, name)):
-            raise ModelSpecError(f"{kind}.{name} is {getattr(model, name)!r}; it must be {what} "
-                                 f"({CONTRACT_DOC}, optional members)")
+            raise ModelSpecError(
+                f"{kind}.{name} is {getattr(model, name)!r}; it must be {what} ({CONTRACT_DOC}, optional members)"
+            )
     known = (*_REQUIRED, *CALLABLE_HOOKS, *VALUE_HOOKS)
     absent = [h for h in known if h not in present]
     for name in _public_names(model):
@@ -365,7 +399,8 @@ def _check_hooks(model, kind: str) -> None:
             raise ModelSpecError(
                 f"{kind}.{name} is not a member the framework knows, and {kind} has no {near[0]!r}: if "
                 f"{name!r} is meant as the optional {near[0]!r}, rename it (else it is ignored); if it is a "
-                f"member of your own, start its name with an underscore ({CONTRACT_DOC}, optional members)")
+                f"member of your own, start its name with an underscore ({CONTRACT_DOC}, optional members)"
+            )
 
 
 def check_contract(model, space: ParameterSet | None = None) -> ParameterSet:
@@ -387,14 +422,18 @@ def check_contract(model, space: ParameterSet | None = None) -> ParameterSet:
     try:
         declared = ParameterSet(user.parameters, user)
     except (TypeError, ValueError) as exc:
-        raise ModelSpecError(f"{kind}.parameters: {exc}; declare a list of bayes_update.Parameter(name, low, "
-                             f"high, unit=..., log=...) ({CONTRACT_DOC})") from exc
+        raise ModelSpecError(
+            f"{kind}.parameters: {exc}; declare a list of bayes_update.Parameter(name, low, "
+            f"high, unit=..., log=...) ({CONTRACT_DOC})"
+        ) from exc
     try:
         pickle.dumps(model)
     except Exception as exc:
-        raise ModelSpecError(f"{kind} cannot be pickled ({type(exc).__name__}: {exc}); model runs go to "
-                             "worker processes: keep lambdas, open files and locks out of the model's "
-                             "attributes, or define it at a module's top level") from exc
+        raise ModelSpecError(
+            f"{kind} cannot be pickled ({type(exc).__name__}: {exc}); model runs go to "
+            "worker processes: keep lambdas, open files and locks out of the model's "
+            "attributes, or define it at a module's top level"
+        ) from exc
     return declared if space is None else space
 
 
@@ -406,31 +445,50 @@ def check_response(model, theta, y, n: int, n_sensors: int) -> np.ndarray:
     goes through it: the check run before any long step and every later one."""
     try:
         arr = np.asarray(y)
-        if arr.dtype.kind == "O":             # numbers as Python objects: fine when they are numbers
+        if arr.dtype.kind == "O":  # numbers as Python objects: fine when they are numbers
             arr = arr.astype(float)
     except (TypeError, ValueError) as exc:
-        raise run_error(model, theta, f"returned a {type(y).__name__} that is not an array of numbers ({exc})",
-                        "return a numpy array of the response, one value per input sample") from None
+        raise run_error(
+            model,
+            theta,
+            f"returned a {type(y).__name__} that is not an array of numbers ({exc})",
+            "return a numpy array of the response, one value per input sample",
+        ) from None
     if arr.dtype.kind not in "fiu":
         # a complex response would lose its imaginary part to a cast without a word
-        raise run_error(model, theta, f"returned an array of dtype {arr.dtype} ({type(y).__name__})",
-                        "return real numbers (a float array): the response the sensors measure, one value "
-                        "per input sample")
+        raise run_error(
+            model,
+            theta,
+            f"returned an array of dtype {arr.dtype} ({type(y).__name__})",
+            "return real numbers (a float array): the response the sensors measure, one value per input sample",
+        )
     y = arr.astype(float, copy=False)
     shapes = [(n, n_sensors)] if n_sensors > 1 else [(n,), (n, 1)]
     if y.shape not in shapes:
-        raise run_error(model, theta, f"returned shape {y.shape} for a force of {n} samples and {n_sensors} "
-                        "sensor(s)", f"it must return {' or '.join(map(str, shapes))} at every theta: one value "
-                        "per input sample" + (", one column per sensor" if n_sensors > 1 else "")
-                        + "; where the model cannot run, raise bayes_update.ModelError")
+        raise run_error(
+            model,
+            theta,
+            f"returned shape {y.shape} for a force of {n} samples and {n_sensors} sensor(s)",
+            f"it must return {' or '.join(map(str, shapes))} at every theta: one value "
+            "per input sample"
+            + (", one column per sensor" if n_sensors > 1 else "")
+            + "; where the model cannot run, raise bayes_update.ModelError",
+        )
     bad = int(np.count_nonzero(~np.isfinite(y)))
     if bad:
         raise run_error(model, theta, f"returned {bad} non-finite (NaN/inf) value(s) of {y.size}")
     return y[:, 0] if y.ndim == 2 and y.shape[1] == 1 else y
 
 
-def check_run(model, space: ParameterSet, force: np.ndarray, fs: float, n_sensors: int = 1,
-              theta: Mapping | None = None, store=None) -> np.ndarray:
+def check_run(
+    model,
+    space: ParameterSet,
+    force: np.ndarray,
+    fs: float,
+    n_sensors: int = 1,
+    theta: Mapping | None = None,
+    store=None,
+) -> np.ndarray:
     """One run of ``model`` at ``theta`` (default: the middle of ``space``, the
     prior) on ``force`` at ``fs`` [Hz], its response checked
     (:func:`check_response`).  A :class:`ModelError` there is an error too: the
@@ -440,22 +498,36 @@ def check_run(model, space: ParameterSet, force: np.ndarray, fs: float, n_sensor
     try:
         y = model.simulate(theta, force, fs)
     except ModelError as exc:
-        raise run_error(model, theta, f"raised ModelError ({exc}) in the check run",
-                        "the check runs the model at the middle of its prior, which must be a point where "
-                        "it runs: narrow the prior (the Parameter bounds, or --prior NAME=LO:HI) to where "
-                        "the model runs") from exc
-    except Exception as exc:          # a bug of the model: its message, in one line
-        raise run_error(model, theta, f"raised {type(exc).__name__}: {exc}",
-                        "fix the model there (the check runs it at the middle of its prior on the linear "
-                        "test's force before any long step)") from exc
+        raise run_error(
+            model,
+            theta,
+            f"raised ModelError ({exc}) in the check run",
+            "the check runs the model at the middle of its prior, which must be a point where "
+            "it runs: narrow the prior (the Parameter bounds, or --prior NAME=LO:HI) to where "
+            "the model runs",
+        ) from exc
+    except Exception as exc:  # a bug of the model: its message, in one line
+        raise run_error(
+            model,
+            theta,
+            f"raised {type(exc).__name__}: {exc}",
+            "fix the model there (the check runs it at the middle of its prior on the linear "
+            "test's force before any long step)",
+        ) from exc
     y = check_response(model, theta, y, len(force), n_sensors)
     if store is not None:
         store.put(model, force, fs, theta, response=y)
     return y
 
 
-def check_model(model, force: np.ndarray, fs: float, n_sensors: int = 1, theta: Mapping | None = None,
-                space: ParameterSet | None = None) -> ParameterSet:
+def check_model(
+    model,
+    force: np.ndarray,
+    fs: float,
+    n_sensors: int = 1,
+    theta: Mapping | None = None,
+    space: ParameterSet | None = None,
+) -> ParameterSet:
     """Check ``model`` against the contract with one run, before any heavy work:
     :func:`check_contract`, then :func:`check_run` at ``theta`` (default: the
     middle of ``space``, else of the declared prior) on ``force``.  Returns the
@@ -478,9 +550,14 @@ def check_force(model, dataset) -> np.ndarray:
     return force - force.mean() if getattr(model, "remove_offsets", True) else force
 
 
-def check_model_on(model, dataset, theta: Mapping | None = None, space: ParameterSet | None = None
-                   ) -> ParameterSet:
+def check_model_on(model, dataset, theta: Mapping | None = None, space: ParameterSet | None = None) -> ParameterSet:
     """:func:`check_model` on a data set: one run on :func:`check_force`, at its
     sampling rate, against the number of sensors it declares."""
-    return check_model(model, check_force(model, dataset), dataset.sampling_rate_hz,
-                       n_sensors=len(dataset.sensors), theta=theta, space=space)
+    return check_model(
+        model,
+        check_force(model, dataset),
+        dataset.sampling_rate_hz,
+        n_sensors=len(dataset.sensors),
+        theta=theta,
+        space=space,
+    )

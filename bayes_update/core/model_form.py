@@ -22,6 +22,7 @@ Where the residual is the noise's (a model that is right), the shrinkage
 leaves nothing: a band counts only where its average periodogram exceeds
 the noise's by more than :data:`THRESHOLD_SD` of its own scatter.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -69,12 +70,11 @@ def form_draws(residual, noise_spectrum, n_draws: int, rng, bins: int = BAND_BIN
     R = np.fft.rfft(r, axis=0)
     g = excess_gain(np.abs(R) ** 2 / n, noise_spectrum, bins)
     A = g * R
-    A[0] = 0.0                               # no mean (the records' means are removed)
+    A[0] = 0.0  # no mean (the records' means are removed)
     excess = np.fft.irfft(A, n, axis=0)
     phase = np.exp(2j * np.pi * rng.random((n_draws, A.shape[0])))
     if n % 2 == 0:
-        phase[:, -1] = np.where(phase[:, -1].real >= 0.0, 1.0, -1.0)   # the Nyquist line stays real
+        phase[:, -1] = np.where(phase[:, -1].real >= 0.0, 1.0, -1.0)  # the Nyquist line stays real
     shape = (n_draws, A.shape[0]) + (1,) * (A.ndim - 1)
     draws = np.fft.irfft(A[None] * phase.reshape(shape), n, axis=1)
     return draws, excess
-

@@ -8,6 +8,7 @@ never printed as "25 - 25".  Very large or very small values go to
 scientific notation with the same resolution (``1.2345e+07``).  Without a
 usable sd (zero, negative, NaN) a value gets six significant digits.
 """
+
 from __future__ import annotations
 
 import math

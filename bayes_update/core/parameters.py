@@ -53,8 +53,10 @@ class Parameter:
         if self.log and lo <= 0:
             raise ValueError(f"Parameter {self.name!r}: a log-uniform prior needs low > 0, got {lo!r}")
         if self.null is not None and not lo <= self.null <= hi:
-            raise ValueError(f"Parameter {self.name!r}: null = {self.null!r} lies outside "
-                             f"[{lo!r}, {hi!r}]; an effect must be able to switch off")
+            raise ValueError(
+                f"Parameter {self.name!r}: null = {self.null!r} lies outside "
+                f"[{lo!r}, {hi!r}]; an effect must be able to switch off"
+            )
 
     @property
     def label(self) -> str:
@@ -100,8 +102,10 @@ class ParameterSet:
         if transform is not None:
             missing = [m for m in ("from_internal", "log_jacobian") if not hasattr(transform, m)]
             if missing:
-                raise TypeError(f"{type(model).__name__} has to_internal but not {missing}: the "
-                                "reparameterisation needs its inverse and its log-Jacobian")
+                raise TypeError(
+                    f"{type(model).__name__} has to_internal but not {missing}: the "
+                    "reparameterisation needs its inverse and its log-Jacobian"
+                )
         self._transform = transform
 
     def __len__(self) -> int:
@@ -129,8 +133,11 @@ class ParameterSet:
 
     def check(self, theta: Mapping[str, float], what: str = "theta") -> None:
         """Raise ValueError naming each value outside its prior range."""
-        out = [f"{p.name} = {theta[p.name]:g} {p.unit} not in [{p.low:g}, {p.high:g}]".rstrip()
-               for p in self.parameters if not p.contains(float(theta[p.name]))]
+        out = [
+            f"{p.name} = {theta[p.name]:g} {p.unit} not in [{p.low:g}, {p.high:g}]".rstrip()
+            for p in self.parameters
+            if not p.contains(float(theta[p.name]))
+        ]
         if out:
             raise ValueError(f"{what} outside the prior: " + "; ".join(out))
 
@@ -146,13 +153,13 @@ class ParameterSet:
         if self._transform is not None:
             return {k: float(v) for k, v in self._transform.from_internal(x).items()}
         t = x.copy()
-        t[self.is_log] = np.exp(x[self.is_log])     # exp of the log-scale coordinates only: no overflow elsewhere
+        t[self.is_log] = np.exp(x[self.is_log])  # exp of the log-scale coordinates only: no overflow elsewhere
         return self.theta(t)
 
     def _log_jacobian(self, x: np.ndarray) -> float:
         if self._transform is not None:
             return float(self._transform.log_jacobian(x))
-        return float(np.sum(x[self.is_log]))   # d theta / d log theta = theta
+        return float(np.sum(x[self.is_log]))  # d theta / d log theta = theta
 
     def log_prior(self, X) -> np.ndarray:
         """Log density of the prior in internal coordinates (up to a constant),
@@ -164,7 +171,7 @@ class ParameterSet:
         X = np.atleast_2d(np.asarray(X, float))
         out = np.full(len(X), -np.inf)
         finite = np.all(np.isfinite(X), axis=1)
-        if self._transform is None:          # element-wise: all points at once
+        if self._transform is None:  # element-wise: all points at once
             T = np.where(self.is_log, np.exp(np.where(self.is_log, X, 0.0)), X)
             ok = finite & np.all((T >= self.low) & (T <= self.high), axis=1)
             out[ok] = np.sum(np.where(self.is_log, X - np.log(np.where(self.is_log, T, 1.0)), 0.0), axis=1)[ok]
@@ -209,8 +216,7 @@ class ParameterSet:
         range): :meth:`log_prior`'s density minus the log of the box's volume in
         theta (in log theta for a log-scale parameter)."""
         x = np.asarray(x, float)
-        widths = np.where(self.is_log, np.log(self.high / np.where(self.is_log, self.low, 1.0)),
-                          self.high - self.low)
+        widths = np.where(self.is_log, np.log(self.high / np.where(self.is_log, self.low, 1.0)), self.high - self.low)
         t = self.theta_array(self.from_internal(x))
         with np.errstate(divide="ignore", invalid="ignore"):
             return self._log_density(x, t) - float(np.sum(np.log(widths)))
@@ -223,8 +229,11 @@ class ParameterSet:
 
         d = len(self)
         corners = np.array(np.meshgrid(*[[0.0, 1.0]] * d, indexing="ij")).reshape(d, -1).T
-        unit = corners if self._transform is None else np.vstack(
-            [corners, qmc.Sobol(d, scramble=True, seed=0).random(n_probe)])
+        unit = (
+            corners
+            if self._transform is None
+            else np.vstack([corners, qmc.Sobol(d, scramble=True, seed=0).random(n_probe)])
+        )
         X = np.array([self.to_internal(self.theta(self.from_unit(u))) for u in unit])
         return np.column_stack([X.min(axis=0), X.max(axis=0)])
 
@@ -234,9 +243,10 @@ class ParameterSet:
         U = np.asarray(U, float)
         lin = self.low + U * (self.high - self.low)
         with np.errstate(divide="ignore"):
-            log = np.exp(np.log(np.where(self.is_log, self.low, 1.0))
-                         + U * (np.log(np.where(self.is_log, self.high, 1.0))
-                                - np.log(np.where(self.is_log, self.low, 1.0))))
+            log = np.exp(
+                np.log(np.where(self.is_log, self.low, 1.0))
+                + U * (np.log(np.where(self.is_log, self.high, 1.0)) - np.log(np.where(self.is_log, self.low, 1.0)))
+            )
         return np.where(self.is_log, log, lin)
 
     def sample_prior(self, n: int, seed=None) -> np.ndarray:
@@ -249,8 +259,16 @@ class ParameterSet:
         return self.theta(self.from_unit(np.full(len(self), 0.5)))
 
     def to_dict(self) -> dict:
-        return {p.name: {"low": p.low, "high": p.high, "unit": p.unit, "log": p.log,
-                         **({"null": p.null} if p.null is not None else {})} for p in self.parameters}
+        return {
+            p.name: {
+                "low": p.low,
+                "high": p.high,
+                "unit": p.unit,
+                "log": p.log,
+                **({"null": p.null} if p.null is not None else {}),
+            }
+            for p in self.parameters
+        }
 
     # -- names and units of what the inference reports ------------------------
     @property
@@ -268,8 +286,10 @@ class ParameterSet:
         if self._transform is not None:
             given = getattr(self._transform, "internal_units", {})
             return {c: given.get(c, "") for c in self.coordinate_names}
-        return {c: (f"log({p.unit})" if p.unit else "") if p.log else p.unit
-                for c, p in zip(self.coordinate_names, self.parameters)}
+        return {
+            c: (f"log({p.unit})" if p.unit else "") if p.log else p.unit
+            for c, p in zip(self.coordinate_names, self.parameters)
+        }
 
     def to_parameters(self, x) -> dict:
         """theta at internal point x: what the model's ``simulate`` receives."""
@@ -286,9 +306,9 @@ class ParameterSet:
         then the :attr:`derived_names` coordinates."""
         X = np.atleast_2d(np.asarray(X, float))
         many = getattr(self._transform, "from_internal_many", None)
-        if self._transform is None:            # element-wise: exp of the log-scale coordinates
+        if self._transform is None:  # element-wise: exp of the log-scale coordinates
             T = np.where(self.is_log, np.exp(np.where(self.is_log, X, 0.0)), X)
-        elif callable(many):                   # a transform over arrays: all draws at once
+        elif callable(many):  # a transform over arrays: all draws at once
             thetas = many(X)
             T = np.column_stack([np.asarray(thetas[n], float) for n in self.names])
         else:

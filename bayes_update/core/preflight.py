@@ -26,6 +26,7 @@ same model, data set and prior already checked: a check that passed is kept
 fingerprint and the prior), so that no check, and above all not the model
 run, is made twice.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -72,8 +73,9 @@ def _key(dataset, model, space, effects):
     return hashlib.sha256(state).hexdigest(), dataset.fingerprint(), prior, effects
 
 
-def preflight(dataset, model, space: ParameterSet | None = None, *, effects: bool = False,
-              candidates=None, store=None) -> Checked:
+def preflight(
+    dataset, model, space: ParameterSet | None = None, *, effects: bool = False, candidates=None, store=None
+) -> Checked:
     """The checks of the module docstring, for ``model`` on ``dataset`` under the
     prior ``space`` (default: the model's declared parameters); ``effects``: the
     discrepancy workflow's (its candidate effects checked, and ``candidates``,
@@ -93,12 +95,19 @@ def preflight(dataset, model, space: ParameterSet | None = None, *, effects: boo
     _require_candidates(model, checked.effects, candidates)
     require_roles(dataset, STAGES)
     if callable(getattr(model, "check_dataset", None)):
-        model.check_dataset(dataset)             # the model's own word on the data (the beam: its rig)
+        model.check_dataset(dataset)  # the model's own word on the data (the beam: its rig)
     # the middle of the prior as the internal coordinates give it, to the bit: the point the linear
     # screen runs first (calibrate.screen_linear), which then finds this run in the store
     middle = prior.to_parameters(prior.to_internal(prior.center()))
-    check_run(model, prior, check_force(model, dataset), dataset.sampling_rate_hz, len(dataset.sensors),
-              {**middle, **checked.nulls}, store=store)
+    check_run(
+        model,
+        prior,
+        check_force(model, dataset),
+        dataset.sampling_rate_hz,
+        len(dataset.sensors),
+        {**middle, **checked.nulls},
+        store=store,
+    )
     if key is not None:
         _PASSED[key] = checked
         while len(_PASSED) > _KEEP:

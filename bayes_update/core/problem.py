@@ -6,6 +6,7 @@ set from the reference linear test, and the model is driven by the recorded
 input of each test, so the regressors are factored once per test
 (:class:`volterra.VolterraProjector`) and an evaluation costs one model run per
 test plus two small matrix-vector products."""
+
 from __future__ import annotations
 
 import hashlib
@@ -17,11 +18,16 @@ from dataclasses import dataclass
 import numpy as np
 
 import volterra
-
-from bayes_update.core.model import ModelError, check_response, run_error
 from bayes_update.core.basis import DEFAULT_N_FUNCTIONS, FEEDTHROUGH, basis_from_reference, describe_basis
-from bayes_update.core.metrics import (METRIC_SETS, STAGE_ORDERS, STAGES, n_compared_regressors, relative_error,
-                                       stage_output)
+from bayes_update.core.metrics import (
+    METRIC_SETS,
+    STAGE_ORDERS,
+    STAGES,
+    n_compared_regressors,
+    relative_error,
+    stage_output,
+)
+from bayes_update.core.model import ModelError, check_response, run_error
 from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
 from bayes_update.data.checks import require_live_force
 from bayes_update.data.dataset import DatasetError
@@ -40,23 +46,29 @@ def require_roles(dataset, needed=("linear",)) -> None:
     for role in STAGES:
         found = dataset.by_role(role)
         if len(found) > 1:
-            raise DatasetError(f"{source}: {len(found)} tests have role {role!r} ({[t.name for t in found]}); the "
-                               f"metrics need exactly one: give the others role 'validation' (predicted and "
-                               "reported, never fitted) in dataset.json")
-    what = {"linear": "the low-level test that e_lin and the Kautz basis's poles come from",
-            "nonlinear": "the high-level test that e_nlin comes from, which calibrate, sample and discrepancy "
-                         "need as well as the linear one"}
+            raise DatasetError(
+                f"{source}: {len(found)} tests have role {role!r} ({[t.name for t in found]}); the "
+                f"metrics need exactly one: give the others role 'validation' (predicted and "
+                "reported, never fitted) in dataset.json"
+            )
+    what = {
+        "linear": "the low-level test that e_lin and the Kautz basis's poles come from",
+        "nonlinear": "the high-level test that e_nlin comes from, which calibrate, sample and discrepancy "
+        "need as well as the linear one",
+    }
     for role in dict.fromkeys(("linear", *needed)):
         if not dataset.by_role(role):
-            raise DatasetError(f"{source}: no test has role {role!r} ({what[role]}); set it in dataset.json "
-                               f"(roles now: {[(t.name, t.role) for t in dataset.tests]})")
+            raise DatasetError(
+                f"{source}: no test has role {role!r} ({what[role]}); set it in dataset.json "
+                f"(roles now: {[(t.name, t.role) for t in dataset.tests]})"
+            )
 
 
 @dataclass(frozen=True)
 class _Test:
     name: str
     force: np.ndarray
-    response: np.ndarray       # (n,), or (n, n_sensors)
+    response: np.ndarray  # (n,), or (n, n_sensors)
 
     @property
     def velocity(self) -> np.ndarray:
@@ -114,7 +126,7 @@ class Problem:
         if not hasattr(model, "simulate"):
             raise TypeError(f"{type(model).__name__} is not a model (no simulate method)")
         if callable(getattr(model, "check_dataset", None)):
-            model.check_dataset(dataset)         # the model's own word on the data (the beam: its rig)
+            model.check_dataset(dataset)  # the model's own word on the data (the beam: its rig)
         self.fs = float(dataset.sampling_rate_hz)
         self.model = model
         # a record's mean is a sensor offset, not physics: it is removed from the input
@@ -137,9 +149,15 @@ class Problem:
             # the poles are the structure's: every sensor shows them, fitted jointly; orders 2-3 on
             # the mode the nonlinear test needs (nonlinear_mode_for: 1.19x -> 1.02x a direct fit's error)
             high = self.tests.get("nonlinear")
-            basis = basis_from_reference(lin.force, lin.response, self.fs, n_functions, FEEDTHROUGH[metrics],
-                                         period_samples=getattr(found_linear[0], "period_samples", None),
-                                         nonlinear=None if high is None else (high.force, high.response))
+            basis = basis_from_reference(
+                lin.force,
+                lin.response,
+                self.fs,
+                n_functions,
+                FEEDTHROUGH[metrics],
+                period_samples=getattr(found_linear[0], "period_samples", None),
+                nonlinear=None if high is None else (high.force, high.response),
+            )
         if not isinstance(basis, volterra.KautzBasis):
             raise TypeError("basis must be a volterra.KautzBasis")
         if basis.fs != self.fs:
@@ -153,7 +171,7 @@ class Problem:
         self._projectors = {}
         self._reference = {}
         self._sensor_noise = {}
-        self._token = uuid.uuid4().hex    # identifies this problem's projectors in worker processes
+        self._token = uuid.uuid4().hex  # identifies this problem's projectors in worker processes
 
     def _test(self, record) -> _Test:
         require_live_force(record)
@@ -190,8 +208,10 @@ class Problem:
         if stage not in STAGES:
             raise ValueError(f"stage must be one of {STAGES}, got {stage!r}")
         if stage not in self.tests:
-            raise DatasetError(f"{self.source}: no test has role {stage!r}, so e_nlin cannot be "
-                               "computed; add the high-level test with role 'nonlinear'")
+            raise DatasetError(
+                f"{self.source}: no test has role {stage!r}, so e_nlin cannot be "
+                "computed; add the high-level test with role 'nonlinear'"
+            )
 
     def projector(self, stage: str) -> volterra.VolterraProjector:
         self._check_stage(stage)
@@ -265,11 +285,15 @@ class Problem:
         except self.failures as exc:
             if store is not None:
                 store.put(model, force, self.fs, params, error=str(exc))
-            raise                     # this point cannot run: the caller gives it NaN metrics
-        except Exception as exc:      # a bug of the model, not a region of its parameters
-            raise run_error(model, params, f"raised {type(exc).__name__}: {exc}",
-                            "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
-                            "(that point then gets no likelihood and the run goes on)") from exc
+            raise  # this point cannot run: the caller gives it NaN metrics
+        except Exception as exc:  # a bug of the model, not a region of its parameters
+            raise run_error(
+                model,
+                params,
+                f"raised {type(exc).__name__}: {exc}",
+                "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
+                "(that point then gets no likelihood and the run goes on)",
+            ) from exc
         y = self._checked(model, params, y, len(force))
         if store is not None:
             store.put(model, force, self.fs, params, response=y)
@@ -316,8 +340,7 @@ class Problem:
         ``tip_acc_m_s2``."""
         from bayes_update.data.dataset import RESPONSE_UNITS
 
-        return tuple(f"{name}_{RESPONSE_UNITS[kind].replace('/', '_').replace('^', '')}"
-                     for name, kind in self.sensors)
+        return tuple(f"{name}_{RESPONSE_UNITS[kind].replace('/', '_').replace('^', '')}" for name, kind in self.sensors)
 
     def n_regressors(self, stage: str) -> int:
         """Coefficients behind the stage's metric (the noise's directions in it)."""
@@ -325,8 +348,9 @@ class Problem:
 
     def metric(self, stage: str, response) -> float:
         """e_lin (stage 'linear') or e_nlin (stage 'nonlinear') of a model response."""
-        return relative_error(self.output(stage, self.reference_components(stage)),
-                              self.output(stage, self.components(stage, response)))
+        return relative_error(
+            self.output(stage, self.reference_components(stage)), self.output(stage, self.components(stage, response))
+        )
 
     def noise_sd(self, stage: str) -> float:
         """The measurement noise of the stage's compared output, per sample: the
@@ -361,8 +385,11 @@ class Problem:
             if t.response.ndim == 1:
                 out[name] = relative_error(t.response, y)
             else:
-                out[name] = float(np.sqrt(np.mean([relative_error(t.response[:, j], y[:, j]) ** 2
-                                                   for j in range(t.response.shape[1])])))
+                out[name] = float(
+                    np.sqrt(
+                        np.mean([relative_error(t.response[:, j], y[:, j]) ** 2 for j in range(t.response.shape[1])])
+                    )
+                )
         return out
 
     def evaluate(self, params, stages=STAGES) -> dict:
@@ -390,12 +417,14 @@ class Problem:
 
     def describe(self) -> dict:
         """JSON-ready description of how the metrics are computed."""
-        return {"basis": describe_basis(self.basis),
-                "metric_set": self.metrics,
-                "orders_fitted": {s: list(STAGE_ORDERS[s]) for s in self.tests},
-                "orders_compared": {s: list(METRIC_SETS[self.metrics][s]) for s in self.tests},
-                "tests": {s: t.name for s, t in self.tests.items()},
-                "model": self.describe_model()}
+        return {
+            "basis": describe_basis(self.basis),
+            "metric_set": self.metrics,
+            "orders_fitted": {s: list(STAGE_ORDERS[s]) for s in self.tests},
+            "orders_compared": {s: list(METRIC_SETS[self.metrics][s]) for s in self.tests},
+            "tests": {s: t.name for s, t in self.tests.items()},
+            "model": self.describe_model(),
+        }
 
     # ------------------------------------------------ what a model may refine
     def default_space(self):

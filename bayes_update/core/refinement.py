@@ -18,6 +18,7 @@ model whose output at another rate is another system, e.g. a discrete-time
 filter with fixed coefficients, is not refined by it).  A model opts out by a
 ``refined()`` that returns itself.
 """
+
 from __future__ import annotations
 
 import warnings
@@ -49,7 +50,7 @@ class AtTwiceTheRate:
 
     def simulate(self, theta, force, fs):
         force = np.asarray(force, float)
-        fine = signal.resample_poly(force, 2, 1)[:2 * force.size - 1]
+        fine = signal.resample_poly(force, 2, 1)[: 2 * force.size - 1]
         return np.asarray(self.model.simulate(theta, fine, 2.0 * fs))[::2]
 
 
@@ -58,28 +59,39 @@ def twice_the_rate(model, theta, force, fs: float) -> tuple[AtTwiceTheRate | Non
     at ``theta`` on the middle :data:`PROBE_SAMPLES` samples of ``force``."""
     name = type(model).__name__
     n = len(force)
-    mid = np.asarray(force, float)[max(0, n // 2 - PROBE_SAMPLES // 2):][:PROBE_SAMPLES]
+    mid = np.asarray(force, float)[max(0, n // 2 - PROBE_SAMPLES // 2) :][:PROBE_SAMPLES]
     refined = AtTwiceTheRate(model)
     try:
         coarse = np.asarray(model.simulate(theta, mid, fs), float)
         fine = np.asarray(refined.simulate(theta, mid, fs), float)
-    except Exception as exc:          # the model does not run at another rate: no refinement
-        return None, (f"none: {name} has no refined(), and at twice the sampling rate it raised "
-                      f"{type(exc).__name__}: {exc}; the model error is taken as 0")
+    except Exception as exc:  # the model does not run at another rate: no refinement
+        return None, (
+            f"none: {name} has no refined(), and at twice the sampling rate it raised "
+            f"{type(exc).__name__}: {exc}; the model error is taken as 0"
+        )
     if fine.shape != coarse.shape or not (np.all(np.isfinite(fine)) and np.all(np.isfinite(coarse))):
-        return None, (f"none: {name} has no refined(), and at twice the sampling rate its response had shape "
-                      f"{fine.shape} (or non-finite values) against {coarse.shape}; the model error is taken as 0")
+        return None, (
+            f"none: {name} has no refined(), and at twice the sampling rate its response had shape "
+            f"{fine.shape} (or non-finite values) against {coarse.shape}; the model error is taken as 0"
+        )
     scale = np.linalg.norm(coarse)
     change = np.linalg.norm(fine - coarse) / scale if scale > 0 else 0.0
     if change > MAX_PROBE_CHANGE:
         # either a model of the samples (then nothing is wrong) or a continuous model far from
         # converged at this rate (then its posterior is too narrow): only the user can tell
-        warnings.warn(f"{name} has no refined(), and at twice the sampling rate its response changes by "
-                      f"{100 * change:.3g} %: if it models a continuous structure it is far from converged at "
-                      "this rate and its posterior will be too narrow; give it a refined() (a finer model of the "
-                      "same physics)", RuntimeWarning, stacklevel=2)
-        return None, (f"none: {name} has no refined(), and at twice the sampling rate its response changes by "
-                      f"{100 * change:.3g} % (a model of the samples, or far from converged: a warning says "
-                      "so); the model error is taken as 0")
-    return refined, (f"{name} at twice the sampling rate (it has no refined(); the probe moved its response by "
-                     f"{100 * change:.3g} %)")
+        warnings.warn(
+            f"{name} has no refined(), and at twice the sampling rate its response changes by "
+            f"{100 * change:.3g} %: if it models a continuous structure it is far from converged at "
+            "this rate and its posterior will be too narrow; give it a refined() (a finer model of the "
+            "same physics)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return None, (
+            f"none: {name} has no refined(), and at twice the sampling rate its response changes by "
+            f"{100 * change:.3g} % (a model of the samples, or far from converged: a warning says "
+            "so); the model error is taken as 0"
+        )
+    return refined, (
+        f"{name} at twice the sampling rate (it has no refined(); the probe moved its response by {100 * change:.3g} %)"
+    )

@@ -3,12 +3,12 @@
 ``model_replicates``): a linear time-invariant estimate of the model from one
 run, and the control variate that corrects it with a few replicates run on the
 model (docs/likelihood.md)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-
 
 __all__ = ["ScalesRun", "control_variate_rows", "draw_replicates", "lti_fit", "lti_response"]
 
@@ -63,14 +63,18 @@ def lti_fit(probe, dv):
     length = n // 2
     cols = dv[:, None] if dv.ndim == 1 else dv
     reverse = probe[::-1]
-    op = LinearOperator((n, length), dtype=float,
-                        matvec=lambda g: signal.fftconvolve(probe, np.ravel(g))[:n],
-                        rmatvec=lambda y: signal.fftconvolve(np.ravel(y), reverse)[n - 1:n - 1 + length])
+    op = LinearOperator(
+        (n, length),
+        dtype=float,
+        matvec=lambda g: signal.fftconvolve(probe, np.ravel(g))[:n],
+        rmatvec=lambda y: signal.fftconvolve(np.ravel(y), reverse)[n - 1 : n - 1 + length],
+    )
     g = [lsqr(op, cols[:, j], atol=1e-10, btol=1e-10, iter_lim=200)[0] for j in range(cols.shape[1])]
 
     def response(du):
         out = np.column_stack([signal.fftconvolve(du, gj)[:n] for gj in g])
         return out[:, 0] if dv.ndim == 1 else out
+
     return response
 
 
@@ -110,9 +114,9 @@ def draw_replicates(problem, stage: str, n_replicates: int, model_replicates, rn
     est = problem.noise[test.name]
     sig_f = est["force"].sd if est["force"].sd is not None else 0.0
     sig_y = np.array([est[name].sd for name, _ in problem.sensors])
-    sig_y = sig_y.reshape(test.response.shape[1:])      # a float for one sensor, one per sensor else
+    sig_y = sig_y.reshape(test.response.shape[1:])  # a float for one sensor, one per sensor else
     n, k = test.force.size, len(problem.sensors)
-    shape = (n,) if k == 1 else (n, k)                    # the shape of Problem.run's response
+    shape = (n,) if k == 1 else (n, k)  # the shape of Problem.run's response
 
     def draw():
         return sig_f * rng.standard_normal(n), sig_y * rng.standard_normal(shape)

@@ -29,6 +29,7 @@ from its own.  Entries are written by worker processes directly, so ``root`` mus
 be reachable at the same path from every worker (a local pool always; a Dask
 cluster on another machine: a shared filesystem, else runs are made again).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -79,9 +80,13 @@ def runs_usage(cache_dir) -> dict:
     age of the oldest run [days], None when empty)."""
     entries = _entries(cache_dir)
     stats = [p.stat() for p in entries]
-    return {"folder": str(Path(cache_dir) / "runs"), "runs": len(entries), "bytes": sum(s.st_size for s in stats),
-            "models": len({p.parent.parent.name for p in entries}),
-            "oldest_days": (time.time() - min(s.st_mtime for s in stats)) / 86400.0 if stats else None}
+    return {
+        "folder": str(Path(cache_dir) / "runs"),
+        "runs": len(entries),
+        "bytes": sum(s.st_size for s in stats),
+        "models": len({p.parent.parent.name for p in entries}),
+        "oldest_days": (time.time() - min(s.st_mtime for s in stats)) / 86400.0 if stats else None,
+    }
 
 
 def clear_runs(cache_dir, older_than_days: float | None = None) -> tuple[int, int]:
@@ -161,7 +166,7 @@ def _own_code() -> str:
 
 
 def force_key(force, fs: float) -> str:
-    force = np.ascontiguousarray(force, dtype=np.float64) + 0.0        # -0.0 is 0.0
+    force = np.ascontiguousarray(force, dtype=np.float64) + 0.0  # -0.0 is 0.0
     return _sha(force.tobytes() + np.float64(fs).tobytes())[:20]
 
 
@@ -176,7 +181,7 @@ class RunStore:
     def __init__(self, root, source: str = "sample"):
         self.root = Path(root)
         self.source = str(source)
-        self._models: dict = {}          # id(model) -> (model, key): a model object is described once
+        self._models: dict = {}  # id(model) -> (model, key): a model object is described once
 
     def __getstate__(self):
         return {"root": self.root, "source": self.source, "_models": {}}
@@ -232,12 +237,20 @@ class RunStore:
         try:
             if error is None:
                 with open(tmp, "wb") as f:
-                    np.savez(f, response=np.asarray(response, float), names=np.array(names),
-                             values=np.array([float(theta[k]) for k in names]), source=np.array(self.source))
+                    np.savez(
+                        f,
+                        response=np.asarray(response, float),
+                        names=np.array(names),
+                        values=np.array([float(theta[k]) for k in names]),
+                        source=np.array(self.source),
+                    )
                 os.replace(tmp, path.with_suffix(".npz"))
             else:
-                tmp.write_text(json.dumps({"message": str(error), "theta": {k: float(theta[k]) for k in names},
-                                           "source": self.source}))
+                tmp.write_text(
+                    json.dumps(
+                        {"message": str(error), "theta": {k: float(theta[k]) for k in names}, "source": self.source}
+                    )
+                )
                 os.replace(tmp, path.with_suffix(".err"))
             self._journal(JOURNAL)
         except OSError:

@@ -8,6 +8,7 @@ and what a user asks ("which parameter does the low-level test see?") is
 about their order of magnitude.  The GP's held-out error is reported with the
 indices so that they can be trusted or not.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -15,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 
 import surrogates
-
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
@@ -38,12 +38,15 @@ def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, se
     PUBLIC = tuple(space.names)
     bounds = np.column_stack([space.low, space.high])
     X = surrogates.design(bounds, n_design, "sobol", seed=seed)
-    res = evaluate_many(_EvaluatePublic(problem, space), list(X), pool, progress=progress,
-                        desc="global design")
+    res = evaluate_many(_EvaluatePublic(problem, space), list(X), pool, progress=progress, desc="global design")
     salib_problem = {"num_vars": len(PUBLIC), "names": list(PUBLIC), "bounds": bounds.tolist()}
-    S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2 ** 31)
-    out = {"n_design": int(n_design), "n_sobol": int(n_sobol),
-           "units": {p.name: p.unit for p in space.parameters}, "output": "log e"}
+    S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2**31)
+    out = {
+        "n_design": int(n_design),
+        "n_sobol": int(n_sobol),
+        "units": {p.name: p.unit for p in space.parameters},
+        "output": "log e",
+    }
     for key in ("e_lin", "e_nlin"):
         y = np.array([r.get(key, np.nan) for r in res], float)
         ok = np.isfinite(y) & (y > 0)
@@ -51,15 +54,17 @@ def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, se
             continue
 
         def factory():
-            return surrogates.GPSurrogate(bounds, transform="log", names=list(PUBLIC), n_restarts_optimizer=2,
-                                          seed=0)
+            return surrogates.GPSurrogate(bounds, transform="log", names=list(PUBLIC), n_restarts_optimizer=2, seed=0)
 
         gp = factory().fit(X[ok], y[ok])
         hold = surrogates.holdout_validation(factory, X[ok], y[ok], fraction=0.25, seed=0)
         z = gp.predict_transformed(S)[0]
-        Si = sobol_analyze.analyze(salib_problem, z, calc_second_order=False, seed=int(seed) % 2 ** 31)
-        out[key] = {"S1": dict(zip(PUBLIC, map(float, Si["S1"]))), "ST": dict(zip(PUBLIC, map(float, Si["ST"]))),
-                    "S1_conf": dict(zip(PUBLIC, map(float, Si["S1_conf"]))),
-                    "ST_conf": dict(zip(PUBLIC, map(float, Si["ST_conf"]))),
-                    "gp_holdout": {k: v for k, v in hold.items() if isinstance(v, (int, float))}}
+        Si = sobol_analyze.analyze(salib_problem, z, calc_second_order=False, seed=int(seed) % 2**31)
+        out[key] = {
+            "S1": dict(zip(PUBLIC, map(float, Si["S1"]))),
+            "ST": dict(zip(PUBLIC, map(float, Si["ST"]))),
+            "S1_conf": dict(zip(PUBLIC, map(float, Si["S1_conf"]))),
+            "ST_conf": dict(zip(PUBLIC, map(float, Si["ST_conf"]))),
+            "gp_holdout": {k: v for k, v in hold.items() if isinstance(v, (int, float))},
+        }
     return out

@@ -6,6 +6,7 @@ The likelihood's noise scale is measured per direction of that span
 steps of :func:`bayes_update.core.mode.find_mode`, is the first Jacobian of
 a mode search from the same point (:func:`bayes_update.core.mode.known_point`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -23,10 +24,10 @@ __all__ = ["Sensitivity", "StageOutput", "derivative_from", "derivative_points",
 class Sensitivity:
     """A stage's output and its forward-difference derivative at one point."""
 
-    x: np.ndarray            # the point (internal coordinates)
-    output: np.ndarray       # the stage's compared output there, (n,)
-    derivative: np.ndarray   # d output / d x, (n, d)
-    steps: np.ndarray        # the finite-difference steps (internal coordinates): ``rel_step`` of the prior box
+    x: np.ndarray  # the point (internal coordinates)
+    output: np.ndarray  # the stage's compared output there, (n,)
+    derivative: np.ndarray  # d output / d x, (n, d)
+    steps: np.ndarray  # the finite-difference steps (internal coordinates): ``rel_step`` of the prior box
 
 
 @dataclass
@@ -42,8 +43,9 @@ class StageOutput:
         return p.output(self.stage, p.components(self.stage, p.simulate(self.space.to_parameters(x), self.stage)))
 
 
-def output_derivative(problem: Problem, stage: str, params, space, rel_step: float = 1e-4,
-                      at=None, executor=None) -> Sensitivity:
+def output_derivative(
+    problem: Problem, stage: str, params, space, rel_step: float = 1e-4, at=None, executor=None
+) -> Sensitivity:
     """d(stage output)/dx at ``params`` by forward differences in the internal
     coordinates, steps ``rel_step`` of the prior box, backwards at the upper bound
     (the steps and rule of :func:`bayes_update.core.mode.find_mode` with
@@ -77,7 +79,9 @@ def span_of(derivative, stage: str = "", tol: float = 1e-6) -> np.ndarray:
     U, S, _ = np.linalg.svd(np.asarray(derivative, float), full_matrices=False)
     r = int(np.sum(S > tol * S[0])) if S[0] > 0 else 0
     if r == 0:
-        raise ModelSpecError(f"stage {stage}: the model's compared output does not move with any parameter here: "
-                             "check that simulate uses theta[name] of every declared parameter, and that each "
-                             "parameter's range and unit are those simulate expects")
+        raise ModelSpecError(
+            f"stage {stage}: the model's compared output does not move with any parameter here: "
+            "check that simulate uses theta[name] of every declared parameter, and that each "
+            "parameter's range and unit are those simulate expects"
+        )
     return U[:, :r]

@@ -4,6 +4,7 @@ Every command is a sequence of named steps (start, likelihood scales, mode,
 design, ...).  What a user pays for each is its wall time and its model runs;
 both are recorded here, one place, and land in ``run.json``.
 """
+
 from __future__ import annotations
 
 import time
@@ -51,10 +52,12 @@ class StepLog:
 
     def line(self) -> str:
         """One line for a log: total time and runs, then each step's."""
-        parts = ", ".join(f"{k} {self.timing.get(k, 0.0):.0f} s / {self.runs.get(k, 0)} runs"
-                          for k in self.timing if k != "total")
-        return (f"{self.timing.get('total', 0.0):.0f} s and {self.runs.get('total', 0)} model runs"
-                + (f" ({parts})" if parts else ""))
+        parts = ", ".join(
+            f"{k} {self.timing.get(k, 0.0):.0f} s / {self.runs.get(k, 0)} runs" for k in self.timing if k != "total"
+        )
+        return f"{self.timing.get('total', 0.0):.0f} s and {self.runs.get('total', 0)} model runs" + (
+            f" ({parts})" if parts else ""
+        )
 
     def to_dict(self) -> dict:
         return {"timing_s": dict(self.timing), "n_model_runs": dict(self.runs)}

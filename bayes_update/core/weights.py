@@ -23,6 +23,7 @@ impulse response: the root sum of squares of the first-order coefficients in
 the orthonormal basis (each function's impulse response has unit energy).
 So each sensor's effective noise is ``sqrt(s_y^2 + (s_u ||h1||)^2)``.
 """
+
 from __future__ import annotations
 
 import math
@@ -41,8 +42,7 @@ def linear_gain(force, response, basis: volterra.KautzBasis) -> np.ndarray:
     proj = volterra.VolterraProjector(np.asarray(force, float), basis.subset((1,)))
     y = np.asarray(response, float)
     y = y[:, None] if y.ndim == 1 else y
-    return np.array([math.sqrt(float(np.sum(proj.model(y[:, j]).coefficients_of(1) ** 2)))
-                     for j in range(y.shape[1])])
+    return np.array([math.sqrt(float(np.sum(proj.model(y[:, j]).coefficients_of(1) ** 2))) for j in range(y.shape[1])])
 
 
 def effective_noise(estimates: dict, sensors, gain) -> np.ndarray:
@@ -53,7 +53,7 @@ def effective_noise(estimates: dict, sensors, gain) -> np.ndarray:
     s_y = np.array([estimates[name].sd for name, _ in sensors], float)
     force = estimates.get("force")
     s_u = force.sd if force is not None and force.sd is not None else 0.0
-    return np.sqrt(s_y ** 2 + (s_u * np.asarray(gain, float)) ** 2)
+    return np.sqrt(s_y**2 + (s_u * np.asarray(gain, float)) ** 2)
 
 
 def representation_floor(response, fitted, noise_sd) -> float:
@@ -63,5 +63,5 @@ def representation_floor(response, fitted, noise_sd) -> float:
     y = np.asarray(response, float)
     r = y - np.asarray(fitted, float)
     n = y.shape[0]
-    excess = float(np.sum(r ** 2)) - n * float(np.sum(np.square(noise_sd)))
+    excess = float(np.sum(r**2)) - n * float(np.sum(np.square(noise_sd)))
     return math.sqrt(max(excess, 0.0)) / float(np.linalg.norm(y))

@@ -1,6 +1,7 @@
 """Cheap checks of one channel of a record, for the inspection report:
 offset, drift, clipping (plain functions of a 1-D array, any unit); and the
 one check every command makes of a record's force (:func:`require_live_force`)."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -40,11 +41,12 @@ def trend(x, min_window: int = 0) -> np.ndarray:
     x = np.asarray(x, float)
     m = max(x.size // TREND_BLOCKS, int(min_window))
     if m < 4 or 2 * m > x.size:
-        raise ValueError(f"a record of {x.size} samples is too short for a trend over windows of {max(m, 4)} "
-                         "samples (at least two)")
+        raise ValueError(
+            f"a record of {x.size} samples is too short for a trend over windows of {max(m, 4)} samples (at least two)"
+        )
     w = np.hanning(m + 2)[1:-1]
     starts = np.arange(0, x.size - m + 1, m // 2)
-    return np.array([w @ x[s:s + m] for s in starts]) / w.sum() - x.mean()
+    return np.array([w @ x[s : s + m] for s in starts]) / w.sum() - x.mean()
 
 
 def drift(x, fs: float | None = None, lowest_hz: float | None = None) -> float:
@@ -101,7 +103,9 @@ def require_live_force(record) -> None:
     span, top = float(np.ptp(force)), float(np.max(np.abs(force)))
     if not span > 1e-12 * top:
         what = "zero" if top == 0 else f"constant ({force[0]:.6g} N)"
-        raise DatasetError(f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
-                           f"its force is {what} over the whole record, so it excites nothing the model "
-                           "could be compared with; check the force column (channel, scaling) or remove "
-                           "the test from dataset.json")
+        raise DatasetError(
+            f"{record.source or record.file}: test {record.name!r} (role {record.role!r}): "
+            f"its force is {what} over the whole record, so it excites nothing the model "
+            "could be compared with; check the force column (channel, scaling) or remove "
+            "the test from dataset.json"
+        )

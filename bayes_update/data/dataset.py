@@ -29,6 +29,7 @@ checks and its errors, all re-exported here).
 The readers never resample, interpolate or reorder: data that do not meet
 the format are refused with one of these errors.
 """
+
 from __future__ import annotations
 
 import copy
@@ -36,40 +37,42 @@ import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+
 import numpy as np
 
 from bayes_update.data.format import (  # noqa: F401  (the format's names, re-exported)
-    ROLES,
-    RESPONSE_KINDS,
-    RESPONSE_UNITS,
+    COLUMNS,
+    DEFAULT_LEVEL,
     DEFAULT_RESPONSE,
     DEFAULT_SENSORS,
-    COLUMNS,
-    UNITS,
-    RESERVED_KEYS,
-    TEST_KEYS,
-    NOISE_TEST_KEYS,
     DEFAULT_SIGNAL,
-    DEFAULT_LEVEL,
+    NOISE_TEST_KEYS,
+    RESERVED_KEYS,
+    RESPONSE_KINDS,
+    RESPONSE_UNITS,
+    ROLES,
+    TEST_KEYS,
     TIME_TOLERANCE,
+    UNITS,
     DatasetError,
-    MissingColumnError,
     LengthMismatchError,
+    MissingColumnError,
     NonFiniteError,
-    TimeColumnError,
     NonIncreasingTimeError,
     NonUniformTimeError,
     SamplingRateError,
-    UnknownRoleError,
-    UnknownResponseError,
     SensorError,
-    source_label,
-    check_sensors,
+    TimeColumnError,
+    UnknownResponseError,
+    UnknownRoleError,
     check_channels,
-    check_time,
-    check_period_samples,
     check_noise_sd,
-    is_single_velocity)
+    check_period_samples,
+    check_sensors,
+    check_time,
+    is_single_velocity,
+    source_label,
+)
 
 
 @dataclass
@@ -126,13 +129,11 @@ class Record:
         where = self.source or self.file
         for key in TEST_KEYS:
             if not isinstance(getattr(self, key), str) or not getattr(self, key):
-                raise DatasetError(f"{where}: test {key!r} must be a non-empty string, "
-                                   f"got {getattr(self, key)!r}")
+                raise DatasetError(f"{where}: test {key!r} must be a non-empty string, got {getattr(self, key)!r}")
         if self.role not in ROLES:
             raise UnknownRoleError(f"{where}: unknown role {self.role!r}; roles are {ROLES}")
         self.sensors = check_sensors(self.sensors, where)
-        self.time, self.force, self.response = check_channels(
-            self.time, self.force, self.response, where, self.sensors)
+        self.time, self.force, self.response = check_channels(self.time, self.force, self.response, where, self.sensors)
         self.period_samples = check_period_samples(self.period_samples, self.time.size, where)
         self.noise_sd = check_noise_sd(self.noise_sd, self.channels, where)
 
@@ -141,7 +142,8 @@ class Record:
             raise SensorError(
                 f"{self.source or self.file}: Record.velocity is the response of a single velocity "
                 f"sensor, but this record's sensors are {list(self.sensors)}; use Record.response "
-                "(columns in sensor order) or Record.channel(name)")
+                "(columns in sensor order) or Record.channel(name)"
+            )
 
     @property
     def velocity(self) -> np.ndarray:
@@ -241,8 +243,10 @@ class Dataset:
         """The response kind of a data set with a single sensor."""
         sensors = self.sensors
         if len(sensors) != 1:
-            raise SensorError(f"{self.source or self.name}: {len(sensors)} sensors {sensors}; "
-                              "response_kind is for a single sensor, see Dataset.sensors")
+            raise SensorError(
+                f"{self.source or self.name}: {len(sensors)} sensors {sensors}; "
+                "response_kind is for a single sensor, see Dataset.sensors"
+            )
         return sensors[0][1]
 
     @property
@@ -300,12 +304,16 @@ class Dataset:
         if not (isinstance(fs, (int, float)) and np.isfinite(fs) and fs > 0):
             raise DatasetError(f"{where}: sampling_rate_hz must be a positive number, got {fs!r}")
         if not (self.rig is None or callable(getattr(self.rig, "to_dict", None))):
-            raise DatasetError(f"{where}: rig must be None, the rig block (a dict) or an object with "
-                               f"to_dict() such as fe.Rig, got {type(self.rig).__name__}")
+            raise DatasetError(
+                f"{where}: rig must be None, the rig block (a dict) or an object with "
+                f"to_dict() such as fe.Rig, got {type(self.rig).__name__}"
+            )
         reserved = sorted(k for k in self.extra if k in RESERVED_KEYS)
         if reserved:
-            raise DatasetError(f"{where}: extra key(s) {reserved} are dataset.json keys of their own; "
-                               "set them through the Dataset's fields or the records' sensors")
+            raise DatasetError(
+                f"{where}: extra key(s) {reserved} are dataset.json keys of their own; "
+                "set them through the Dataset's fields or the records' sensors"
+            )
         files = [t.file for t in self.tests]
         dup = sorted({f for f in files if files.count(f) > 1})
         if dup:
@@ -317,6 +325,8 @@ class Dataset:
         self.noise_sd = check_noise_sd(self.noise_sd, ("force",) + tuple(n for n, _ in sensors), where)
         for t in self.tests:
             if list(t.sensors) != sensors:
-                raise SensorError(f"{where}: test {t.file} has sensors {list(t.sensors)}, test "
-                                  f"{self.tests[0].file} {sensors}; every test of a data set has the "
-                                  "same sensors")
+                raise SensorError(
+                    f"{where}: test {t.file} has sensors {list(t.sensors)}, test "
+                    f"{self.tests[0].file} {sensors}; every test of a data set has the "
+                    "same sensors"
+                )

@@ -109,14 +109,41 @@ kind, ``sensors`` otherwise.
 The errors are those of :mod:`bayes_update.data.dataset`.  The readers never resample,
 interpolate or reorder: data that do not meet the format are refused with one of these errors.
 """
+
 from __future__ import annotations
 
 import copy
 import json
 from pathlib import Path
-import numpy as np
-from bayes_update.data.dataset import DEFAULT_LEVEL, DEFAULT_RESPONSE, DEFAULT_SENSORS, DEFAULT_SIGNAL, NOISE_TEST_KEYS, RESERVED_KEYS, RESPONSE_KINDS, ROLES, TEST_KEYS, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SensorError, UnknownResponseError, UnknownRoleError, is_single_velocity, source_label, check_noise_sd, check_period_samples, check_sensors, check_time
 
+import numpy as np
+
+from bayes_update.data.dataset import (
+    DEFAULT_LEVEL,
+    DEFAULT_RESPONSE,
+    DEFAULT_SENSORS,
+    DEFAULT_SIGNAL,
+    NOISE_TEST_KEYS,
+    RESERVED_KEYS,
+    RESPONSE_KINDS,
+    ROLES,
+    TEST_KEYS,
+    Dataset,
+    DatasetError,
+    LengthMismatchError,
+    MissingColumnError,
+    NonFiniteError,
+    Record,
+    SensorError,
+    UnknownResponseError,
+    UnknownRoleError,
+    check_noise_sd,
+    check_period_samples,
+    check_sensors,
+    check_time,
+    is_single_velocity,
+    source_label,
+)
 
 UFF_SUFFIXES = (".uff", ".unv")
 
@@ -153,8 +180,9 @@ def read_dataset(folder) -> Dataset:
     try:
         fs = float(meta["sampling_rate_hz"])
     except (TypeError, ValueError):
-        raise DatasetError(f"{meta_path}: sampling_rate_hz must be a number, "
-                           f"got {meta['sampling_rate_hz']!r}") from None
+        raise DatasetError(
+            f"{meta_path}: sampling_rate_hz must be a number, got {meta['sampling_rate_hz']!r}"
+        ) from None
     if not (np.isfinite(fs) and fs > 0):
         raise DatasetError(f"{meta_path}: sampling_rate_hz must be positive, got {fs}")
     rig = meta.get("rig")
@@ -173,16 +201,19 @@ def read_dataset(folder) -> Dataset:
             if key not in entry:
                 raise DatasetError(f"{meta_path}: test entry {entry} lacks {key!r}")
         if entry["role"] not in ROLES:
-            raise UnknownRoleError(f"{meta_path}: test {entry['file']} has unknown role "
-                                   f"{entry['role']!r}; roles are {ROLES}")
+            raise UnknownRoleError(
+                f"{meta_path}: test {entry['file']} has unknown role {entry['role']!r}; roles are {ROLES}"
+            )
         path = folder / entry["file"]
         if not path.is_file():
             raise DatasetError(f"{path}: file listed in dataset.json does not exist")
         if path.suffix.lower() in UFF_SUFFIXES:
             if not is_single_velocity(sensors):
-                raise SensorError(f"{path}: a UFF test file holds force and velocity records only, but "
-                                  f"{meta_path} declares the sensors {list(sensors)}; write this test "
-                                  "as a CSV file with one column per sensor")
+                raise SensorError(
+                    f"{path}: a UFF test file holds force and velocity records only, but "
+                    f"{meta_path} declares the sensors {list(sensors)}; write this test "
+                    "as a CSV file with one column per sensor"
+                )
             from bayes_update.data.uff import read_uff_test
 
             time, force, response, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
@@ -192,13 +223,24 @@ def read_dataset(folder) -> Dataset:
         period = check_period_samples(entry.get("period_samples"), len(time), where)
         test_noise = check_noise_sd(entry.get("noise_sd"), channels, where)
         extra = {k: v for k, v in entry.items() if k not in TEST_KEYS + NOISE_TEST_KEYS}
-        tests.append(Record(entry["file"], entry.get("signal", DEFAULT_SIGNAL),
-                            entry.get("level", DEFAULT_LEVEL), entry["role"],
-                            time, force, response, extra, source=str(path), sensors=sensors,
-                            period_samples=period, noise_sd=test_noise))
+        tests.append(
+            Record(
+                entry["file"],
+                entry.get("signal", DEFAULT_SIGNAL),
+                entry.get("level", DEFAULT_LEVEL),
+                entry["role"],
+                time,
+                force,
+                response,
+                extra,
+                source=str(path),
+                sensors=sensors,
+                period_samples=period,
+                noise_sd=test_noise,
+            )
+        )
     extra = {k: v for k, v in meta.items() if k not in RESERVED_KEYS}
-    ds = Dataset(meta.get("name", folder.name), fs, rig, tests, extra, source=str(folder),
-                 noise_sd=noise_sd)
+    ds = Dataset(meta.get("name", folder.name), fs, rig, tests, extra, source=str(folder), noise_sd=noise_sd)
     ds.validate()
     return ds
 
@@ -216,26 +258,28 @@ def sensors_from_metadata(meta: dict, meta_path=None) -> tuple:
         return ((top, top),)
     block = meta["sensors"]
     if not isinstance(block, list) or not block:
-        raise SensorError(f"{where}: 'sensors' must be a non-empty list of "
-                          '{"name": ..., "response": ...} objects')
+        raise SensorError(f'{where}: \'sensors\' must be a non-empty list of {{"name": ..., "response": ...}} objects')
     sensors = []
     for entry in block:
         if not isinstance(entry, dict) or "name" not in entry:
-            raise SensorError(f"{where}: sensor entry {entry!r} must be an object with a 'name' "
-                              "(its CSV column) and a 'response' kind")
+            raise SensorError(
+                f"{where}: sensor entry {entry!r} must be an object with a 'name' "
+                "(its CSV column) and a 'response' kind"
+            )
         unknown = sorted(set(entry) - {"name", "response"})
         if unknown:
-            raise SensorError(f"{where}: sensor {entry['name']!r} has unknown key(s) {unknown}; a "
-                              "sensor has 'name' and 'response'")
+            raise SensorError(
+                f"{where}: sensor {entry['name']!r} has unknown key(s) {unknown}; a sensor has 'name' and 'response'"
+            )
         kind = entry.get("response", top)
         if kind not in RESPONSE_KINDS:
-            raise UnknownResponseError(f"{where}: sensor {entry['name']!r} has unknown response kind "
-                                       f"{kind!r}; {kinds}")
+            raise UnknownResponseError(f"{where}: sensor {entry['name']!r} has unknown response kind {kind!r}; {kinds}")
         if "response" in meta and kind != top:
             raise SensorError(
                 f"{where}: sensor {entry['name']!r} has response {kind!r} but the top-level "
                 f"'response' is {top!r}; drop the top-level 'response' and give each sensor its "
-                "kind, or make them agree")
+                "kind, or make them agree"
+            )
         sensors.append((entry["name"], kind))
     return check_sensors(sensors, where)
 
@@ -250,8 +294,8 @@ def _diagnose_rows(path: Path, n_columns: int) -> None:
             fields = [f.strip() for f in line.rstrip("\r\n").split(",")]
             if len(fields) != n_columns:
                 raise LengthMismatchError(
-                    f"{path}: line {lineno} has {len(fields)} value(s), the header has "
-                    f"{n_columns} column(s)")
+                    f"{path}: line {lineno} has {len(fields)} value(s), the header has {n_columns} column(s)"
+                )
             for f in fields:
                 try:
                     float(f)
@@ -275,10 +319,11 @@ def _read_csv(path: Path, fs: float, sensors=DEFAULT_SENSORS, meta_path=None):
     if missing:
         hint = ""
         if any(c in names for c in missing):
-            declared = (f"{meta_path or 'dataset.json'} declares the sensor(s) "
-                        f"{[list(s) for s in sensors]}")
-            hint = (f"; {declared}: name the response column(s) after the sensors, or set "
-                    "'response'/'sensors' in dataset.json to match the header")
+            declared = f"{meta_path or 'dataset.json'} declares the sensor(s) {[list(s) for s in sensors]}"
+            hint = (
+                f"; {declared}: name the response column(s) after the sensors, or set "
+                "'response'/'sensors' in dataset.json to match the header"
+            )
         raise MissingColumnError(f"{path}: missing column(s) {missing}; header is {header}{hint}")
     dup = sorted({h for h in header if header.count(h) > 1 and h in columns})
     if dup:
@@ -292,7 +337,8 @@ def _read_csv(path: Path, fs: float, sensors=DEFAULT_SENSORS, meta_path=None):
         raise DatasetError(f"{path}: no data rows")
     if data.shape[1] != len(header):
         raise LengthMismatchError(
-            f"{path}: {data.shape[1]} value(s) per row but {len(header)} column name(s) in the header")
+            f"{path}: {data.shape[1]} value(s) per row but {len(header)} column name(s) in the header"
+        )
     cols = {name: data[:, header.index(name)] for name in columns}
     for name, values in cols.items():
         bad = ~np.isfinite(values)
@@ -368,6 +414,12 @@ def write_dataset(dataset: Dataset, folder) -> Path:
     (folder / "dataset.json").write_text(json.dumps(meta, indent=2) + "\n")
     for t in dataset.tests:
         arr = np.column_stack([t.time, t.force, t.response])
-        np.savetxt(folder / t.file, arr, delimiter=",", header=",".join(("time", "force", *names)),
-                   comments="", fmt=(TIME_FORMAT, VALUE_FORMAT) + (VALUE_FORMAT,) * len(names))
+        np.savetxt(
+            folder / t.file,
+            arr,
+            delimiter=",",
+            header=",".join(("time", "force", *names)),
+            comments="",
+            fmt=(TIME_FORMAT, VALUE_FORMAT) + (VALUE_FORMAT,) * len(names),
+        )
     return folder

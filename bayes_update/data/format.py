@@ -32,16 +32,44 @@ message always names the file and what is wrong)
                                  reported by :func:`bayes_update.models.beam.rig.rig_of`
 ===============================  ===================================================
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["COLUMNS", "DEFAULT_RESPONSE", "DEFAULT_SENSORS", "DEFAULT_LEVEL", "DEFAULT_SIGNAL", "DatasetError",
-           "LengthMismatchError", "MissingColumnError", "NOISE_TEST_KEYS", "NonFiniteError",
-           "NonIncreasingTimeError", "NonUniformTimeError", "RESERVED_KEYS", "RESPONSE_KINDS",
-           "RESPONSE_UNITS", "ROLES", "SamplingRateError", "SensorError", "TEST_KEYS", "TIME_TOLERANCE",
-           "TimeColumnError", "UNITS", "UnknownResponseError", "UnknownRoleError", "is_single_velocity",
-           "source_label", "check_channels", "check_noise_sd", "check_period_samples", "check_sensors", "check_time"]
+__all__ = [
+    "COLUMNS",
+    "DEFAULT_RESPONSE",
+    "DEFAULT_SENSORS",
+    "DEFAULT_LEVEL",
+    "DEFAULT_SIGNAL",
+    "DatasetError",
+    "LengthMismatchError",
+    "MissingColumnError",
+    "NOISE_TEST_KEYS",
+    "NonFiniteError",
+    "NonIncreasingTimeError",
+    "NonUniformTimeError",
+    "RESERVED_KEYS",
+    "RESPONSE_KINDS",
+    "RESPONSE_UNITS",
+    "ROLES",
+    "SamplingRateError",
+    "SensorError",
+    "TEST_KEYS",
+    "TIME_TOLERANCE",
+    "TimeColumnError",
+    "UNITS",
+    "UnknownResponseError",
+    "UnknownRoleError",
+    "is_single_velocity",
+    "source_label",
+    "check_channels",
+    "check_noise_sd",
+    "check_period_samples",
+    "check_sensors",
+    "check_time",
+]
 
 
 ROLES = ("linear", "nonlinear", "validation")
@@ -154,19 +182,22 @@ def check_sensors(sensors, source=None) -> tuple:
     if not pairs:
         raise SensorError(f"{where}: a data set needs at least one sensor")
     for name, kind in pairs:
-        if not isinstance(name, str) or not name or name != name.strip() or "," in name \
-                or name in ("time", "force"):
-            raise SensorError(f"{where}: sensor name {name!r} is not usable as a CSV column: "
-                              "give a non-empty name without commas or surrounding spaces, "
-                              "other than 'time' and 'force'")
+        if not isinstance(name, str) or not name or name != name.strip() or "," in name or name in ("time", "force"):
+            raise SensorError(
+                f"{where}: sensor name {name!r} is not usable as a CSV column: "
+                "give a non-empty name without commas or surrounding spaces, "
+                "other than 'time' and 'force'"
+            )
         if kind not in RESPONSE_KINDS:
-            raise UnknownResponseError(f"{where}: sensor {name!r} has unknown response kind {kind!r}; "
-                                       f"kinds are {RESPONSE_KINDS}")
+            raise UnknownResponseError(
+                f"{where}: sensor {name!r} has unknown response kind {kind!r}; kinds are {RESPONSE_KINDS}"
+            )
     names = [n for n, _ in pairs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise SensorError(f"{where}: duplicate sensor name(s) {dup}; give each sensor its own name "
-                          "(it is its CSV column)")
+        raise SensorError(
+            f"{where}: duplicate sensor name(s) {dup}; give each sensor its own name (it is its CSV column)"
+        )
     return pairs
 
 
@@ -197,8 +228,10 @@ def check_channels(time, force, response, source=None, sensors=DEFAULT_SENSORS):
         columns = {names[0]: resp}
     else:
         if resp.ndim != 2 or resp.shape[1] != len(sensors):
-            raise DatasetError(f"{where}: the response must have shape (n, {len(sensors)}), one column "
-                               f"per sensor {names}, got shape {resp.shape}")
+            raise DatasetError(
+                f"{where}: the response must have shape (n, {len(sensors)}), one column "
+                f"per sensor {names}, got shape {resp.shape}"
+            )
         columns = {name: resp[:, j] for j, name in enumerate(names)}
     sizes = {k: v.shape[0] for k, v in {**arrays, **columns}.items()}
     if len(set(sizes.values())) != 1:
@@ -207,8 +240,9 @@ def check_channels(time, force, response, source=None, sensors=DEFAULT_SENSORS):
         bad = ~np.isfinite(values)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise NonFiniteError(f"{where}: channel {name!r} has NaN or inf "
-                                 f"(sample {i}, {int(bad.sum())} bad value(s))")
+            raise NonFiniteError(
+                f"{where}: channel {name!r} has NaN or inf (sample {i}, {int(bad.sum())} bad value(s))"
+            )
     return arrays["time"], arrays["force"], resp
 
 
@@ -234,8 +268,8 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
     if bad.size:
         i = int(bad[0]) + 1
         raise NonIncreasingTimeError(
-            f"{where}: time is not strictly increasing at {at(i)} "
-            f"(t = {t[i - 1]:.9g} s then {t[i]:.9g} s)")
+            f"{where}: time is not strictly increasing at {at(i)} (t = {t[i - 1]:.9g} s then {t[i]:.9g} s)"
+        )
     step = float(np.median(dt))
     irregular = np.flatnonzero(np.abs(dt - step) > TIME_TOLERANCE * step)
     if irregular.size:
@@ -243,7 +277,8 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
         raise NonUniformTimeError(
             f"{where}: time column is not uniform: steps between {dt.min():.6g} and "
             f"{dt.max():.6g} s, first irregular step at {at(i)} ({dt[i - 1]:.6g} s against "
-            f"{step:.6g} s); resample it yourself, the reader never resamples silently")
+            f"{step:.6g} s); resample it yourself, the reader never resamples silently"
+        )
     period = 1.0 / fs
     drift = np.abs(t - (t[0] + np.arange(t.size) * period))
     if drift.max() > TIME_TOLERANCE * period:
@@ -251,7 +286,8 @@ def check_time(time, fs: float, source=None, line_offset: int | None = None) -> 
         raise SamplingRateError(
             f"{where}: the time column implies a sampling rate of {1.0 / step:.6g} Hz but "
             f"sampling_rate_hz is {fs:g} Hz (sample {i} is {drift[i]:.3g} s off t0 + k/fs); "
-            "fix sampling_rate_hz or the time column, the reader never resamples silently")
+            "fix sampling_rate_hz or the time column, the reader never resamples silently"
+        )
 
 
 def check_period_samples(period, n_samples: int | None = None, source=None):
@@ -262,14 +298,17 @@ def check_period_samples(period, n_samples: int | None = None, source=None):
         return None
     where = source_label(source)
     if isinstance(period, bool) or not isinstance(period, (int, np.integer)):
-        raise DatasetError(f"{where}: 'period_samples' must be an integer number of samples "
-                           f"(the excitation's period), got {period!r}")
+        raise DatasetError(
+            f"{where}: 'period_samples' must be an integer number of samples (the excitation's period), got {period!r}"
+        )
     period = int(period)
     if period < 2:
         raise DatasetError(f"{where}: 'period_samples' must be at least 2, got {period}")
     if n_samples is not None and 2 * period > n_samples:
-        raise DatasetError(f"{where}: 'period_samples' is {period} but the record has {n_samples} "
-                           "samples: it must hold at least two periods")
+        raise DatasetError(
+            f"{where}: 'period_samples' is {period} but the record has {n_samples} "
+            "samples: it must hold at least two periods"
+        )
     return period
 
 
@@ -282,17 +321,26 @@ def check_noise_sd(noise_sd, channels, source=None, key: str = "noise_sd") -> di
     if noise_sd is None:
         return {}
     if not isinstance(noise_sd, dict):
-        raise DatasetError(f"{where}: {key!r} must be an object {{channel: sd}}, e.g. "
-                           f'{{"force": 0.002, "{channels[-1]}": 1e-4}}, got {noise_sd!r}')
+        raise DatasetError(
+            f"{where}: {key!r} must be an object {{channel: sd}}, e.g. "
+            f'{{"force": 0.002, "{channels[-1]}": 1e-4}}, got {noise_sd!r}'
+        )
     out = {}
     for name, value in noise_sd.items():
         if name not in channels:
-            raise DatasetError(f"{where}: {key!r} names channel {name!r}; the channels are "
-                               f"{list(channels)} ('force' and the sensors' names)")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)) \
-                or not (np.isfinite(value) and value > 0):
-            raise DatasetError(f"{where}: {key!r} of channel {name!r} must be a positive number "
-                               f"(the noise sd per sample in the channel's unit), got {value!r}")
+            raise DatasetError(
+                f"{where}: {key!r} names channel {name!r}; the channels are "
+                f"{list(channels)} ('force' and the sensors' names)"
+            )
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.floating, np.integer))
+            or not (np.isfinite(value) and value > 0)
+        ):
+            raise DatasetError(
+                f"{where}: {key!r} of channel {name!r} must be a positive number "
+                f"(the noise sd per sample in the channel's unit), got {value!r}"
+            )
         out[name] = float(value)
     return out
 

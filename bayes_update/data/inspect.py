@@ -26,6 +26,7 @@
 
 Frequencies Hz, damping ratios [-], sd and offsets in each channel's unit.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -91,8 +92,8 @@ def periodic_frf(record, sensor: str, layout: PeriodLayout) -> spectral.FRFEstim
     fs, N = record.sampling_rate_hz, layout.period
     a = layout.start + N
     P = layout.n_periods - 1
-    u = _detrended(record.force)[a:a + P * N].reshape(P, N)
-    y = _detrended(record.channel(sensor))[a:a + P * N].reshape(P, N)
+    u = _detrended(record.force)[a : a + P * N].reshape(P, N)
+    y = _detrended(record.channel(sensor))[a : a + P * N].reshape(P, N)
     U, Y = np.fft.rfft(u, axis=1), np.fft.rfft(y, axis=1)
     s_uu, s_yy = np.mean(np.abs(U) ** 2, axis=0), np.mean(np.abs(Y) ** 2, axis=0)
     s_uy = np.mean(np.conj(U) * Y, axis=0)
@@ -100,9 +101,16 @@ def periodic_frf(record, sensor: str, layout: PeriodLayout) -> spectral.FRFEstim
     k = k[k > 0]
     scale = 2.0 / (fs * N)
     coh = np.clip(np.abs(s_uy[k]) ** 2 / (s_uu[k] * s_yy[k]), 0.0, 1.0)
-    return spectral.FRFEstimate(np.fft.rfftfreq(N, 1.0 / fs)[k], s_uy[k] / s_uu[k], coh, scale * s_uu[k],
-                                scale * s_yy[k], scale * s_uy[k], P,
-                                f"periodic: {P} periods of {N} samples, excited lines only")
+    return spectral.FRFEstimate(
+        np.fft.rfftfreq(N, 1.0 / fs)[k],
+        s_uy[k] / s_uu[k],
+        coh,
+        scale * s_uu[k],
+        scale * s_yy[k],
+        scale * s_uy[k],
+        P,
+        f"periodic: {P} periods of {N} samples, excited lines only",
+    )
 
 
 def frf(record, sensor: str, fs: float) -> spectral.FRFEstimate:
@@ -126,11 +134,21 @@ def _period(record):
 
 def _test_entry(record, fs, noise, warnings) -> dict:
     band = excited_band(record.force, fs)
-    entry = {"name": record.name, "role": record.role, "signal": record.signal, "level": record.level,
-             "n_samples": record.n_samples, "duration_s": record.n_samples / fs,
-             "excited_band_hz": [band[0], band[1]], "period_samples": _period(record),
-             "noise": {ch: est.to_dict() for ch, est in noise.items()},
-             "offset": {}, "drift": {}, "clipping": {}, "coherence": {}}
+    entry = {
+        "name": record.name,
+        "role": record.role,
+        "signal": record.signal,
+        "level": record.level,
+        "n_samples": record.n_samples,
+        "duration_s": record.n_samples / fs,
+        "excited_band_hz": [band[0], band[1]],
+        "period_samples": _period(record),
+        "noise": {ch: est.to_dict() for ch, est in noise.items()},
+        "offset": {},
+        "drift": {},
+        "clipping": {},
+        "coherence": {},
+    }
     units = record.units
     for ch in record.channels:
         x = record.force if ch == "force" else record.channel(ch)
@@ -140,21 +158,29 @@ def _test_entry(record, fs, noise, warnings) -> dict:
         rms = float(np.std(x))
         where = f"test {record.file}, channel {ch!r}"
         if rms > 0 and abs(off) > OFFSET_WARN * rms:
-            warnings.append(f"{where}: an offset of {off:.4g} {units[ch]} ({abs(off) / rms:.0%} of its rms); "
-                            "it is removed before any fit, but check the sensor's zero")
+            warnings.append(
+                f"{where}: an offset of {off:.4g} {units[ch]} ({abs(off) / rms:.0%} of its rms); "
+                "it is removed before any fit, but check the sensor's zero"
+            )
         if dr > DRIFT_WARN:
-            warnings.append(f"{where}: drifts by {dr:.0%} of its rms over the record (a slow trend); "
-                            "check the sensor's conditioning (AC coupling, temperature)")
+            warnings.append(
+                f"{where}: drifts by {dr:.0%} of its rms over the record (a slow trend); "
+                "check the sensor's conditioning (AC coupling, temperature)"
+            )
         if clip["clipped"]:
-            warnings.append(f"{where}: clipped ({clip['longest_run']} consecutive samples at its max or min); "
-                            "the test is not usable as recorded, repeat it with a larger range")
+            warnings.append(
+                f"{where}: clipped ({clip['longest_run']} consecutive samples at its max or min); "
+                "the test is not usable as recorded, repeat it with a larger range"
+            )
         est = noise[ch]
         if not est.known:
             what = "cannot be estimated" if ch == "force" else "is unknown"
             warnings.append(f"{where}: the noise {what} ({est.detail})")
         elif rms > 0 and est.sd > NOISE_WARN * rms:
-            warnings.append(f"{where}: the noise ({est.sd:.3g} {units[ch]}, {est.method}) is {est.sd / rms:.0%} "
-                            "of the channel's rms")
+            warnings.append(
+                f"{where}: the noise ({est.sd:.3g} {units[ch]}, {est.method}) is {est.sd / rms:.0%} "
+                "of the channel's rms"
+            )
     for name, _ in record.sensors:
         est = frf(record, name, fs)
         sel = est.band(*band) & np.isfinite(est.coherence)
@@ -163,9 +189,11 @@ def _test_entry(record, fs, noise, warnings) -> dict:
         low = float(np.mean(coh < COHERENCE_LOW)) if coh.size else float("nan")
         entry["coherence"][name] = {"median_in_band": med, "share_below_0.9": low}
         if coh.size and low > COHERENCE_SHARE:
-            warnings.append(f"test {record.file}, sensor {name!r}: coherence below {COHERENCE_LOW} on {low:.0%} "
-                            f"of the excited band (median {med:.2f}): noise, nonlinearity, or a channel that does "
-                            "not follow the force")
+            warnings.append(
+                f"test {record.file}, sensor {name!r}: coherence below {COHERENCE_LOW} on {low:.0%} "
+                f"of the excited band (median {med:.2f}): noise, nonlinearity, or a channel that does "
+                "not follow the force"
+            )
     return entry
 
 
@@ -201,10 +229,12 @@ def _noise_spread(dataset, noise, warnings) -> None:
             continue
         hi, lo = max(sds, key=lambda f: sds[f].sd), min(sds, key=lambda f: sds[f].sd)
         if sds[hi].sd > NOISE_SPREAD_WARN * sds[lo].sd:
-            warnings.append(f"sensor {name!r}: its noise differs {sds[hi].sd / sds[lo].sd:.1f}x between tests "
-                            f"({hi}: {sds[hi].method}, {lo}: {sds[lo].method}); a sensor's noise does not grow "
-                            "with the level: check these tests (a transient or distortion counted as noise, or "
-                            "noise that was added in proportion to the level)")
+            warnings.append(
+                f"sensor {name!r}: its noise differs {sds[hi].sd / sds[lo].sd:.1f}x between tests "
+                f"({hi}: {sds[hi].method}, {lo}: {sds[lo].method}); a sensor's noise does not grow "
+                "with the level: check these tests (a transient or distortion counted as noise, or "
+                "noise that was added in proportion to the level)"
+            )
 
 
 def inspect_dataset(dataset, noise: dict | None = None) -> dict:
@@ -231,8 +261,14 @@ def inspect_dataset(dataset, noise: dict | None = None) -> dict:
         except ValueError as exc:
             warnings.append(f"test {ref.file}: no mode found ({exc})")
         dependence = _level_dependence(dataset, modes, fs, warnings)
-    return {"dataset": dataset.name, "source": dataset.source, "sampling_rate_hz": fs,
-            "sensors": [{"name": n, "response": k, "unit": dataset.units[n]} for n, k in dataset.sensors],
-            "tests": tests,
-            "modes": [{"freq_hz": f, "damping_ratio": z} for f, z in modes], "modes_from": modes_from,
-            "level_dependence": dependence, "warnings": warnings}
+    return {
+        "dataset": dataset.name,
+        "source": dataset.source,
+        "sampling_rate_hz": fs,
+        "sensors": [{"name": n, "response": k, "unit": dataset.units[n]} for n, k in dataset.sensors],
+        "tests": tests,
+        "modes": [{"freq_hz": f, "damping_ratio": z} for f, z in modes],
+        "modes_from": modes_from,
+        "level_dependence": dependence,
+        "warnings": warnings,
+    }

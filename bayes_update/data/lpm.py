@@ -40,6 +40,7 @@ the noise); declare ``noise_sd`` for such records.
 
 Frequencies in Hz, sd in the response's unit per sample.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -79,8 +80,14 @@ def _detrend(x: np.ndarray) -> np.ndarray:
     return x - np.polyval(np.polyfit(t, x, 1), t)
 
 
-def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
-              degree: int = DEFAULT_DEGREE, force_noise_sd: float | None = None) -> LPMNoise:
+def lpm_noise(
+    force,
+    response,
+    fs: float,
+    half_width: int = DEFAULT_HALF_WIDTH,
+    degree: int = DEFAULT_DEGREE,
+    force_noise_sd: float | None = None,
+) -> LPMNoise:
     """Noise of ``response`` [its unit] given ``force`` from the LPM (module docstring).
 
     Both records are detrended (offsets, slow drifts) and transformed whole
@@ -108,27 +115,32 @@ def lpm_noise(force, response, fs: float, half_width: int = DEFAULT_HALF_WIDTH,
     f = np.fft.rfftfreq(N, 1.0 / fs)
     v, unresolved = _unresolved_lines(v, int(q.min()), MEDIAN_WINDOWS * (2 * R + 1))
     if unresolved.mean() > MAX_UNRESOLVED_SHARE:
-        raise ValueError(f"the local polynomials cannot follow the FRF on {unresolved.mean():.0%} of the lines "
-                         f"(a record of {N / fs:.3g} s: lines {fs / N:.3g} Hz apart, coarse against the modes' "
-                         "bandwidth); record longer or declare noise_sd")
+        raise ValueError(
+            f"the local polynomials cannot follow the FRF on {unresolved.mean():.0%} of the lines "
+            f"(a record of {N / fs:.3g} s: lines {fs / N:.3g} Hz apart, coarse against the modes' "
+            "bandwidth); record longer or declare noise_sd"
+        )
     var_line = np.empty(K)
     var_line[centres] = v
     var_line[:R] = v[0]
-    var_line[K - R:] = v[-1]
+    var_line[K - R :] = v[-1]
     weight = np.full(K, 2.0)
     weight[0] = 1.0
     if N % 2 == 0:
         weight[-1] = 1.0
     sd = float(np.sqrt(np.sum(weight * var_line) / N))
     dof = float(2 * np.mean(q) * K / (2 * R + 1))
-    detail = (f"local polynomial method (model-free linear fit, {2 * R + 1}-line windows, degree {d}; "
-              + ("the force's noise taken out through the fit's FRF; holds the sensor noise and any incoherent "
-                 "distortion)" if force_noise_sd is not None else
-                 f"{HOLDS_FORCE_NOISE} (the force's own noise is unknown) and any incoherent distortion)"))
+    detail = f"local polynomial method (model-free linear fit, {2 * R + 1}-line windows, degree {d}; " + (
+        "the force's noise taken out through the fit's FRF; holds the sensor noise and any incoherent distortion)"
+        if force_noise_sd is not None
+        else f"{HOLDS_FORCE_NOISE} (the force's own noise is unknown) and any incoherent distortion)"
+    )
     if unresolved.any():
         fu = f[centres][unresolved]
-        detail += (f"; {int(unresolved.sum())} of {unresolved.size} lines ({fu.min():.4g}-{fu.max():.4g} Hz) "
-                   "unresolved (a mode narrower than the local window) and given their neighbours' median")
+        detail += (
+            f"; {int(unresolved.sum())} of {unresolved.size} lines ({fu.min():.4g}-{fu.max():.4g} Hz) "
+            "unresolved (a mode narrower than the local window) and given their neighbours' median"
+        )
     return LPMNoise(sd, dof, f, weight * var_line / fs, detail)
 
 

@@ -42,6 +42,7 @@ Sources, best first (:data:`METHODS`):
 All sd are per sample, in the channel's unit (force [N], each sensor in its
 kind's SI unit), of the noise over the recorded band.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -113,8 +114,14 @@ def from_fit_residual(residual, n_parameters: int, what: str = "the caller's fit
     return NoiseEstimate(sd, "fit_residual", f"residual of {what} ({int(n_parameters)} parameters)", dof)
 
 
-def record_noise(record, fs: float | None = None, *, declared: dict | None = None,
-                 fit: bool = False, fit_residual: dict | None = None) -> dict:
+def record_noise(
+    record,
+    fs: float | None = None,
+    *,
+    declared: dict | None = None,
+    fit: bool = False,
+    fit_residual: dict | None = None,
+) -> dict:
     """``{channel: NoiseEstimate}`` for ``force`` and every sensor of ``record``
     (a :class:`bayes_update.data.dataset.Record`), from its own data only.
 
@@ -146,9 +153,11 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
             out[name] = NoiseEstimate(float(declared[name]), "declared", "declared in dataset.json (noise_sd)")
             continue
         why = []
-        tries = [("periods", layout, lambda lay: period_noise(x, lay)),
-                 ("zero_input", sections, lambda sec: zero_input_noise(x, sec, fs)),
-                 ("quiet_band", band, lambda b: band_noise(x, fs, b))]
+        tries = [
+            ("periods", layout, lambda lay: period_noise(x, lay)),
+            ("zero_input", sections, lambda sec: zero_input_noise(x, sec, fs)),
+            ("quiet_band", band, lambda b: band_noise(x, fs, b)),
+        ]
         for method, found, measure in tries:
             result = found if isinstance(found, str) else measure(found)
             if not isinstance(result, str):
@@ -156,8 +165,12 @@ def record_noise(record, fs: float | None = None, *, declared: dict | None = Non
                 break
             why.append(f"{method}: {result}")
         if name in out:
-            if out[name].method == "quiet_band" and fit and name != "force" \
-                    and not (fit_residual and name in fit_residual):
+            if (
+                out[name].method == "quiet_band"
+                and fit
+                and name != "force"
+                and not (fit_residual and name in fit_residual)
+            ):
                 # the quiet band's white level stands for the record only if the noise is white:
                 # where the model-free fit sees the noise inside the band too, they must agree
                 out[name] = _white_or_fit(out[name], force, x, fs, out.get("force"))
@@ -196,19 +209,29 @@ def _white_or_fit(band_est: NoiseEstimate, force, x, fs, force_est) -> NoiseEsti
     ratio = est.sd / band_est.sd
     if 1.0 / COLOURED <= ratio <= COLOURED:
         return band_est
-    return NoiseEstimate(est.sd, "fit_residual",
-                         f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
-                         f"{ratio:.3g}x below the fit's, which sees every line; {est.detail}" if ratio > 1 else
-                         f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
-                         f"{1 / ratio:.3g}x above the fit's, which sees every line; {est.detail}", est.dof)
+    return NoiseEstimate(
+        est.sd,
+        "fit_residual",
+        f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
+        f"{ratio:.3g}x below the fit's, which sees every line; {est.detail}"
+        if ratio > 1
+        else f"{COLOURED_WORDS}: the quiet band's white level ({band_est.sd:.3g}, {band_est.detail}) is "
+        f"{1 / ratio:.3g}x above the fit's, which sees every line; {est.detail}",
+        est.dof,
+    )
 
 
 def carried(estimate: NoiseEstimate, from_test: str, why: str = "") -> NoiseEstimate:
     """A known estimate of the same sensor on another test, carried to this one
     (``why``: the reason its own could not be used, to lead the detail)."""
-    return NoiseEstimate(estimate.sd, "carried",
-                         f"{why}carried from test {from_test!r} ({estimate.method}: {estimate.detail})",
-                         estimate.dof, (), from_test)
+    return NoiseEstimate(
+        estimate.sd,
+        "carried",
+        f"{why}carried from test {from_test!r} ({estimate.method}: {estimate.detail})",
+        estimate.dof,
+        (),
+        from_test,
+    )
 
 
 #: a sensor's own estimate on a test that is not the low-level one is the record's own content,
@@ -238,11 +261,20 @@ def _uncontaminated(dataset, out: dict) -> None:
             if t.role == "linear" or est.method not in OWN_METHODS:
                 continue
             if est.method == "quiet_band" and base.detail.startswith(COLOURED_WORDS):
-                out[t.name][name] = carried(base, ref, f"its quiet band ({est.sd:.3g}) reads coloured noise "
-                                                       "as white, as on the low-level test; ")
+                out[t.name][name] = carried(
+                    base,
+                    ref,
+                    f"its quiet band ({est.sd:.3g}) reads coloured noise as white, as on the low-level test; ",
+                )
                 continue
-            if not (force is not None and force_base is not None and force.known and force_base.known
-                    and force.method in OWN_METHODS and force_base.method in OWN_METHODS):
+            if not (
+                force is not None
+                and force_base is not None
+                and force.known
+                and force_base.known
+                and force.method in OWN_METHODS
+                and force_base.method in OWN_METHODS
+            ):
                 # without the force's own rise, a sensor noise added in proportion to the level cannot
                 # be told from harmonics: the estimate stands on its source's own checks (a quiet
                 # band's whiteness: harmonics filling it change its level across it)
@@ -251,21 +283,25 @@ def _uncontaminated(dataset, out: dict) -> None:
             if est.sd <= CONTAMINATION * rise * base.sd:
                 continue
             forces = f" (the force's {rise:.3g}x)" if rise > 1 else ""
-            why = (f"its own {est.method} estimate ({est.sd:.3g}: {est.detail}) is {est.sd / base.sd:.3g}x the "
-                   f"low-level test's{forces}: the record's "
-                   "harmonics, distortion or transient fill that source, and a sensor's noise does not grow "
-                   "with the response; ")
+            why = (
+                f"its own {est.method} estimate ({est.sd:.3g}: {est.detail}) is {est.sd / base.sd:.3g}x the "
+                f"low-level test's{forces}: the record's "
+                "harmonics, distortion or transient fill that source, and a sensor's noise does not grow "
+                "with the response; "
+            )
             out[t.name][name] = carried(base, ref, why)
 
 
 def what_to_add(sensor: str, kind: str | None = None) -> str:
     """The sentence naming what a data set needs for ``sensor``'s noise."""
     unit = f" in {RESPONSE_UNITS[kind]}" if kind in RESPONSE_UNITS else ""
-    return (f"declare noise_sd for sensor {sensor!r} in dataset.json (e.g. \"noise_sd\": "
-            f"{{\"{sensor}\": <sd per sample{unit}>}}), or add period_samples to the test (a periodic "
-            f"excitation with at least {MIN_PERIODS} periods, the first is dropped as a transient), or "
-            f"record a quiet (zero-force) section of at least {MIN_TOTAL} samples after the response has "
-            "died out, or add a low-level test with role 'linear' (its noise is carried to the others)")
+    return (
+        f'declare noise_sd for sensor {sensor!r} in dataset.json (e.g. "noise_sd": '
+        f'{{"{sensor}": <sd per sample{unit}>}}), or add period_samples to the test (a periodic '
+        f"excitation with at least {MIN_PERIODS} periods, the first is dropped as a transient), or "
+        f"record a quiet (zero-force) section of at least {MIN_TOTAL} samples after the response has "
+        "died out, or add a low-level test with role 'linear' (its noise is carried to the others)"
+    )
 
 
 def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = None) -> dict:
@@ -289,9 +325,12 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
     """
     fs = float(dataset.sampling_rate_hz)
     fits = fit_residuals or {}
-    out = {t.name: record_noise(t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear",
-                                fit_residual=fits.get(t.name))
-           for t in dataset.tests}
+    out = {
+        t.name: record_noise(
+            t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear", fit_residual=fits.get(t.name)
+        )
+        for t in dataset.tests
+    }
     _uncontaminated(dataset, out)
     linear = [t.name for t in dataset.tests if t.role == "linear"]
     kinds = dict(dataset.sensors)
@@ -300,15 +339,19 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
         for name, est in out[t.name].items():
             if est.known or name == "force":
                 continue
-            source = next((s for s in linear if s != t.name and out[s][name].known
-                           and out[s][name].method != "carried"), None)
+            source = next(
+                (s for s in linear if s != t.name and out[s][name].known and out[s][name].method != "carried"), None
+            )
             if source is not None:
                 out[t.name][name] = carried(out[source][name], source)
             else:
                 missing.append((t, name, est.detail))
     if strict and missing:
-        lines = [f"test {t.name!r} ({t.source or t.file}), sensor {name!r}: no noise estimate ({why}); "
-                 f"{what_to_add(name, kinds.get(name))}" for t, name, why in missing]
+        lines = [
+            f"test {t.name!r} ({t.source or t.file}), sensor {name!r}: no noise estimate ({why}); "
+            f"{what_to_add(name, kinds.get(name))}"
+            for t, name, why in missing
+        ]
         raise NoiseEstimationError(f"{dataset.source or dataset.name}: " + "\n".join(lines))
     return out
 
@@ -323,12 +366,12 @@ def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None 
         return None
     fs = float(record.sampling_rate_hz if fs is None else fs)
     x = np.asarray(record.force if name == "force" else record.channel(name), float)
-    white = (np.array([0.0, fs / 2]), np.full(2, 2.0 * estimate.sd ** 2 / fs))
+    white = (np.array([0.0, fs / 2]), np.full(2, 2.0 * estimate.sd**2 / fs))
     if estimate.method == "periods":
         layout = find_periods(record.force, record.period_samples)
         if not isinstance(layout, PeriodLayout):
             return white
-        (a, b), = estimate.spans
+        ((a, b),) = estimate.spans
         Y = x[a:b].reshape(-1, layout.period)
         P = Y.shape[0]
         D = (Y - Y.mean(axis=0)).ravel()

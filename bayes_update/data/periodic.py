@@ -19,12 +19,20 @@ Identification, 2012, sec. 2.4: the sample variance over the periods).
 
 Indices are samples; sd in the channel's unit per sample.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from volterra.periods import (DETREND_DEGREE, MAX_REPEAT_RATIO, MIN_PERIODS, PeriodLayout, detrended_rows,
-                              find_periods, steady_periods)
+from volterra.periods import (
+    DETREND_DEGREE,
+    MAX_REPEAT_RATIO,
+    MIN_PERIODS,
+    PeriodLayout,
+    detrended_rows,
+    find_periods,
+    steady_periods,
+)
 
 __all__ = ["PeriodLayout", "find_periods", "period_noise", "MIN_PERIODS", "MAX_REPEAT_RATIO"]
 
@@ -37,7 +45,7 @@ def period_noise(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE):
     removed from each period's deviation (-1: none)."""
     x = np.asarray(x, float)
     N = layout.period
-    Y = x[layout.start:layout.stop].reshape(layout.n_periods, N)
+    Y = x[layout.start : layout.stop].reshape(layout.n_periods, N)
     first, last = steady_periods(x, layout, detrend)
     P = last - first
     if P < 2:
@@ -45,12 +53,14 @@ def period_noise(x, layout: PeriodLayout, detrend: int = DETREND_DEGREE):
     D = Y[first:last] - Y[first:last].mean(axis=0)
     R = detrended_rows(D, detrend)
     dof = (P - 1) * (N - (detrend + 1))
-    sd = float(np.sqrt(np.sum(R ** 2) / dof))
+    sd = float(np.sqrt(np.sum(R**2) / dof))
     a = layout.start + first * N
     b = layout.start + last * N
-    detail = (f"periods {first + 1}-{last} of {N} samples ({P} used from sample {a}"
-              f"{', period detected in the force' if not layout.declared else ''}"
-              f"{_trend_note(detrend)})")
+    detail = (
+        f"periods {first + 1}-{last} of {N} samples ({P} used from sample {a}"
+        f"{', period detected in the force' if not layout.declared else ''}"
+        f"{_trend_note(detrend)})"
+    )
     return sd, float(dof), detail, ((a, b),)
 
 

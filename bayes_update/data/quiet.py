@@ -18,6 +18,7 @@
 
 Indices are samples, frequencies Hz, sd in the channel's unit per sample.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -80,8 +81,10 @@ def quiet_sections(force, fs: float):
     s = _moving_sd(f, w)
     floor, active = np.percentile(s, 1), np.percentile(s, 95)
     if not active > MIN_CONTRAST * floor:
-        return ("no zero-input section: the force is never at a floor well below its excited level "
-                f"(1st/95th percentile of its {w}-sample sd differ {active / max(floor, 1e-300):.3g}x)")
+        return (
+            "no zero-input section: the force is never at a floor well below its excited level "
+            f"(1st/95th percentile of its {w}-sample sd differ {active / max(floor, 1e-300):.3g}x)"
+        )
     quiet = s <= QUIET_FACTOR * floor
     out = []
     for a, b in _runs(quiet):
@@ -96,7 +99,7 @@ def quiet_sections(force, fs: float):
 
 def _block_var(x: np.ndarray, b: int) -> np.ndarray:
     m = x.size // b
-    B = x[:m * b].reshape(m, b)
+    B = x[: m * b].reshape(m, b)
     return B.var(axis=1)
 
 
@@ -112,14 +115,14 @@ def _decayed_start(x: np.ndarray, fs: float) -> int | None:
     v = _block_var(x, b)
     if v.size < 6:
         return None
-    floor = float(np.median(v[-max(3, v.size // 3):]))
+    floor = float(np.median(v[-max(3, v.size // 3) :]))
     if not floor > 0:
         return None
     excess = v - floor
     down = np.flatnonzero(v <= 2.0 * floor)
     if down.size == 0:
         return None
-    last = int(down[0]) - 1                              # last block of the decay (-1: none)
+    last = int(down[0]) - 1  # last block of the decay (-1: none)
     if last < 0:
         return 0
     sel = np.arange(last + 1)
@@ -128,7 +131,7 @@ def _decayed_start(x: np.ndarray, fs: float) -> int | None:
     if sel.size >= 3:
         slope = np.polyfit(sel, np.log(excess[sel]), 1)[0]
         if slope < 0:
-            rate = -slope                                 # per block, in log energy
+            rate = -slope  # per block, in log energy
     if rate is None:
         return (last + 4) * b
     extra = np.log(max(excess[last], floor) / (DECAY_RESIDUE * floor)) / rate
@@ -162,9 +165,12 @@ def zero_input_noise(x, sections, fs: float):
         reason = "; ".join(why) if why else "too short"
         return f"no usable zero-input section of {MIN_TOTAL} samples in all ({reason})"
     spans = ", ".join(f"{a / fs:.1f}-{b / fs:.1f} s" for a, b in used)
-    return (float(np.sqrt(rss / dof)), float(dof),
-            f"zero-input sections {spans} ({sum(b - a for a, b in used) / fs:.1f} s, free decay skipped)",
-            tuple(used))
+    return (
+        float(np.sqrt(rss / dof)),
+        float(dof),
+        f"zero-input sections {spans} ({sum(b - a for a, b in used) / fs:.1f} s, free decay skipped)",
+        tuple(used),
+    )
 
 
 def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
@@ -183,8 +189,10 @@ def noise_band(force, fs: float):
         return f"no quiet band: {exc}"
     lo, hi = BAND_HARMONIC * f_hi, BAND_TOP * fs
     if hi - lo < BAND_LINES * fs / 256:
-        return (f"no quiet band: the force excites up to {f_hi:.4g} Hz and fs = {fs:.4g} Hz leaves no band "
-                f"from {BAND_HARMONIC:g}x that to {BAND_TOP:g} fs = {hi:.4g} Hz")
+        return (
+            f"no quiet band: the force excites up to {f_hi:.4g} Hz and fs = {fs:.4g} Hz leaves no band "
+            f"from {BAND_HARMONIC:g}x that to {BAND_TOP:g} fs = {hi:.4g} Hz"
+        )
     return lo, hi
 
 
@@ -210,8 +218,14 @@ def band_noise(x, fs: float, band):
     a, b = float(np.median(pb[:third])), float(np.median(pb[-third:]))
     change = max(a / b, b / a) if min(a, b) > 0 else np.inf
     if change > WHITE_RATIO:
-        return (f"the quiet band {band[0]:.4g}-{band[1]:.4g} Hz does not hold white noise (its level changes "
-                f"{change:.3g}x across it: coloured noise, or the record's own harmonics filling it)")
+        return (
+            f"the quiet band {band[0]:.4g}-{band[1]:.4g} Hz does not hold white noise (its level changes "
+            f"{change:.3g}x across it: coloured noise, or the record's own harmonics filling it)"
+        )
     n_seg = max(1, (x.size - nper) // (nper // 2) + 1)
-    return (float(np.sqrt(np.mean(pb[keep]) * fs / 2.0)), float(keep.sum() * n_seg),
-            f"quiet band {band[0]:.4g}-{band[1]:.4g} Hz (white noise assumed)", ())
+    return (
+        float(np.sqrt(np.mean(pb[keep]) * fs / 2.0)),
+        float(keep.sum() * n_seg),
+        f"quiet band {band[0]:.4g}-{band[1]:.4g} Hz (white noise assumed)",
+        (),
+    )

@@ -31,8 +31,14 @@ def _time(duration: float, fs: float) -> np.ndarray:
     return np.arange(int(round(duration * fs))) / fs
 
 
-def chirp(amplitude: float, f_start: float = 20.0, f_end: float = 50.0, sweep_time: float = 2.0,
-          duration: float = PAPER_DURATION, fs: float = PAPER_FS) -> np.ndarray:
+def chirp(
+    amplitude: float,
+    f_start: float = 20.0,
+    f_end: float = 50.0,
+    sweep_time: float = 2.0,
+    duration: float = PAPER_DURATION,
+    fs: float = PAPER_FS,
+) -> np.ndarray:
     """Linear sine sweep f_start -> f_end [Hz] of ``amplitude`` [N] during
     ``sweep_time`` [s], zero afterwards (free decay), as in the paper."""
     t = _time(duration, fs)
@@ -40,15 +46,17 @@ def chirp(amplitude: float, f_start: float = 20.0, f_end: float = 50.0, sweep_ti
     return np.where(t < sweep_time, amplitude * np.sin(phase), 0.0)
 
 
-def sine(amplitude: float, frequency: float = PAPER_SINE_HZ, duration: float = PAPER_DURATION,
-         fs: float = PAPER_FS) -> np.ndarray:
+def sine(
+    amplitude: float, frequency: float = PAPER_SINE_HZ, duration: float = PAPER_DURATION, fs: float = PAPER_FS
+) -> np.ndarray:
     """Stationary sine of ``amplitude`` [N] at ``frequency`` [Hz] (the paper's 35 Hz test)."""
     t = _time(duration, fs)
     return amplitude * np.sin(2 * np.pi * frequency * t)
 
 
-def sine_near_resonance(amplitude: float, f1_hz: float, ratio: float = 0.95,
-                        duration: float = PAPER_DURATION, fs: float = PAPER_FS) -> np.ndarray:
+def sine_near_resonance(
+    amplitude: float, f1_hz: float, ratio: float = 0.95, duration: float = PAPER_DURATION, fs: float = PAPER_FS
+) -> np.ndarray:
     """Sine of ``amplitude`` [N] at ``ratio * f1_hz`` [Hz]: the paper's 35 Hz
     test placed relative to a rig's first mode (just below it, ratio 0.95)."""
     if not (f1_hz > 0 and ratio > 0):
@@ -56,8 +64,9 @@ def sine_near_resonance(amplitude: float, f1_hz: float, ratio: float = 0.95,
     return sine(amplitude, ratio * f1_hz, duration, fs)
 
 
-def test_signal(kind: str, amplitude: float, fs: float = PAPER_FS,
-                duration: float = PAPER_DURATION, **options) -> np.ndarray:
+def test_signal(
+    kind: str, amplitude: float, fs: float = PAPER_FS, duration: float = PAPER_DURATION, **options
+) -> np.ndarray:
     """The paper's excitation ``kind`` ('chirp' or 'sine') of ``amplitude`` [N]
     at ``fs`` [Hz] for ``duration`` [s]; ``options`` go to :func:`chirp` or :func:`sine`."""
     if kind == "chirp":

@@ -125,8 +125,15 @@ def _h1_and_coherence(s_uu, s_yy, s_uy):
     return h1, np.clip(coh, 0.0, 1.0)
 
 
-def frf_h1(force, response, fs: float, nperseg: int | None = None, noverlap: int | None = None,
-           window="hann", nfft: int | None = None) -> FRFEstimate:
+def frf_h1(
+    force,
+    response,
+    fs: float,
+    nperseg: int | None = None,
+    noverlap: int | None = None,
+    window="hann",
+    nfft: int | None = None,
+) -> FRFEstimate:
     """Welch H1 FRF and coherence from force [N] to response (e.g. velocity [m/s]).
 
     ``force``, ``response``: 1-D arrays or lists of records (averaged
@@ -163,9 +170,16 @@ def transient_frf(force, response, fs: float) -> FRFEstimate:
     step = max(1, n // 32)
     _, s_uu, s_yy, s_uy, k = _welch_spectra(us, ys, fs, seg, seg - step, "boxcar", n)
     _, coh = _h1_and_coherence(s_uu, s_yy, s_uy)
-    return FRFEstimate(whole.f, whole.h1, coh, whole.s_uu, whole.s_yy, whole.s_uy, k,
-                       f"H1 from the whole record; coherence from {k} segments of {seg} "
-                       f"samples (rectangular, step {step})")
+    return FRFEstimate(
+        whole.f,
+        whole.h1,
+        coh,
+        whole.s_uu,
+        whole.s_yy,
+        whole.s_uy,
+        k,
+        f"H1 from the whole record; coherence from {k} segments of {seg} samples (rectangular, step {step})",
+    )
 
 
 def coherence(force, response, fs: float, **options) -> tuple[np.ndarray, np.ndarray]:
@@ -174,8 +188,9 @@ def coherence(force, response, fs: float, **options) -> tuple[np.ndarray, np.nda
     return est.f, est.coherence
 
 
-def psd(x, fs: float, nperseg: int | None = None, noverlap: int | None = None,
-        window="hann") -> tuple[np.ndarray, np.ndarray]:
+def psd(
+    x, fs: float, nperseg: int | None = None, noverlap: int | None = None, window="hann"
+) -> tuple[np.ndarray, np.ndarray]:
     """Welch power spectral density ``(f [Hz], P [unit^2/Hz])`` of one record or
     a list of records (averaged).  Default segments: 1 s (``fs`` samples),
     Hann, 50 % overlap."""

@@ -60,7 +60,20 @@ from pathlib import Path
 
 import numpy as np
 
-from bayes_update.data.dataset import ROLES, Dataset, DatasetError, LengthMismatchError, MissingColumnError, NonFiniteError, Record, SamplingRateError, SensorError, UnknownRoleError, is_single_velocity, check_time
+from bayes_update.data.dataset import (
+    ROLES,
+    Dataset,
+    DatasetError,
+    LengthMismatchError,
+    MissingColumnError,
+    NonFiniteError,
+    Record,
+    SamplingRateError,
+    SensorError,
+    UnknownRoleError,
+    check_time,
+    is_single_velocity,
+)
 
 FORCE_TYPE = 13  # UFF specific data type: excitation force
 VELOCITY_TYPE = 11  # UFF specific data type: velocity
@@ -68,12 +81,22 @@ TIME_TYPE = 17  # UFF specific data type: time
 TIME_RESPONSE = 1  # UFF function type: time response
 
 FORCE_UNITS = {"": 1.0, "n": 1.0, "kn": 1e3, "mn": 1e-3, "lbf": 4.4482216152605}
-VELOCITY_UNITS = {"": 1.0, "m/s": 1.0, "mm/s": 1e-3, "um/s": 1e-6, "µm/s": 1e-6,
-                  "in/s": 0.0254}
+VELOCITY_UNITS = {"": 1.0, "m/s": 1.0, "mm/s": 1e-3, "um/s": 1e-6, "µm/s": 1e-6, "in/s": 0.0254}
 TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3}
-SPEC_NAMES = {0: "unknown", 1: "general", 2: "stress", 3: "strain", 5: "temperature",
-              8: "displacement", 9: "reaction force", 11: "velocity", 12: "acceleration",
-              13: "excitation force", 15: "pressure", 17: "time"}
+SPEC_NAMES = {
+    0: "unknown",
+    1: "general",
+    2: "stress",
+    3: "strain",
+    5: "temperature",
+    8: "displacement",
+    9: "reaction force",
+    11: "velocity",
+    12: "acceleration",
+    13: "excitation force",
+    15: "pressure",
+    17: "time",
+}
 RATE_TOLERANCE = 1e-5  # relative, the precision of the E13.5 abscissa increment
 
 
@@ -81,8 +104,9 @@ def _pyuff():
     try:
         import pyuff
     except ImportError as exc:  # pragma: no cover - pyuff is an extra
-        raise ImportError("reading or writing UFF files needs pyuff: pip install 'bayes-update[uff]' "
-                          "(or pip install pyuff)") from exc
+        raise ImportError(
+            "reading or writing UFF files needs pyuff: pip install 'bayes-update[uff]' (or pip install pyuff)"
+        ) from exc
     return pyuff
 
 
@@ -103,8 +127,7 @@ def _read_sets(path: Path) -> list:
         raise DatasetError(f"{path}: not a readable UFF file ({exc})") from None
     idx = [i for i, t in enumerate(types) if int(t) == 58]
     if not idx:
-        raise DatasetError(f"{path}: no type-58 records (record types found: "
-                           f"{sorted({int(t) for t in types})})")
+        raise DatasetError(f"{path}: no type-58 records (record types found: {sorted({int(t) for t in types})})")
     try:
         sets = uff.read_sets(idx)
     except Exception as exc:
@@ -118,8 +141,9 @@ def _channel(path, i, rec):
     """(channel name, SI factor, units label) of one record; raises on anything else."""
     where = f"{path}: record {i} (load case {rec.get('load_case_id')}, id1 {rec.get('id1', '')!r})"
     if int(rec.get("func_type", 0)) != TIME_RESPONSE:
-        raise DatasetError(f"{where}: function type {rec.get('func_type')} is not a time "
-                           f"response (1); only time histories can be read")
+        raise DatasetError(
+            f"{where}: function type {rec.get('func_type')} is not a time response (1); only time histories can be read"
+        )
     spec = int(rec.get("ordinate_spec_data_type", 0))
     label = str(rec.get("ordinate_axis_units_lab", "")).strip()
     if spec == FORCE_TYPE:
@@ -130,10 +154,10 @@ def _channel(path, i, rec):
         raise DatasetError(
             f"{where}: ordinate type {spec} ({SPEC_NAMES.get(spec, 'other')}) is neither "
             f"{FORCE_TYPE} (excitation force) nor {VELOCITY_TYPE} (velocity); convert it "
-            "yourself, the reader does not integrate or differentiate")
+            "yourself, the reader does not integrate or differentiate"
+        )
     if label.lower() not in table:
-        raise DatasetError(f"{where}: unknown {name} units label {label!r}; known: "
-                           f"{sorted(k for k in table if k)}")
+        raise DatasetError(f"{where}: unknown {name} units label {label!r}; known: {sorted(k for k in table if k)}")
     if np.iscomplexobj(rec.get("data")):
         raise DatasetError(f"{where}: complex data; a time response must be real")
     return name, table[label.lower()], label
@@ -144,8 +168,7 @@ def _time_axis(path, i, rec, fs):
     where = f"{path}: record {i} (load case {rec.get('load_case_id')})"
     tlabel = str(rec.get("abscissa_axis_units_lab", "")).strip().lower()
     if tlabel not in TIME_UNITS:
-        raise DatasetError(f"{where}: abscissa units {tlabel!r} are not a time unit "
-                           f"(s, ms or blank)")
+        raise DatasetError(f"{where}: abscissa units {tlabel!r} are not a time unit (s, ms or blank)")
     scale = TIME_UNITS[tlabel]
     data = np.asarray(rec["data"], dtype=float)
     n = data.size
@@ -157,7 +180,8 @@ def _time_axis(path, i, rec, fs):
         if fs is not None and abs(fs_file - fs) > RATE_TOLERANCE * fs:
             raise SamplingRateError(
                 f"{where}: the abscissa increment {inc:.6g} s implies {fs_file:g} Hz but the "
-                f"declared sampling rate is {fs:g} Hz; the reader never resamples")
+                f"declared sampling rate is {fs:g} Hz; the reader never resamples"
+            )
         rate = fs if fs is not None else fs_file
         t0 = float(rec.get("abscissa_min", 0.0)) * scale
         return t0 + np.arange(n) / rate, rate
@@ -177,8 +201,9 @@ def _group_tests(path: Path, fs: float | None) -> dict:
         case = int(rec.get("load_case_id", 0))
         g = groups.setdefault(case, {"records": {}})
         if name in g["records"]:
-            raise DatasetError(f"{path}: load case {case} has more than one {name} record "
-                               f"(records {g['records'][name][0]} and {i})")
+            raise DatasetError(
+                f"{path}: load case {case} has more than one {name} record (records {g['records'][name][0]} and {i})"
+            )
         g["records"][name] = (i, rec, factor, label)
     out = {}
     for case, g in groups.items():
@@ -187,26 +212,28 @@ def _group_tests(path: Path, fs: float | None) -> dict:
         if missing:
             raise MissingColumnError(
                 f"{path}: load case {case} has no {' and no '.join(missing)} record "
-                f"(ordinate type {FORCE_TYPE} for force, {VELOCITY_TYPE} for velocity)")
+                f"(ordinate type {FORCE_TYPE} for force, {VELOCITY_TYPE} for velocity)"
+            )
         entry = {}
         times = {}
         for ch, (i, rec, factor, label) in recs.items():
             values = np.asarray(rec["data"], dtype=float) * factor
             bad = ~np.isfinite(values)
             if bad.any():
-                raise NonFiniteError(f"{path}: record {i} ({ch}, load case {case}) has NaN or "
-                                     f"inf (sample {int(np.flatnonzero(bad)[0])})")
+                raise NonFiniteError(
+                    f"{path}: record {i} ({ch}, load case {case}) has NaN or inf (sample {int(np.flatnonzero(bad)[0])})"
+                )
             entry[ch] = values
             times[ch], entry["fs"] = _time_axis(path, i, rec, fs)
             entry.setdefault("units", {})[ch] = {"label": label, "factor_to_si": factor}
         if entry["force"].size != entry["velocity"].size:
             raise LengthMismatchError(
-                f"{path}: load case {case}: force has {entry['force'].size} samples, velocity "
-                f"{entry['velocity'].size}")
-        if not np.allclose(times["force"], times["velocity"], rtol=0,
-                           atol=0.01 / entry["fs"]):
-            raise DatasetError(f"{path}: load case {case}: force and velocity records have "
-                               "different time axes (start or increment)")
+                f"{path}: load case {case}: force has {entry['force'].size} samples, velocity {entry['velocity'].size}"
+            )
+        if not np.allclose(times["force"], times["velocity"], rtol=0, atol=0.01 / entry["fs"]):
+            raise DatasetError(
+                f"{path}: load case {case}: force and velocity records have different time axes (start or increment)"
+            )
         entry["time"] = times["velocity"]
         entry["rec"] = recs["velocity"][1]
         out[case] = entry
@@ -228,19 +255,26 @@ def read_uff_test(path, fs: float | None = None, load_case=None):
     groups = _group_tests(path, fs)
     if load_case is None:
         if len(groups) != 1:
-            raise DatasetError(f"{path}: holds {len(groups)} tests (load cases "
-                               f"{sorted(groups)}); set 'uff_load_case' in dataset.json")
+            raise DatasetError(
+                f"{path}: holds {len(groups)} tests (load cases {sorted(groups)}); set 'uff_load_case' in dataset.json"
+            )
         load_case = next(iter(groups))
     if int(load_case) not in groups:
         raise DatasetError(f"{path}: no load case {load_case}; load cases are {sorted(groups)}")
     g = groups[int(load_case)]
-    info = {"load_case": int(load_case), "units": g["units"], "sampling_rate_hz": g["fs"],
-            "id1": str(g["rec"].get("id1", "")).strip(), "id2": str(g["rec"].get("id2", "")).strip()}
+    info = {
+        "load_case": int(load_case),
+        "units": g["units"],
+        "sampling_rate_hz": g["fs"],
+        "id1": str(g["rec"].get("id1", "")).strip(),
+        "id2": str(g["rec"].get("id2", "")).strip(),
+    }
     return g["time"], g["force"], g["velocity"], info
 
 
-def read_uff(path, rig=None, name: str | None = None,
-             sampling_rate_hz: float | None = None, tests: dict | None = None) -> Dataset:
+def read_uff(
+    path, rig=None, name: str | None = None, sampling_rate_hz: float | None = None, tests: dict | None = None
+) -> Dataset:
     """Read a UFF file of type-58 time records into a :class:`Dataset`.
 
     Parameters
@@ -271,15 +305,25 @@ def read_uff(path, rig=None, name: str | None = None,
         meta.update(_parse_id2(str(g["rec"].get("id2", ""))))
         meta.update(tests.get(test_name, {}))
         if meta["role"] not in ROLES:
-            raise UnknownRoleError(f"{path}: load case {case} ({test_name}) has unknown role "
-                                   f"{meta['role']!r}; roles are {ROLES}")
+            raise UnknownRoleError(
+                f"{path}: load case {case} ({test_name}) has unknown role {meta['role']!r}; roles are {ROLES}"
+            )
         extra = {"uff_load_case": case}
         if any(u["factor_to_si"] != 1.0 or not u["label"] for u in g["units"].values()):
-            extra["uff"] = {"units_in_file": g["units"],
-                            "note": "converted to SI; a blank label was read as SI"}
-        records.append(Record(f"{test_name}.uff", meta["signal"], meta["level"], meta["role"],
-                              g["time"], g["force"], g["velocity"], extra,
-                              source=f"{path} (load case {case})"))
+            extra["uff"] = {"units_in_file": g["units"], "note": "converted to SI; a blank label was read as SI"}
+        records.append(
+            Record(
+                f"{test_name}.uff",
+                meta["signal"],
+                meta["level"],
+                meta["role"],
+                g["time"],
+                g["force"],
+                g["velocity"],
+                extra,
+                source=f"{path} (load case {case})",
+            )
+        )
     names = [r.file for r in records]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
@@ -294,25 +338,56 @@ def _record_dict(test: Record, channel: str, case: int, binary: bool, fs: float)
     data = np.ascontiguousarray(test.force if force else test.velocity, dtype=float)
     t0 = float(test.time[0])
     return dict(
-        type=58, binary=int(bool(binary)),
-        id1=test.name, id2=f"signal={test.signal} level={test.level} role={test.role}",
-        id3=f"{channel} [{'N' if force else 'm/s'}]", id4="bayes_update", id5="",
-        func_type=TIME_RESPONSE, func_id=0, ver_num=0, load_case_id=case,
-        rsp_ent_name="beam", rsp_node=1 if force else 2, rsp_dir=2,
-        ref_ent_name="beam", ref_node=1, ref_dir=2,
-        ord_data_type=4, abscissa_spacing=1, abscissa_min=t0, abscissa_inc=1.0 / fs,
-        z_axis_value=0.0, num_pts=data.size,
-        abscissa_spec_data_type=TIME_TYPE, abscissa_len_unit_exp=0, abscissa_force_unit_exp=0,
-        abscissa_temp_unit_exp=0, abscissa_axis_lab="Time", abscissa_axis_units_lab="s",
+        type=58,
+        binary=int(bool(binary)),
+        id1=test.name,
+        id2=f"signal={test.signal} level={test.level} role={test.role}",
+        id3=f"{channel} [{'N' if force else 'm/s'}]",
+        id4="bayes_update",
+        id5="",
+        func_type=TIME_RESPONSE,
+        func_id=0,
+        ver_num=0,
+        load_case_id=case,
+        rsp_ent_name="beam",
+        rsp_node=1 if force else 2,
+        rsp_dir=2,
+        ref_ent_name="beam",
+        ref_node=1,
+        ref_dir=2,
+        ord_data_type=4,
+        abscissa_spacing=1,
+        abscissa_min=t0,
+        abscissa_inc=1.0 / fs,
+        z_axis_value=0.0,
+        num_pts=data.size,
+        abscissa_spec_data_type=TIME_TYPE,
+        abscissa_len_unit_exp=0,
+        abscissa_force_unit_exp=0,
+        abscissa_temp_unit_exp=0,
+        abscissa_axis_lab="Time",
+        abscissa_axis_units_lab="s",
         ordinate_spec_data_type=FORCE_TYPE if force else VELOCITY_TYPE,
-        ordinate_len_unit_exp=0 if force else 1, ordinate_force_unit_exp=1 if force else 0,
-        ordinate_temp_unit_exp=0, ordinate_axis_lab="Force" if force else "Velocity",
+        ordinate_len_unit_exp=0 if force else 1,
+        ordinate_force_unit_exp=1 if force else 0,
+        ordinate_temp_unit_exp=0,
+        ordinate_axis_lab="Force" if force else "Velocity",
         ordinate_axis_units_lab="N" if force else "m/s",
-        orddenom_spec_data_type=0, orddenom_len_unit_exp=0, orddenom_force_unit_exp=0,
-        orddenom_temp_unit_exp=0, orddenom_axis_lab="", orddenom_axis_units_lab="",
-        z_axis_spec_data_type=0, z_axis_len_unit_exp=0, z_axis_force_unit_exp=0,
-        z_axis_temp_unit_exp=0, z_axis_axis_lab="", z_axis_axis_units_lab="",
-        data=data, x=np.asarray(test.time, dtype=float))
+        orddenom_spec_data_type=0,
+        orddenom_len_unit_exp=0,
+        orddenom_force_unit_exp=0,
+        orddenom_temp_unit_exp=0,
+        orddenom_axis_lab="",
+        orddenom_axis_units_lab="",
+        z_axis_spec_data_type=0,
+        z_axis_len_unit_exp=0,
+        z_axis_force_unit_exp=0,
+        z_axis_temp_unit_exp=0,
+        z_axis_axis_lab="",
+        z_axis_axis_units_lab="",
+        data=data,
+        x=np.asarray(test.time, dtype=float),
+    )
 
 
 def write_uff(dataset: Dataset, path, binary: bool = False) -> Path:
@@ -327,9 +402,11 @@ def write_uff(dataset: Dataset, path, binary: bool = False) -> Path:
     pyuff = _pyuff()
     dataset.validate()
     if not is_single_velocity(dataset.sensors):
-        raise SensorError(f"{path}: UFF files hold force and velocity records only, but the data set "
-                          f"{dataset.name!r} has the sensors {dataset.sensors}; write it as a folder "
-                          "(write_dataset)")
+        raise SensorError(
+            f"{path}: UFF files hold force and velocity records only, but the data set "
+            f"{dataset.name!r} has the sensors {dataset.sensors}; write it as a folder "
+            "(write_dataset)"
+        )
     path = Path(path)
     if path.exists():
         os.remove(path)

@@ -1,5 +1,6 @@
 """What ``bayes-update calibrate`` writes for the beam: the paper's tables (CSV), the
 grids, figures (PNG), calibration.json and report.txt."""
+
 from __future__ import annotations
 
 import csv
@@ -16,8 +17,12 @@ def _write_csv(path: Path, rows: list, columns: list) -> None:
         w = csv.writer(fh)
         w.writerow(columns)
         for r in rows:
-            w.writerow([("" if r.get(c) is None else
-                         (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c))) for c in columns])
+            w.writerow(
+                [
+                    ("" if r.get(c) is None else (f"{r[c]:.6g}" if isinstance(r.get(c), float) else r.get(c)))
+                    for c in columns
+                ]
+            )
 
 
 def write_result(result: CalibrationResult, dataset: Dataset, out) -> Path:

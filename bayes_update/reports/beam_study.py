@@ -14,6 +14,7 @@ Steps (each writes its own folder under ``out``, the report links them):
 ``quick=True`` uses the modal ROM, the coarse grids and the small posterior
 settings (about a minute; CI runs it).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -24,14 +25,13 @@ from pathlib import Path
 import numpy as np
 
 import fe
-
 from bayes_update.core.discrepancy import DiscrepancySettings
 from bayes_update.core.logs import info
 from bayes_update.core.posterior import PosteriorSettings, sample
 from bayes_update.models.beam.calibrate import CalibrationSettings, calibrate, format_tables
 from bayes_update.models.beam.model import EFFECT_PARAMETERS, Beam, effect_values
-from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.ridge import add_linear_only
+from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import load_default_dataset, truth_paper_units
 from bayes_update.reports.beam_calibration import write_result
 from bayes_update.reports.posterior import format_summary, write_posterior
@@ -106,8 +106,15 @@ def discrepancy_dataset():
 REPRODUCE_SAMPLE = {"n_predictive": 32, "n_global": 128}
 
 
-def reproduce(out, quick: bool = False, workers: int | None = None, log=info, discrepancy: bool = True,
-              cache_dir=None, settings: dict | None = None) -> dict:
+def reproduce(
+    out,
+    quick: bool = False,
+    workers: int | None = None,
+    log=info,
+    discrepancy: bool = True,
+    cache_dir=None,
+    settings: dict | None = None,
+) -> dict:
     """Run the study and write ``out/report.md``; returns the headline numbers.
 
     discrepancy : run the discrepancy workflow on the hidden-effect variant
@@ -127,8 +134,9 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
     t_all = time.perf_counter()
     stated = rig_of(data).bending_stiffness_factor
     cal_settings = settings.get("calibrate") or (CalibrationSettings.quick() if quick else CalibrationSettings())
-    post_settings = settings.get("sample") or (PosteriorSettings.quick() if quick else
-                                               PosteriorSettings(**REPRODUCE_SAMPLE))
+    post_settings = settings.get("sample") or (
+        PosteriorSettings.quick() if quick else PosteriorSettings(**REPRODUCE_SAMPLE)
+    )
     disc_settings = settings.get("discrepancy") or (DiscrepancySettings.quick() if quick else DiscrepancySettings())
     truth = truth_paper_units(data)
     calibrations, posteriors = {}, {}
@@ -141,15 +149,17 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
         log(f"[{tag}] deterministic updating ({'coarse' if quick or factor != stated else 'full'} grids)")
         t0 = time.perf_counter()
         # the locking-free comparison needs only the optimum: coarse grids
-        cal = calibrate(d, model, cal_settings if factor == stated else CalibrationSettings.quick(),
-                        workers=workers, log=log)
+        cal = calibrate(
+            d, model, cal_settings if factor == stated else CalibrationSettings.quick(), workers=workers, log=log
+        )
         write_result(cal, d, out / f"calibrate_{tag}")
         timing[f"calibrate_{tag}"] = time.perf_counter() - t0
         calibrations[factor] = cal
         log(f"[{tag}] posterior")
         t0 = time.perf_counter()
-        post = sample(d, model, post_settings, workers=workers, start=cal.final_theta,
-                      cache_dir=cache_dir / tag, log=log)
+        post = sample(
+            d, model, post_settings, workers=workers, start=cal.final_theta, cache_dir=cache_dir / tag, log=log
+        )
         if post_settings.n_linear:
             add_linear_only(post, workers, cache_dir / tag, log=log)
         write_posterior(post, out / f"posterior_{tag}", truth=truth if factor == stated else None)
@@ -163,8 +173,9 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
         log("[discrepancy] the workflow on the hidden-effect variant of the rig")
         t0 = time.perf_counter()
         dd = discrepancy_dataset()
-        disc = find_discrepancy(dd, Beam(fe.BeamModel(rig=rig_of(dd))),
-                                settings=disc_settings, workers=workers, log=log)
+        disc = find_discrepancy(
+            dd, Beam(fe.BeamModel(rig=rig_of(dd))), settings=disc_settings, workers=workers, log=log
+        )
         hidden = dd.extra["truth"]["effects"]
         write_discrepancy(disc, out / "discrepancy", truth={"effects": hidden})
         timing["discrepancy"] = time.perf_counter() - t0
@@ -177,8 +188,12 @@ def reproduce(out, quick: bool = False, workers: int | None = None, log=info, di
     timing["total"] = time.perf_counter() - t_all
     head = _headline(calibrations, posteriors, stated, timing)
     if disc is not None:
-        head["discrepancy"] = {"hidden": hidden, "named": disc.named,
-                               "gap_before": disc.gap_before, "gap_after": disc.gap_after}
+        head["discrepancy"] = {
+            "hidden": hidden,
+            "named": disc.named,
+            "gap_before": disc.gap_before,
+            "gap_after": disc.gap_after,
+        }
     (out / "reproduce.json").write_text(json.dumps(head, indent=1, default=float) + "\n")
     (out / "report.md").write_text(_report(out, calibrations, posteriors, stated, truth, timing, quick, disc))
     log(f"report.md and its figures done ({timing['total']:.0f} s)")
@@ -190,78 +205,132 @@ def _headline(cals, posts, stated, timing) -> dict:
     for f, cal in cals.items():
         head[f"calibrate_factor_{f:g}"] = cal.table3
         p = posts[f]
-        head[f"posterior_factor_{f:g}"] = {k: {"mean": v["mean"], "sd": v["sd"], "hdi": [v["hdi_3%"], v["hdi_97%"]],
-                                               "unit": v["units"]} for k, v in p.summary.items()}
+        head[f"posterior_factor_{f:g}"] = {
+            k: {"mean": v["mean"], "sd": v["sd"], "hdi": [v["hdi_3%"], v["hdi_97%"]], "unit": v["units"]}
+            for k, v in p.summary.items()
+        }
         head[f"posterior_factor_{f:g}"]["max_r_hat"] = p.diagnostics["max_r_hat"]
         head[f"posterior_factor_{f:g}"]["min_ess_bulk"] = p.diagnostics["min_ess_bulk"]
     return head
 
 
 def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
-    L = ["# Reproduction report", "",
-         "`bayes-update reproduce" + (" --quick" if quick else "") + "` on the embedded default data set "
-         "(virtual rig, the paper's Table 3 parameters on a beam with EI x 1.24; see the README). Model: "
-         + ("the modal ROM with coarse grids and small posterior settings (--quick)." if quick else
-            "the full FE (10 elements, 4 substeps)."), ""]
+    L = [
+        "# Reproduction report",
+        "",
+        "`bayes-update reproduce" + (" --quick" if quick else "") + "` on the embedded default data set "
+        "(virtual rig, the paper's Table 3 parameters on a beam with EI x 1.24; see the README). Model: "
+        + (
+            "the modal ROM with coarse grids and small posterior settings (--quick)."
+            if quick
+            else "the full FE (10 elements, 4 substeps)."
+        ),
+        "",
+    ]
     if truth:
         L += ["Truth (never read by the updating): " + ", ".join(f"{k} = {v:.4g}" for k, v in truth.items()), ""]
     for f, cal in cals.items():
         tag = f"factor_{f:g}"
-        L += [f"## Deterministic updating, bending_stiffness_factor {f:g}"
-              + (" (the data set's)" if f == stated else " (locking-free beam)"), "", "```",
-              format_tables(cal), "```", ""]
-        for name in ("table2_e_lin_nlin_grid", "fig8_e_lin_eta", "fig12_components_high", "fig13_chirp_medium",
-                     "fig14_sine_psd"):
+        L += [
+            f"## Deterministic updating, bending_stiffness_factor {f:g}"
+            + (" (the data set's)" if f == stated else " (locking-free beam)"),
+            "",
+            "```",
+            format_tables(cal),
+            "```",
+            "",
+        ]
+        for name in (
+            "table2_e_lin_nlin_grid",
+            "fig8_e_lin_eta",
+            "fig12_components_high",
+            "fig13_chirp_medium",
+            "fig14_sine_psd",
+        ):
             if (out / f"calibrate_{tag}" / f"{name}.png").exists():
                 L.append(f"![{name}](calibrate_{tag}/{name}.png)")
         L.append("")
-    L += ["## The two models side by side", "",
-          "| model | eta [MPa s] | c [N s/mm] | F [N] | k_s [N/mm] | P_eff [N] | e_lin | e_nlin |",
-          "|---|---|---|---|---|---|---|---|"]
+    L += [
+        "## The two models side by side",
+        "",
+        "| model | eta [MPa s] | c [N s/mm] | F [N] | k_s [N/mm] | P_eff [N] | e_lin | e_nlin |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for f, cal in cals.items():
         t = cal.table3
-        L.append(f"| factor {f:g} | {t['eta_MPa_s']:.3f} | {t['c_N_s_per_mm']:.2f} | {t['F_N']:.2f} | "
-                 f"{t['k_s_N_per_mm']:.1f} | **{t['P_eff_N']:.2f}** | {100 * t['e_lin']:.2f} % | "
-                 f"{100 * t['e_nlin']:.2f} % |")
+        L.append(
+            f"| factor {f:g} | {t['eta_MPa_s']:.3f} | {t['c_N_s_per_mm']:.2f} | {t['F_N']:.2f} | "
+            f"{t['k_s_N_per_mm']:.1f} | **{t['P_eff_N']:.2f}** | {100 * t['e_lin']:.2f} % | "
+            f"{100 * t['e_nlin']:.2f} % |"
+        )
     L += ["", "![f1 against the preload](f1_against_preload.png)", ""]
     for f, p in posts.items():
         tag = f"factor_{f:g}"
         d = p.diagnostics
         prior = p.space.to_dict()
-        L += [f"## Posterior, factor {f:g}", "",
-              "Prior: uniform on " + ", ".join(f"{k} {v['low']:g}-{v['high']:g} {v['unit']}"
-                                                for k, v in prior.items()) + ".", "",
-              format_summary(p), "",
-              f"max R-hat {d['max_r_hat']:.4f}, min bulk ESS {d['min_ess_bulk']:.0f}; "
-              f"{p.n_model_runs['total']} model runs, {p.timing['total']:.0f} s. Likelihood scales: "
-              + ", ".join(f"{st} s = {100 * sc.sd:.3f} % (noise {100 * sc.noise_sd:.3f} %, model error "
-                          f"{100 * sc.model_error:.3f} %)" for st, sc in p.likelihood.scales.items()), ""]
+        L += [
+            f"## Posterior, factor {f:g}",
+            "",
+            "Prior: uniform on "
+            + ", ".join(f"{k} {v['low']:g}-{v['high']:g} {v['unit']}" for k, v in prior.items())
+            + ".",
+            "",
+            format_summary(p),
+            "",
+            f"max R-hat {d['max_r_hat']:.4f}, min bulk ESS {d['min_ess_bulk']:.0f}; "
+            f"{p.n_model_runs['total']} model runs, {p.timing['total']:.0f} s. Likelihood scales: "
+            + ", ".join(
+                f"{st} s = {100 * sc.sd:.3f} % (noise {100 * sc.noise_sd:.3f} %, model error "
+                f"{100 * sc.model_error:.3f} %)"
+                for st, sc in p.likelihood.scales.items()
+            ),
+            "",
+        ]
         lo = p.extras.get("linear_only")
         if lo:
             n = lo["narrowing"]
-            L.append(f"Low level alone: corr(F, k_s) = {lo['corr_F_k_s']:.4f}; adding the high level "
-                     f"narrows c {n['c']:.1f}x and k_s {n['k_s']:.1f}x (posterior sd ratio) and the joint "
-                     f"(c, k_s) spread {n['c_k_s_area']:.1f}x (square root of the covariance determinant).")
+            L.append(
+                f"Low level alone: corr(F, k_s) = {lo['corr_F_k_s']:.4f}; adding the high level "
+                f"narrows c {n['c']:.1f}x and k_s {n['k_s']:.1f}x (posterior sd ratio) and the joint "
+                f"(c, k_s) spread {n['c_k_s_area']:.1f}x (square root of the covariance determinant)."
+            )
         chk = {k: v for k, v in p.predictive.items() if k.endswith("median_rel_error")}
         if chk:
-            L.append("Surrogate check at posterior draws (median relative error against the model): "
-                     + ", ".join(f"{k.split('_gp')[0]} {100 * v:.2f} %" for k, v in chk.items()) + ".")
-        L += ["", *(f"![{n}](posterior_{tag}/{n}.png)" for n in ("corner", "ridge", "predictive",
-                                                                  "gp_diagnostics", "traces")
-                    if (out / f"posterior_{tag}" / f"{n}.png").exists()), ""]
+            L.append(
+                "Surrogate check at posterior draws (median relative error against the model): "
+                + ", ".join(f"{k.split('_gp')[0]} {100 * v:.2f} %" for k, v in chk.items())
+                + "."
+            )
+        L += [
+            "",
+            *(
+                f"![{n}](posterior_{tag}/{n}.png)"
+                for n in ("corner", "ridge", "predictive", "gp_diagnostics", "traces")
+                if (out / f"posterior_{tag}" / f"{n}.png").exists()
+            ),
+            "",
+        ]
     if disc is not None:
         from bayes_update.core.effects import evidence_table
         from bayes_update.core.fits import GAP_LABELS
 
         hidden = json.loads((out / "discrepancy" / "discrepancy.json").read_text()).get("truth", {}).get("effects")
         b, a = disc.gap_before, disc.gap_after
-        L += ["## Discrepancy workflow on a hidden-effect variant", "",
-              "The same rig with an effect hidden in the data (the workflow is not told): "
-              + "; ".join(", ".join(f"{k} = {v:.4g}" for k, v in h.items() if k != "name") + f" ({h['name']})"
-                          for h in hidden) + ". Baseline update, diagnostics, every effect of the catalogue "
-              "fitted and ranked by Laplace evidence, the named one added and re-updated.", "",
-              evidence_table(disc), "",
-              "| misfit | baseline | after |", "|---|---|---|"]
+        L += [
+            "## Discrepancy workflow on a hidden-effect variant",
+            "",
+            "The same rig with an effect hidden in the data (the workflow is not told): "
+            + "; ".join(
+                ", ".join(f"{k} = {v:.4g}" for k, v in h.items() if k != "name") + f" ({h['name']})" for h in hidden
+            )
+            + ". Baseline update, diagnostics, every effect of the catalogue "
+            "fitted and ranked by Laplace evidence, the named one added and re-updated.",
+            "",
+            evidence_table(disc),
+            "",
+            "| misfit | baseline | after |",
+            "|---|---|---|",
+        ]
         for k, label in GAP_LABELS.items():
             if b.get(k) is not None:
                 L.append(f"| {label} | {100 * b[k]:.3f} % | {100 * a[k]:.3f} % |")
@@ -270,17 +339,28 @@ def _report(out, cals, posts, stated, truth, timing, quick, disc=None) -> str:
             if h["name"] in final:
                 truth = effect_values(fe.EFFECTS[h["name"]](**{k: v for k, v in h.items() if k != "name"}))
                 fitted = final[h["name"]]
-                L.append(f"\nRe-updated {h['name']} (Laplace at the extended mode, likelihood with the extended "
-                         "model's own error): " + ", ".join(
-                             f"{n} = {fitted[n]['mode']:.3g} +- {fitted[n]['sd']:.2g} {unit} (truth {truth[n]:.3g})"
-                             for n, unit, *_ in EFFECT_PARAMETERS[h["name"]]) + ".")
+                L.append(
+                    f"\nRe-updated {h['name']} (Laplace at the extended mode, likelihood with the extended "
+                    "model's own error): "
+                    + ", ".join(
+                        f"{n} = {fitted[n]['mode']:.3g} +- {fitted[n]['sd']:.2g} {unit} (truth {truth[n]:.3g})"
+                        for n, unit, *_ in EFFECT_PARAMETERS[h["name"]]
+                    )
+                    + "."
+                )
         for name, sig in disc.signature.items():
             if sig["before"] is None or sig["after"] is None:
                 continue
-            L.append(f"\nSignature check of {name}: {sig['meaning']}: {sig['before']:.3g} -> {sig['after']:.3g} "
-                     f"({'shrank' if sig['shrank'] else 'did not shrink'}).")
-        L += ["", "![gap before and after](discrepancy/gap_before_after.png)",
-              "![diagnostics before](discrepancy/diagnostics_before.png)", ""]
+            L.append(
+                f"\nSignature check of {name}: {sig['meaning']}: {sig['before']:.3g} -> {sig['after']:.3g} "
+                f"({'shrank' if sig['shrank'] else 'did not shrink'})."
+            )
+        L += [
+            "",
+            "![gap before and after](discrepancy/gap_before_after.png)",
+            "![diagnostics before](discrepancy/diagnostics_before.png)",
+            "",
+        ]
     L += ["## Wall time", "", "| step | s |", "|---|---|"]
     L += [f"| {k} | {v:.0f} |" for k, v in timing.items()]
     return "\n".join(L) + "\n"

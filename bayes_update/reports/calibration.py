@@ -1,5 +1,6 @@
 """What ``bayes-update calibrate`` writes for a model of the contract:
 calibration.json, report.txt and a figure of the fit on every test."""
+
 from __future__ import annotations
 
 import json
@@ -21,21 +22,28 @@ def format_calibration(cal: Calibration) -> str:
     the fit's white-noise Gauss-Newton sd (``GN sd*``, footnoted: not an interval)."""
     laplace = cal.sd_method == "laplace"
     sd_label = "sd" if laplace else "GN sd*"
-    lines = [f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, "
-             f"{cal.n_model_runs} model runs",
-             f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
-             f"{'parameter':>12} {'stage 1':>14} {'final':>14} {sd_label:>10}  unit"]
+    lines = [
+        f"two-stage calibration, metric set {cal.metric_set!r}, J = {cal.n_functions}, {cal.n_model_runs} model runs",
+        f"linear parameters (screen): {', '.join(cal.linear_parameters)}",
+        f"{'parameter':>12} {'stage 1':>14} {'final':>14} {sd_label:>10}  unit",
+    ]
     for name, value in cal.theta.items():
         # the digits the final value's sd resolves, in both columns
         sd = (cal.sd or {}).get(name, math.nan)
-        lines.append(f"{name:>12} {format_value(cal.stage1[name], sd):>14} {format_value(value, sd):>14} "
-                     f"{format_sd(sd):>10}  {cal.units[name]}")
+        lines.append(
+            f"{name:>12} {format_value(cal.stage1[name], sd):>14} {format_value(value, sd):>14} "
+            f"{format_sd(sd):>10}  {cal.units[name]}"
+        )
     if laplace:
-        lines.append("sd: the posterior's Laplace approximation at its mode (noise replicates with the force's "
-                     "noise, model error, the tests' disagreement); `bayes-update sample` for the posterior itself")
+        lines.append(
+            "sd: the posterior's Laplace approximation at its mode (noise replicates with the force's "
+            "noise, model error, the tests' disagreement); `bayes-update sample` for the posterior itself"
+        )
     else:
-        lines.append("GN sd*: the fit's Gauss-Newton sd under white noise of the measured level and no model "
-                     "error: the digits' scale, not an interval (it can be 10-100x too small)")
+        lines.append(
+            "GN sd*: the fit's Gauss-Newton sd under white noise of the measured level and no model "
+            "error: the digits' scale, not an interval (it can be 10-100x too small)"
+        )
     lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
     for test, err in cal.prediction_errors.items():
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
@@ -45,9 +53,11 @@ def format_calibration(cal: Calibration) -> str:
         lines.append(f"WARNING: {w}")
     for stage, dirs in cal.unidentified.items():
         for d in dirs:
-            lines.append(f"UNIDENTIFIED after the {stage} stage: " + ", ".join(
-                f"{k} {v:+.2f}" for k, v in d["direction"].items())
-                + f" (prior-range units; sd {d['sd_over_range']:.2g} of the range)")
+            lines.append(
+                f"UNIDENTIFIED after the {stage} stage: "
+                + ", ".join(f"{k} {v:+.2f}" for k, v in d["direction"].items())
+                + f" (prior-range units; sd {d['sd_over_range']:.2g} of the range)"
+            )
     return "\n".join(lines)
 
 
@@ -67,7 +77,7 @@ def fit_figure(cal: Calibration, sensors=None):
     tests = [(st, t) for st, t in problem.tests.items()] + [("validation", t) for t in problem.validation.values()]
     rows = []
     for role, t in tests:
-        y_mod = problem.compared_response(problem.run(cal.theta, t.force))   # as the records: offsets removed
+        y_mod = problem.compared_response(problem.run(cal.theta, t.force))  # as the records: offsets removed
         measured = t.response if t.response.ndim == 2 else t.response[:, None]
         model = y_mod if y_mod.ndim == 2 else y_mod[:, None]
         for j in range(measured.shape[1]):

@@ -2,6 +2,7 @@
 figure (where the data and the model disagree, before and after the named
 effects) and the model's own diagnostics figures, and the text summary
 (:mod:`bayes_update.core.discrepancy` finds them)."""
+
 from __future__ import annotations
 
 import json
@@ -10,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bayes_update.core.effects import evidence_table
 from bayes_update.core.basis import excited_band
+from bayes_update.core.effects import evidence_table
 
 __all__ = ["format_result", "gap_figure", "write_discrepancy"]
 
@@ -29,12 +30,16 @@ def format_result(res) -> str:
             lines.append(f"{label:<{width}} {100 * b[k]:8.3f} %  {100 * a[k]:8.3f} %")
     for e in res.named:
         for n, v in res.final.to_json(res.effects)["effects"][e].items():
-            lines.append(f"{e}: {n} = {v['mode']:.5g} {v['unit']} (Laplace interval "
-                         f"{v['interval'][0]:.5g} to {v['interval'][1]:.5g}; null {v['null']:g})")
+            lines.append(
+                f"{e}: {n} = {v['mode']:.5g} {v['unit']} (Laplace interval "
+                f"{v['interval'][0]:.5g} to {v['interval'][1]:.5g}; null {v['null']:g})"
+            )
     for name, s in res.signature.items():
         if s["before"] is not None and s["after"] is not None:
-            lines.append(f"signature of {name} ({s['signature']}): {s['before']:.4g} -> {s['after']:.4g} "
-                         f"({'shrank' if s['shrank'] else 'did NOT shrink'})")
+            lines.append(
+                f"signature of {name} ({s['signature']}): {s['before']:.4g} -> {s['after']:.4g} "
+                f"({'shrank' if s['shrank'] else 'did NOT shrink'})"
+            )
     return "\n".join(lines)
 
 
@@ -94,12 +99,18 @@ def gap_figure(res):
         measured = t.response if t.response.ndim == 2 else t.response[:, None]
         runs = {}
         for label, theta in fits.items():
-            y = problem.compared_response(problem.run(theta, t.force))      # as prediction_errors compares it
+            y = problem.compared_response(problem.run(theta, t.force))  # as prediction_errors compares it
             runs[label] = y if y.ndim == 2 else y[:, None]
         for j in range(measured.shape[1]):
             name, kind = sensors[j]
-            rows.append((t.name if measured.shape[1] == 1 else f"{t.name}, {name}", kind, measured[:, j],
-                         {k: v[:, j] for k, v in runs.items()}))
+            rows.append(
+                (
+                    t.name if measured.shape[1] == 1 else f"{t.name}, {name}",
+                    kind,
+                    measured[:, j],
+                    {k: v[:, j] for k, v in runs.items()},
+                )
+            )
     # up to the third harmonic of the highest excited frequency, where the nonlinear content is
     f_top = min(problem.fs / 2, 3 * max(excited_band(t.force, problem.fs)[1] for t in tests))
     fig, axes = plt.subplots(len(rows), 1, figsize=(8, 2.8 * len(rows)), squeeze=False)
@@ -109,8 +120,9 @@ def gap_figure(res):
         errors = []
         for (label, y_mod), color in zip(models.items(), ("C3", "C0")):
             r = y - y_mod
-            ax.semilogy(f, amplitude_spectrum(r, problem.fs)[1] + 1e-300, lw=0.7, color=color,
-                        label=f"residual, {label}")
+            ax.semilogy(
+                f, amplitude_spectrum(r, problem.fs)[1] + 1e-300, lw=0.7, color=color, label=f"residual, {label}"
+            )
             errors.append(f"{label} {100 * np.linalg.norm(r) / np.linalg.norm(y):.2f} %")
         ax.set_title(f"{title}: output error " + ", ".join(errors), fontsize=9)
         ax.set_xlim(0, f_top)

@@ -17,6 +17,7 @@ inspect``; the numbers are :func:`bayes_update.data.inspect.inspect_dataset`).
 Figures are built without pyplot (nothing shown, no global state).  Units:
 Hz, the channels' SI units, force rms [N].
 """
+
 from __future__ import annotations
 
 import json
@@ -75,10 +76,11 @@ def plot_noise(dataset, channel: str, noise: dict) -> Figure:
         spec = noise_spectrum(t, channel, est, fs)
         if spec is not None:
             fn, pn = spec
-            if est.method == "fit_residual" and pn.size > 15:   # the LPM's per-line spectrum: smoothed
+            if est.method == "fit_residual" and pn.size > 15:  # the LPM's per-line spectrum: smoothed
                 pn = np.convolve(pn, np.ones(15) / 15, mode="same")
-            ax.semilogy(fn, pn, lw=1.6, ls="--", color=f"C{i}", zorder=3,
-                        label=f"noise ({est.method}, sd {est.sd:.3g})")
+            ax.semilogy(
+                fn, pn, lw=1.6, ls="--", color=f"C{i}", zorder=3, label=f"noise ({est.method}, sd {est.sd:.3g})"
+            )
     ax.set_xlim(0, fs / 2)
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"PSD [({dataset.units[channel]})^2/Hz]")
@@ -100,8 +102,13 @@ def plot_modes(dataset, inspection: dict) -> Figure:
         x = [level[f] for f in files]
         df = [100.0 * (dep["freq_hz"][f] / mode["freq_hz"] - 1.0) for f in files]
         dz = [100.0 * (dep["damping_ratio"][f] / mode["damping_ratio"] - 1.0) for f in files]
-        ax_f.plot(x, df, "o-", color=f"C{i}",
-                  label=f"mode {i + 1}: {mode['freq_hz']:.4g} Hz, zeta {mode['damping_ratio']:.3g} at the linear test")
+        ax_f.plot(
+            x,
+            df,
+            "o-",
+            color=f"C{i}",
+            label=f"mode {i + 1}: {mode['freq_hz']:.4g} Hz, zeta {mode['damping_ratio']:.3g} at the linear test",
+        )
         ax_z.plot(x, dz, "o-", color=f"C{i}")
         for f, xi, yi in zip(files, x, df):
             ax_f.annotate(Path(f).stem, (xi, yi), fontsize=6, xytext=(3, 3), textcoords="offset points")

@@ -40,7 +40,7 @@ def staged_output(out):
         yield staging
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
-        if created and not any(out.iterdir()):      # a failed command leaves no empty OUT behind
+        if created and not any(out.iterdir()):  # a failed command leaves no empty OUT behind
             out.rmdir()
         raise
     _publish(staging, out)

@@ -11,7 +11,6 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-
 #: a spectrum's axis reaches down to this fraction of the measured spectrum's 99th percentile
 SPECTRUM_DEPTH = 1e-4
 
@@ -99,8 +98,13 @@ def plot_frf(estimates: dict, f_range=(15.0, 60.0), reference=None, title: str |
     return fig
 
 
-def plot_psd(spectra: dict, f_max: float = 140.0, harmonics_of: float | None = None,
-             ylabel: str = "velocity PSD [(m/s)^2/Hz]", title: str | None = None):
+def plot_psd(
+    spectra: dict,
+    f_max: float = 140.0,
+    harmonics_of: float | None = None,
+    ylabel: str = "velocity PSD [(m/s)^2/Hz]",
+    title: str | None = None,
+):
     """PSD comparison (the paper's Fig. 14, 0-140 Hz).
 
     ``spectra``: ``{label: (f [Hz], P)}``; ``harmonics_of``: mark multiples
@@ -167,17 +171,26 @@ def calibration_figures(result, dataset) -> dict:
     figs = {}
     c_values = result.settings.c_values
     figs["fig4_e_lin_grid"] = _grid_panels(
-        result.linear_grid, "e_lin", c_values, "e_lin", result.table1,
-        f"e_lin over (F, k_s), low-level chirp, eta = {result.setup['eta_pre_scan_MPa_s']:.2f} MPa s (Fig. 4)")
+        result.linear_grid,
+        "e_lin",
+        c_values,
+        "e_lin",
+        result.table1,
+        f"e_lin over (F, k_s), low-level chirp, eta = {result.setup['eta_pre_scan_MPa_s']:.2f} MPa s (Fig. 4)",
+    )
     figs["table2_e_lin_nlin_grid"] = _grid_panels(
-        result.nonlinear_grid, "e_lin_nlin", c_values, "(e_lin + e_nlin)", result.table2,
-        f"e_lin + e_nlin over (F, k_s), eta = {result.table3['eta_MPa_s']:.2f} MPa s (Table 2)")
+        result.nonlinear_grid,
+        "e_lin_nlin",
+        c_values,
+        "(e_lin + e_nlin)",
+        result.table2,
+        f"e_lin + e_nlin over (F, k_s), eta = {result.table3['eta_MPa_s']:.2f} MPa s (Table 2)",
+    )
 
     fig = Figure(figsize=(6, 4), constrained_layout=True)
     ax = fig.subplots()
     ax.plot([r["eta_MPa_s"] for r in result.eta_scan], [100 * r["e_lin"] for r in result.eta_scan], "o-")
-    ax.axvline(result.table3["eta_MPa_s"], color="r", ls="--",
-               label=f"estimate {result.table3['eta_MPa_s']:.2f} MPa s")
+    ax.axvline(result.table3["eta_MPa_s"], color="r", ls="--", label=f"estimate {result.table3['eta_MPa_s']:.2f} MPa s")
     ax.set_xlabel("eta [MPa s]")
     ax.set_ylabel("e_lin [%]")
     ax.set_title("e_lin against the material viscosity (Fig. 8)")
@@ -219,8 +232,11 @@ def calibration_figures(result, dataset) -> dict:
     chirps = [dataset.test(n) for n, v in val.items() if v["signal"] != "sine"]
     for test in chirps:
         v = result.velocities[test.name]
-        fig = plot_test(test, v, title=f"{test.name}: data and updated model, rel. L2 = "
-                                       f"{100 * val[test.name]['rel_l2']:.1f} % (Fig. 13)")
+        fig = plot_test(
+            test,
+            v,
+            title=f"{test.name}: data and updated model, rel. L2 = {100 * val[test.name]['rel_l2']:.1f} % (Fig. 13)",
+        )
         figs[f"fig13_{test.name}"] = fig
     sines = [dataset.test(n) for n, v in val.items() if v["signal"] == "sine"]
     if sines:
@@ -234,8 +250,11 @@ def calibration_figures(result, dataset) -> dict:
             ax.semilogy(f[sel], pd[sel], lw=0.9, label="data")
             ax.semilogy(f[sel], pm[sel], lw=0.9, ls="--", label="model")
             h = val[test.name]["harmonics_db"]
-            ax.set_title(f"{test.name}: model - data at 1x/2x/3x = " + ", ".join(
-                "n/a" if d is None else f"{d:+.1f} dB" for d in h.values()), fontsize="medium")
+            ax.set_title(
+                f"{test.name}: model - data at 1x/2x/3x = "
+                + ", ".join("n/a" if d is None else f"{d:+.1f} dB" for d in h.values()),
+                fontsize="medium",
+            )
             ax.set_ylabel("PSD [(m/s)^2/Hz]")
             ax.legend(fontsize="small")
             ax.grid(True, alpha=0.3)

@@ -1,5 +1,6 @@
 """What ``bayes-update sample`` writes: posterior.nc, posterior_summary.json, run.json,
 figures, and the summary table."""
+
 from __future__ import annotations
 
 import math
@@ -49,8 +50,10 @@ def truth_in_model_units(block, units: dict, log=info) -> dict | None:
             drawn[name] = float(value)
     if skipped:
         name, unit = next(iter(units.items()))
-        log(f"the data set's truth is not drawn for {', '.join(skipped)}: state each value in the model's "
-            f'unit, e.g. "{name}": {{"value": ..., "unit": "{unit}"}}, or a "units" block')
+        log(
+            f"the data set's truth is not drawn for {', '.join(skipped)}: state each value in the model's "
+            f'unit, e.g. "{name}": {{"value": ..., "unit": "{unit}"}}, or a "units" block'
+        )
     return drawn or None
 
 

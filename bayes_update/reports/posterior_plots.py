@@ -4,6 +4,7 @@ Every axis in its unit: the model's parameters in their declared units (the
 beam's paper units: eta [MPa s], c [N s/mm], F [N], k_s [N/mm], P_eff [N]),
 the responses in the data set's sensor units.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -23,8 +24,9 @@ def _compared(stage: str, metrics: str | None) -> str:
     return " + ".join(f"y{n}" for n in orders)
 
 
-def predictive_bands(bands: dict, fs: float, names: dict | None = None, sensors=None, unit: str | None = None,
-                     metrics: str | None = None):
+def predictive_bands(
+    bands: dict, fs: float, names: dict | None = None, sensors=None, unit: str | None = None, metrics: str | None = None
+):
     """Left: the compared output of each test (y1 of the linear test; y2 + y3 or
     y1 + y2 + y3 of the nonlinear one, per the metric set ``metrics``) of the
     data, a thin dark line on top of the model's median and 5-95 % band over
@@ -54,20 +56,23 @@ def predictive_bands(bands: dict, fs: float, names: dict | None = None, sensors=
     for (ax, ax_r), (stage, sensor, kind, b) in zip(axes, rows):
         ref = b["reference"]
         t = np.arange(len(ref)) / fs
-        ax.fill_between(t, b["low"], b["high"], color="C1", alpha=0.35, lw=0, zorder=1,
-                        label="model, 5-95 % over draws")
+        ax.fill_between(
+            t, b["low"], b["high"], color="C1", alpha=0.35, lw=0, zorder=1, label="model, 5-95 % over draws"
+        )
         ax.plot(t, b["median"], color="C1", lw=2.2, alpha=0.8, zorder=2, label="model, median over draws")
         ax.plot(t, ref, color="k", lw=0.5, zorder=3, label="data (reference decomposition)")
-        ax_r.fill_between(t, b["low"] - ref, b["high"] - ref, color="C1", alpha=0.45, lw=0,
-                          label="model - data, 5-95 % over draws")
+        ax_r.fill_between(
+            t, b["low"] - ref, b["high"] - ref, color="C1", alpha=0.45, lw=0, label="model - data, 5-95 % over draws"
+        )
         ax_r.plot(t, b["median"] - ref, color="C1", lw=0.5, label="model - data, median")
         ax_r.axhline(0.0, color="k", lw=0.5)
         what = _compared(stage, metrics)
         test = (names or {}).get(stage, stage)
         where = f", {sensor}" if len(sensors) > 1 else ""
         ax.set_title(f"{what}, {test}{where}", fontsize=10)
-        ax_r.set_title(f"{what}, {test}{where}: model - data (RMS of data {np.sqrt(np.mean(ref ** 2)):.2e} {unit})",
-                       fontsize=9)
+        ax_r.set_title(
+            f"{what}, {test}{where}: model - data (RMS of data {np.sqrt(np.mean(ref**2)):.2e} {unit})", fontsize=9
+        )
         label = f"{kind} [{unit}]" if len(sensors) == 1 else f"{sensor} ({kind}) [{unit}]"
         ax.set_ylabel(label)
         ax_r.set_ylabel(f"model - data [{unit}]")
@@ -115,8 +120,14 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
             continue
         drawn = True
         e_model, e_gp = pairs
-        ax1.loglog(100 * e_model, 100 * e_gp, "o", ms=4, color=color,
-                   label=f"{key}: median |error| {100 * predictive[f'{key}_gp_median_rel_error']:.1f} %")
+        ax1.loglog(
+            100 * e_model,
+            100 * e_gp,
+            "o",
+            ms=4,
+            color=color,
+            label=f"{key}: median |error| {100 * predictive[f'{key}_gp_median_rel_error']:.1f} %",
+        )
     lim = ax1.get_xlim()
     ax1.plot(lim, lim, "k-", lw=0.6)
     ax1.set_xlabel("metric from the model [%]")
@@ -124,9 +135,15 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     ax1.set_title("surrogate honesty at posterior draws")
     if drawn:
         ax1.legend(fontsize=8)
-    else:       # the predictive runs are opt-in (PosteriorSettings.n_predictive)
-        ax1.text(0.5, 0.5, "no predictive model runs\n(opt-in: n_predictive > 0)", ha="center", va="center",
-                 transform=ax1.transAxes)
+    else:  # the predictive runs are opt-in (PosteriorSettings.n_predictive)
+        ax1.text(
+            0.5,
+            0.5,
+            "no predictive model runs\n(opt-in: n_predictive > 0)",
+            ha="center",
+            va="center",
+            transform=ax1.transAxes,
+        )
     names = [n for n in next((v["S1"] for v in sensitivity.values() if isinstance(v, dict) and "S1" in v), {})]
     units = sensitivity.get("units", {})
     width = 0.2
@@ -144,8 +161,9 @@ def gp_diagnostics(predictive: dict, sensitivity: dict):
     if names:
         ax2.legend(fontsize=8)
     else:
-        ax2.text(0.5, 0.5, "no Sobol' indices\n(opt-in: n_global > 0)", ha="center", va="center",
-                 transform=ax2.transAxes)
+        ax2.text(
+            0.5, 0.5, "no Sobol' indices\n(opt-in: n_global > 0)", ha="center", va="center", transform=ax2.transAxes
+        )
     return fig
 
 
@@ -169,8 +187,11 @@ def predictive_records(time_bands: dict, coverage: dict, fs: float, sensors, rol
         ax.plot(t, rec, color="k", lw=0.6, label="record")
         c = coverage.get(test, {}).get(sensor, {})
         role = f" ({roles[test]})" if roles and test in roles else ""
-        ax.set_title(f"{test}{role}, {sensor}: {100 * c.get('50', np.nan):.0f} % of the record inside the 50 % "
-                     f"band, {100 * c.get('90', np.nan):.0f} % inside the 90 % band", fontsize=9)
+        ax.set_title(
+            f"{test}{role}, {sensor}: {100 * c.get('50', np.nan):.0f} % of the record inside the 50 % "
+            f"band, {100 * c.get('90', np.nan):.0f} % inside the 90 % band",
+            fontsize=9,
+        )
         ax.set_ylabel(f"{sensor} [{unit}]")
         ax.legend(loc="upper right", fontsize=7, ncol=4)
     axes[-1].set_xlabel("time [s]")
@@ -184,9 +205,15 @@ def arviz_figures(res, truth: dict | None = None) -> dict:
 
     names = list(res.space.report_units)
     labeller = az.labels.MapLabeller(var_name_map={n: _label(res.space, n) for n in names})
-    axes = az.plot_pair(res.idata, var_names=names, kind="kde" if len(names) <= 3 else "scatter",
-                        marginals=True, reference_values=truth or None, labeller=labeller,
-                        figsize=(2.6 * len(names), 2.6 * len(names)))
+    axes = az.plot_pair(
+        res.idata,
+        var_names=names,
+        kind="kde" if len(names) <= 3 else "scatter",
+        marginals=True,
+        reference_values=truth or None,
+        labeller=labeller,
+        figsize=(2.6 * len(names), 2.6 * len(names)),
+    )
     pair = np.ravel(axes)[0].figure
     trace = np.ravel(az.plot_trace(res.idata, var_names=names, compact=True, labeller=labeller))[0].figure
     return {"corner": pair, "traces": trace}
@@ -199,14 +226,20 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
     figs = arviz_figures(res, truth)
     if res.predictive.get("_bands"):
         names = {st: t.name for st, t in res.problem.tests.items()}
-        figs["predictive"] = predictive_bands(res.predictive["_bands"], res.problem.fs, names,
-                                              sensors=res.problem.sensors, unit=res.problem.output_unit,
-                                              metrics=res.problem.metrics)
+        figs["predictive"] = predictive_bands(
+            res.predictive["_bands"],
+            res.problem.fs,
+            names,
+            sensors=res.problem.sensors,
+            unit=res.problem.output_unit,
+            metrics=res.problem.metrics,
+        )
     if res.predictive.get("_time"):
         roles = {t.name: st for st, t in res.problem.tests.items()}
         roles.update({name: "validation" for name in res.problem.validation})
-        figs["predictive_records"] = predictive_records(res.predictive["_time"], res.predictive.get("coverage", {}),
-                                                        res.problem.fs, res.problem.sensors, roles)
+        figs["predictive_records"] = predictive_records(
+            res.predictive["_time"], res.predictive.get("coverage", {}), res.problem.fs, res.problem.sensors, roles
+        )
     linear_only = res.extras.get("linear_only", {})
     if linear_only.get("_draws") is not None:
         figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)

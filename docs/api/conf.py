@@ -126,8 +126,7 @@ def _module_section(name):
 
 
 def _expand(app, docname, source):
-    source[0] = _DIRECTIVE.sub(lambda m: "".join(_module_section(n) for n in package_modules(m.group(1))),
-                               source[0])
+    source[0] = _DIRECTIVE.sub(lambda m: "".join(_module_section(n) for n in package_modules(m.group(1))), source[0])
 
 
 def setup(app):

@@ -1,6 +1,7 @@
 """The surrogates of the posterior: a Sobol' design in the whitened local box, Gaussian
 processes of z = log(1 + e^2 / s^2) per stage, refinement rounds where the posterior is until
 the surrogate posterior stops moving; the evaluation cache an interrupted run resumes from."""
+
 from __future__ import annotations
 
 import time
@@ -9,19 +10,21 @@ from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
+
 import surrogates
-from surrogates.evaluation import evaluate_many
 from bayes_update.core.likelihood import Likelihood
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.posterior.mcmc import initial_walkers, run_emcee
-from bayes_update.core.posterior.target import Evaluate, WhitenedEvaluate, Whitening, WhitenedLogPosterior
+from bayes_update.core.posterior.target import Evaluate, WhitenedEvaluate, WhitenedLogPosterior, Whitening
+from surrogates.evaluation import evaluate_many
 
 
 def design_gp(box, seed, names, prior_mean=None):
     # fast: the hyperparameters by surrogates.gp_fit (scikit-learn's objective and optimiser, its
     # gradient in numpy), the fits of a design costing a fraction of scikit-learn's own
-    return surrogates.GPSurrogate(box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed,
-                                  prior_mean=prior_mean, fast=True)
+    return surrogates.GPSurrogate(
+        box, transform="none", names=list(names), n_restarts_optimizer=2, seed=seed, prior_mean=prior_mean, fast=True
+    )
 
 
 @dataclass
@@ -41,7 +44,7 @@ class GaussNewtonMean:
     @classmethod
     def at_mode(cls, residual, jacobian, x_map, whitening: Whitening) -> "GaussNewtonMean":
         r, J = np.asarray(residual, float), np.asarray(jacobian, float)
-        b = whitening.center - np.asarray(x_map, float)       # dx = L u + b
+        b = whitening.center - np.asarray(x_map, float)  # dx = L u + b
         rb = r + J @ b
         JL = J @ whitening.L
         return cls(c=float(rb @ rb), g=JL.T @ rb, H=JL.T @ JL)
@@ -58,13 +61,31 @@ def gauss_newton_means(mode, problem, stages, whitening: Whitening) -> list:
     means, row = {}, 0
     for st in problem.stages:
         n = problem.output(st, problem.reference_components(st)).size
-        means[st] = GaussNewtonMean.at_mode(mode.residual[row:row + n], mode.jacobian[row:row + n], mode.x, whitening)
+        means[st] = GaussNewtonMean.at_mode(
+            mode.residual[row : row + n], mode.jacobian[row : row + n], mode.x, whitening
+        )
         row += n
     return [means[st] for st in stages]
 
 
-def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settings, pool, cache_dir, stages, seed,
-                     progress, log, reused=None, means=None, earlier=None):
+def build_surrogates(
+    ev: WhitenedEvaluate,
+    lik,
+    *,
+    space,
+    box,
+    whitening,
+    settings,
+    pool,
+    cache_dir,
+    stages,
+    seed,
+    progress,
+    log,
+    reused=None,
+    means=None,
+    earlier=None,
+):
     """Design in the whitened box (inside the prior), GPs of z per stage,
     refinement rounds; all in u coordinates.  ``means``: a prior mean per stage
     (:func:`gauss_newton_means`), else constant means.  ``earlier``: (X, z) of
@@ -83,11 +104,13 @@ def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settin
         if inside.sum() >= n0:
             break
     else:
-        raise ModelSpecError(f"the surrogates' design: only {inside.sum()} of {len(cand)} candidate points of the "
-                             f"local box around the MAP ({settings.box_sd:g} sd wide) fall inside the prior: the MAP "
-                             "sits in a corner of the prior, or the prior is far narrower than the posterior; "
-                             "widen the prior where the MAP is on a bound (--prior NAME=LO:HI), or sample on the "
-                             "model itself (--direct)")
+        raise ModelSpecError(
+            f"the surrogates' design: only {inside.sum()} of {len(cand)} candidate points of the "
+            f"local box around the MAP ({settings.box_sd:g} sd wide) fall inside the prior: the MAP "
+            "sits in a corner of the prior, or the prior is far narrower than the posterior; "
+            "widen the prior where the MAP is on a bound (--prior NAME=LO:HI), or sample on the "
+            "model itself (--direct)"
+        )
     U0 = cand[inside][:n0]
     cache = design_cache(cache_dir, ev.evaluate, "design", whitening, reused)
     evaluate = partial(surrogates.cached_evaluate, cache=cache) if cache is not None else evaluate_many
@@ -100,8 +123,11 @@ def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settin
     n_earlier = 0
     if earlier is not None:
         U_old = whitening.to_u(earlier[0])
-        keep = (np.all(np.abs(U_old) <= box[:, 1], axis=1) & np.all(np.isfinite(earlier[1]), axis=1)
-                & np.isfinite(space.log_prior(earlier[0])))
+        keep = (
+            np.all(np.abs(U_old) <= box[:, 1], axis=1)
+            & np.all(np.isfinite(earlier[1]), axis=1)
+            & np.isfinite(space.log_prior(earlier[0]))
+        )
         U0, Y0 = np.vstack([U0, U_old[keep]]), np.vstack([Y0, earlier[1][keep]])
         n_earlier = int(keep.sum())
         log(f"the design starts with {int(keep.sum())} runs of the earlier box inside this one")
@@ -124,10 +150,10 @@ def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settin
             draws = draws[rng.permutation(len(draws))[:1600]]
         else:
             logp = weight(surs)
-            init = initial_walkers(logp, np.zeros(len(box)), np.eye(len(box)), 16, int(rng.integers(2 ** 31)))
-            smp = run_emcee(logp, init, 16, 400, int(rng.integers(2 ** 31)), vectorize=True, progress=False)
+            init = initial_walkers(logp, np.zeros(len(box)), np.eye(len(box)), 16, int(rng.integers(2**31)))
+            smp = run_emcee(logp, init, 16, 400, int(rng.integers(2**31)), vectorize=True, progress=False)
             draws = smp.get_chain(discard=200, thin=2, flat=True)
-        sob = surrogates.design(box, 512, "sobol", seed=int(rng.integers(2 ** 31)))
+        sob = surrogates.design(box, 512, "sobol", seed=int(rng.integers(2**31)))
         return np.vstack([draws, sob])
 
     def factory():
@@ -137,22 +163,40 @@ def build_surrogates(ev: WhitenedEvaluate, lik, *, space, box, whitening, settin
 
     with threadpool_limits(2):
         t = time.perf_counter()
-        ref = surrogates.refine(ev, factory, U0, Y0, weight, settings.n_rounds, n_batch(settings, len(box)), pool,
-                                seed=int(ss[1].generate_state(1)[0]), candidates=candidates, target=target,
-                                log_weight=True, evaluate=evaluate, progress=progress,
-                                until=stability if settings.stop_tolerance > 0 else None, warm_start=True,
-                                parallel_fits=True)
+        ref = surrogates.refine(
+            ev,
+            factory,
+            U0,
+            Y0,
+            weight,
+            settings.n_rounds,
+            n_batch(settings, len(box)),
+            pool,
+            seed=int(ss[1].generate_state(1)[0]),
+            candidates=candidates,
+            target=target,
+            log_weight=True,
+            evaluate=evaluate,
+            progress=progress,
+            until=stability if settings.stop_tolerance > 0 else None,
+            warm_start=True,
+            parallel_fits=True,
+        )
         t_fit = time.perf_counter() - t
     if settings.stop_tolerance > 0 and not stability.stopped:
-        msg = (f"the design used all {settings.n_rounds} refinement rounds without its stopping rule firing "
-               f"(last round: {stability.last or 'none'}): the surrogates may still be wrong where the posterior "
-               "is; raise n_rounds, or check them with n_predictive")
+        msg = (
+            f"the design used all {settings.n_rounds} refinement rounds without its stopping rule firing "
+            f"(last round: {stability.last or 'none'}): the surrogates may still be wrong where the posterior "
+            "is; raise n_rounds, or check them with n_predictive"
+        )
         log("WARNING: " + msg)
         warnings.warn(msg, RuntimeWarning)
     gps = dict(zip(stages, ref.surrogate))
     for st, gp in gps.items():
-        log(f"GP of z_{st}: {int(np.isfinite(ref.y[:, 0]).sum())} runs in {len(ref.rounds)} fits; "
-            + gp.summary().splitlines()[0])
+        log(
+            f"GP of z_{st}: {int(np.isfinite(ref.y[:, 0]).sum())} runs in {len(ref.rounds)} fits; "
+            + gp.summary().splitlines()[0]
+        )
     return gps, ref.X, ref.y, t_fit, n_earlier
 
 
@@ -204,7 +248,7 @@ class _Stability:
         self.weight, self.d, self.tolerance, self.rng, self.log = weight, d, tolerance, rng, log
         self.log_likelihood = log_likelihood
         self.previous, self.quiet, self._cache, self._last = None, 0, (None, None, None), None
-        self.stopped, self.last = False, ""      # whether it fired; the last round's line
+        self.stopped, self.last = False, ""  # whether it fired; the last round's line
 
     def prediction_error(self, rounds) -> float:
         """The largest |log likelihood predicted - run| [nats] over the last round's runs in
@@ -228,11 +272,17 @@ class _Stability:
             # walkers of a step are one vectorised call, so 64 of them for a quarter of the steps
             # 16 took (the same 4800 draws a round, a quarter of the time)
             last = self._last if self._last is not None and np.all(np.isfinite(logp(self._last))) else None
-            init = last if last is not None else initial_walkers(
-                logp, np.zeros(self.d), np.eye(self.d), STABILITY_WALKERS, int(self.rng.integers(2 ** 31)))
+            init = (
+                last
+                if last is not None
+                else initial_walkers(
+                    logp, np.zeros(self.d), np.eye(self.d), STABILITY_WALKERS, int(self.rng.integers(2**31))
+                )
+            )
             n, burn = (100, 25) if last is not None else (250, 125)
-            smp = run_emcee(logp, init, STABILITY_WALKERS, n, int(self.rng.integers(2 ** 31)), vectorize=True,
-                            progress=False)
+            smp = run_emcee(
+                logp, init, STABILITY_WALKERS, n, int(self.rng.integers(2**31)), vectorize=True, progress=False
+            )
             self._last = smp.get_last_sample().coords
             self._cache = (surs, smp.get_chain(discard=burn, flat=True), smp.get_log_prob(discard=burn, flat=True))
         return self._cache[1], self._cache[2]
@@ -249,18 +299,20 @@ class _Stability:
             logw = np.where(np.isfinite(lp_now), lp_now - lp_before, -np.inf)
             w = np.exp(logw - np.max(logw))
             w /= w.sum()
-            ess = 1.0 / np.sum(w ** 2) / len(w)
+            ess = 1.0 / np.sum(w**2) / len(w)
             m0, s0 = x.mean(axis=0), x.std(axis=0)
             m1 = w @ x
             s1 = np.sqrt(np.maximum(w @ (x - m1) ** 2, 1e-300))
             shift = float(np.max(np.abs(m1 - m0) / s0))
             spread = float(np.max(np.abs(np.log(s1 / s0))))
             self.quiet = self.quiet + 1 if max(shift, spread) < self.tolerance and ess > 0.5 else 0
-            predicted = not error > ACCURACY_NATS          # nan (no check): not in the way
+            predicted = not error > ACCURACY_NATS  # nan (no check): not in the way
             stable = self.stopped = self.quiet >= 2 and predicted
-            self.last = (f"the surrogate posterior moved {shift:.3f} sd (means), {100 * spread:.1f} % (sds), "
-                         f"reweighting ESS {100 * ess:.0f} %"
-                         + (f"; its runs predicted within {error:.2f} nats" if np.isfinite(error) else ""))
+            self.last = (
+                f"the surrogate posterior moved {shift:.3f} sd (means), {100 * spread:.1f} % (sds), "
+                f"reweighting ESS {100 * ess:.0f} %"
+                + (f"; its runs predicted within {error:.2f} nats" if np.isfinite(error) else "")
+            )
             self.log(f"  design round: {self.last}" + ("; stable: the design stops" if stable else ""))
         self.previous = self._run(surs)
         return stable
@@ -274,11 +326,17 @@ def design_cache(cache_dir, ev: Evaluate, name: str, whitening: Whitening | None
     from pathlib import Path
 
     from bayes_update.core.basis import describe_basis
-    config = {"what": name, "stages": list(ev.stages), "model": ev.problem.describe()["model"],
-              "basis": describe_basis(ev.problem.basis), "metric_set": ev.problem.metrics,
-              "data": ev.problem.data_fingerprint,
-              "coordinates": list(ev.space.coordinate_names)}
-    if whitening is not None:     # points are stored in the whitened coordinates
+
+    config = {
+        "what": name,
+        "stages": list(ev.stages),
+        "model": ev.problem.describe()["model"],
+        "basis": describe_basis(ev.problem.basis),
+        "metric_set": ev.problem.metrics,
+        "data": ev.problem.data_fingerprint,
+        "coordinates": list(ev.space.coordinate_names),
+    }
+    if whitening is not None:  # points are stored in the whitened coordinates
         config["whitening"] = {"center": whitening.center.tolist(), "L": whitening.L.tolist()}
     path = Path(cache_dir)
     path.mkdir(parents=True, exist_ok=True)

@@ -7,6 +7,7 @@ method) some 1/sqrt(n): it is checked against a closed form in
 ``tests/test_evidence.py``.  The density need not be normalised: the estimate is of the
 same density's integral (the package's log priors drop their constants, so compare
 evidences of one model family under one prior, not across priors)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -17,9 +18,9 @@ from scipy import special, stats
 
 @dataclass(frozen=True)
 class Evidence:
-    log_z: float          # log of the integral of exp(log density)
-    sd: float             # its Monte Carlo sd (delta method on the mean weight)
-    ess_share: float      # effective sample size of the weights / n
+    log_z: float  # log of the integral of exp(log density)
+    sd: float  # its Monte Carlo sd (delta method on the mean weight)
+    ess_share: float  # effective sample size of the weights / n
     n: int
 
     def to_dict(self) -> dict:
@@ -43,7 +44,7 @@ def log_evidence(log_density, draws, n: int = 4000, seed=0, df: float = 5.0, wid
         raise ValueError(f"need more finite draws than dimensions to fit the proposal, got {draws.shape}")
     if int(n) != n or n < 100:
         raise ValueError(f"n must be an integer >= 100, got {n!r}")
-    shape = np.cov(draws.T).reshape(d, d) * widen ** 2
+    shape = np.cov(draws.T).reshape(d, d) * widen**2
     q = stats.multivariate_t(loc=draws.mean(axis=0), shape=shape, df=df, seed=np.random.default_rng(seed))
     X = np.atleast_2d(q.rvs(size=int(n))).reshape(int(n), d)
     logp = np.asarray(log_density(X), float).reshape(-1)
@@ -56,7 +57,7 @@ def log_evidence(log_density, draws, n: int = 4000, seed=0, df: float = 5.0, wid
         raise ValueError("every proposal point has zero density: the draws are not of this density")
     log_z = float(special.logsumexp(logw) - np.log(n))
     w = np.exp(logw - np.max(logw))
-    ess = float(w.sum() ** 2 / np.sum(w ** 2))
+    ess = float(w.sum() ** 2 / np.sum(w**2))
     sd = float(np.std(w) / (np.sqrt(n) * np.mean(w)))
     return Evidence(log_z, sd, ess / n, int(n))
 
@@ -69,8 +70,10 @@ def surrogate_log_evidence(result, n: int = 4000, seed: int = 0) -> Evidence:
     :class:`~bayes_update.core.posterior.target.DirectLogPosterior` with
     :func:`log_evidence` (n model runs per test)."""
     if result.target is None:
-        raise ValueError("this posterior was sampled on the model itself (direct): it has no surrogate to "
-                         "integrate; use evidence.log_evidence with a DirectLogPosterior (n model runs per test)")
+        raise ValueError(
+            "this posterior was sampled on the model itself (direct): it has no surrogate to "
+            "integrate; use evidence.log_evidence with a DirectLogPosterior (n model runs per test)"
+        )
     w = result.design["whitening"]
     ev = log_evidence(result.target, w.to_u(result.draws), n=n, seed=seed)
     # the surrogate lives in u, x = center + L u: dx = |det L| du

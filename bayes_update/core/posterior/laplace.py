@@ -1,14 +1,16 @@
 """The MAP by least squares (:mod:`bayes_update.core.mode`), its Laplace covariance, and the
 local box the surrogates are built in."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import numpy as np
-from surrogates.evaluation import evaluate_many
-from bayes_update.core.parameters import ParameterSet
-from bayes_update.core.likelihood import Likelihood
-from bayes_update.core.posterior.target import Evaluate
 
+import numpy as np
+
+from bayes_update.core.likelihood import Likelihood
+from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.posterior.target import Evaluate
+from surrogates.evaluation import evaluate_many
 
 # ------------------------------------------------------------------ MAP, box
 #: a frugal search stops when an iteration gains less than this in log L: Gauss-Newton's gains
@@ -29,8 +31,15 @@ class MapResult:
     mode: object = field(default=None, repr=False)
 
 
-def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluations: int = 600,
-             progress: bool = False, frugal: bool = False) -> MapResult:
+def find_map(
+    evaluate: Evaluate,
+    lik: Likelihood,
+    x0,
+    executor=None,
+    max_evaluations: int = 600,
+    progress: bool = False,
+    frugal: bool = False,
+) -> MapResult:
     """MAP by least squares on the residual vectors (:mod:`bayes_update.core.mode`)
     and its Gauss-Newton Laplace covariance.
 
@@ -47,8 +56,9 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
 
     space = evaluate.space
     stages = tuple(evaluate.stages)
-    fun = ResidualFunction(evaluate.problem, stages, tuple(lik.scales[s].sd for s in stages),
-                           SpacePoint(space, evaluate.problem.model))
+    fun = ResidualFunction(
+        evaluate.problem, stages, tuple(lik.scales[s].sd for s in stages), SpacePoint(space, evaluate.problem.model)
+    )
     box = space.box()
     x0 = np.clip(np.asarray(x0, float), box[:, 0], box[:, 1])
     steps = 1e-4 * (box[:, 1] - box[:, 0])
@@ -60,11 +70,10 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         starts = [x0]
         grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) else []
         if grid and len(stages) > 1:
-            cost = [0.5 * float(np.sum(r ** 2)) for r in evaluate_many(fun, grid, executor, progress=False)]
+            cost = [0.5 * float(np.sum(r**2)) for r in evaluate_many(fun, grid, executor, progress=False)]
             starts += [grid[i] for i in np.argsort(cost)[:2]]
         iterations = max(5, int(max_evaluations) // (len(starts) * (len(x0) + 1)))
-        mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                         known=known)
+        mode = find_mode(fun, starts, box[:, 0], box[:, 1], steps, executor, max_iterations=iterations, known=known)
         return map_result(mode, space, box, mode.n_evaluations + len(grid))
     iterations = max(5, int(max_evaluations) // (3 * (len(x0) + 1)))
     grid = [np.asarray(g, float) for g in extra(x0)] if callable(extra) and len(stages) > 1 else []
@@ -75,19 +84,40 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
         # right valley where x0 may not be (SBC truths near the k_s bound: 55-73 % misfit at x0)
         cands = [x0] + grid
         first = [known[1]] if known is not None else []
-        cost = [0.5 * float(np.sum(r ** 2))
-                for r in first + list(evaluate_many(fun, cands[len(first):], executor, progress=False))]
+        cost = [
+            0.5 * float(np.sum(r**2))
+            for r in first + list(evaluate_many(fun, cands[len(first) :], executor, progress=False))
+        ]
         n_evaluations += len(cands) - len(first)
         order = np.argsort(cost)
         start = cands[order[0]]
-    mode = find_mode(fun, [start], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                     cost_tolerance=FRUGAL_TOLERANCE, central=False, known=known)
+    mode = find_mode(
+        fun,
+        [start],
+        box[:, 0],
+        box[:, 1],
+        steps,
+        executor,
+        max_iterations=iterations,
+        cost_tolerance=FRUGAL_TOLERANCE,
+        central=False,
+        known=known,
+    )
     n_evaluations += mode.n_evaluations
     if grid and on_bound(mode.x, box[:, 0], box[:, 1]):
         # a mode on the prior's bound may be the wrong valley of the band (an SBC truth at
         # k_s = 554 N/mm: the search from the best start ended at k_s = 0): the next best start too
-        other = find_mode(fun, [cands[order[1]]], box[:, 0], box[:, 1], steps, executor, max_iterations=iterations,
-                          cost_tolerance=FRUGAL_TOLERANCE, central=False)
+        other = find_mode(
+            fun,
+            [cands[order[1]]],
+            box[:, 0],
+            box[:, 1],
+            steps,
+            executor,
+            max_iterations=iterations,
+            cost_tolerance=FRUGAL_TOLERANCE,
+            central=False,
+        )
         n_evaluations += other.n_evaluations
         mode = other if other.cost < mode.cost else mode
     return map_result(mode, space, box, n_evaluations)
@@ -96,8 +126,14 @@ def find_map(evaluate: Evaluate, lik: Likelihood, x0, executor=None, max_evaluat
 def map_result(mode, space, box, n_evaluations: int) -> MapResult:
     cov = mode.covariance(scale=box[:, 1] - box[:, 0])
     value = mode.cost - float(space.log_prior(mode.x)[0])
-    return MapResult(x=mode.x, value=value, steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)),
-                     covariance=cov, n_evaluations=n_evaluations, mode=mode)
+    return MapResult(
+        x=mode.x,
+        value=value,
+        steps=np.sqrt(1.0 / np.diag(mode.precision).clip(1e-300)),
+        covariance=cov,
+        n_evaluations=n_evaluations,
+        mode=mode,
+    )
 
 
 def capped_covariance(cov, space: ParameterSet, box_sd: float) -> np.ndarray:

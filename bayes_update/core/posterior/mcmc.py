@@ -1,14 +1,26 @@
 """emcee runs (seeded), walker placement, ArviZ data and the summary table."""
+
 from __future__ import annotations
 
 import numpy as np
+
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.target import Whitening
 
 
 # -------------------------------------------------------------------- emcee
-def run_emcee(log_prob, x_init, n_walkers: int, n_steps: int, seed, *, vectorize: bool,
-              pool=None, progress: bool = True, desc: str = "MCMC (emcee)"):
+def run_emcee(
+    log_prob,
+    x_init,
+    n_walkers: int,
+    n_steps: int,
+    seed,
+    *,
+    vectorize: bool,
+    pool=None,
+    progress: bool = True,
+    desc: str = "MCMC (emcee)",
+):
     """emcee's stretch move from ``x_init`` (n_walkers, d), seeded.
 
     A vectorised log probability (the GP surrogates) runs in
@@ -53,9 +65,11 @@ def initial_walkers(log_prob_vec, x_map, cov, n_walkers, seed, scale: float = 0.
         scale *= 0.7
     from bayes_update.core.checks import ModelFitError
 
-    raise ModelFitError("could not place the MCMC walkers where the posterior is finite: around the mode the "
-                        "prior or the model (failed runs) rule out every point; check the prior's bounds and "
-                        "where the model raises ModelError, or widen the prior")
+    raise ModelFitError(
+        "could not place the MCMC walkers where the posterior is finite: around the mode the "
+        "prior or the model (failed runs) rule out every point; check the prior's bounds and "
+        "where the model raises ModelError, or widen the prior"
+    )
 
 
 # ------------------------------------------------------------ convergence
@@ -78,11 +92,16 @@ def chain_convergence(draws: dict) -> dict:
     per = {}
     for k, v in draws.items():
         v = np.asarray(v, float)
-        per[k] = {"r_hat": float(az.rhat(v, method="rank")), "ess_bulk": float(az.ess(v, method="bulk")),
-                  "ess_tail": float(az.ess(v, method="tail"))}
-    worst = {"max_r_hat": max(p["r_hat"] for p in per.values()),
-             "min_ess_bulk": min(p["ess_bulk"] for p in per.values()),
-             "min_ess_tail": min(p["ess_tail"] for p in per.values())}
+        per[k] = {
+            "r_hat": float(az.rhat(v, method="rank")),
+            "ess_bulk": float(az.ess(v, method="bulk")),
+            "ess_tail": float(az.ess(v, method="tail")),
+        }
+    worst = {
+        "max_r_hat": max(p["r_hat"] for p in per.values()),
+        "min_ess_bulk": min(p["ess_bulk"] for p in per.values()),
+        "min_ess_tail": min(p["ess_tail"] for p in per.values()),
+    }
     ok = worst["max_r_hat"] < RHAT_TARGET and min(worst["min_ess_bulk"], worst["min_ess_tail"]) >= MIN_ESS
     return {**worst, "converged": bool(ok), "per_variable": per}
 
@@ -96,8 +115,9 @@ def kept_slice(n_steps: int, n_walkers: int, burn: int, thin: int) -> tuple[int,
     return burn, thin
 
 
-def run_to_convergence(sampler, extend, report, n_walkers: int, burn: int, thin: int, chunk: int,
-                       max_steps: int, log=None) -> tuple[int, int, dict]:
+def run_to_convergence(
+    sampler, extend, report, n_walkers: int, burn: int, thin: int, chunk: int, max_steps: int, log=None
+) -> tuple[int, int, dict]:
     """Extend a chain by ``chunk`` steps at a time until its kept draws
     (:func:`kept_slice`) meet :func:`chain_convergence`, or it is ``max_steps`` long.
 
@@ -108,7 +128,7 @@ def run_to_convergence(sampler, extend, report, n_walkers: int, burn: int, thin:
     while True:
         steps = int(sampler.iteration)
         b, t = kept_slice(steps, n_walkers, burn, thin)
-        chain = sampler.get_chain(discard=b, thin=t)                     # (draws, walkers, d)
+        chain = sampler.get_chain(discard=b, thin=t)  # (draws, walkers, d)
         values = report(chain.reshape(-1, chain.shape[-1]))
         conv = chain_convergence({k: np.swapaxes(v.reshape(chain.shape[:2]), 0, 1) for k, v in values.items()})
         conv.update(n_steps=steps, cap_reached=False)
@@ -118,13 +138,16 @@ def run_to_convergence(sampler, extend, report, n_walkers: int, burn: int, thin:
             conv["cap_reached"] = True
             return b, t, conv
         if log is not None:
-            log(f"chain of {steps} steps: R-hat {conv['max_r_hat']:.4f}, ESS bulk {conv['min_ess_bulk']:.0f}, "
-                f"tail {conv['min_ess_tail']:.0f}: {chunk} steps more")
+            log(
+                f"chain of {steps} steps: R-hat {conv['max_r_hat']:.4f}, ESS bulk {conv['min_ess_bulk']:.0f}, "
+                f"tail {conv['min_ess_tail']:.0f}: {chunk} steps more"
+            )
         extend(chunk)
 
 
-def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None,
-                      observed: dict | None = None):
+def to_inference_data(
+    chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None, observed: dict | None = None
+):
     """ArviZ InferenceData (chain = walker) of the space's reported variables
     (:meth:`ParameterSet.report`: the parameters in their units, then derived
     coordinates such as the beam's P_eff), each with its ``units`` attribute;
@@ -137,13 +160,14 @@ def to_inference_data(chain, log_prob, space, attrs: dict, log_likelihood: dict 
     test: its record, {name: (values (n,) or (n, k), units)}) when given."""
     import arviz as az
 
-    X = np.swapaxes(chain, 0, 1)                    # (walker, draw, d)
+    X = np.swapaxes(chain, 0, 1)  # (walker, draw, d)
     values = space.report(X.reshape(-1, X.shape[-1]))
     post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
     groups = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}, "dims": {}, "coords": {}}
     if log_likelihood:
-        groups["log_likelihood"] = {"observations": np.swapaxes(np.concatenate(list(log_likelihood.values()),
-                                                                                axis=-1), 0, 1)}
+        groups["log_likelihood"] = {
+            "observations": np.swapaxes(np.concatenate(list(log_likelihood.values()), axis=-1), 0, 1)
+        }
         groups["dims"]["observations"] = ["observation"]
         groups["coords"]["observation"] = [f"{k}[{j}]" for k, v in log_likelihood.items() for j in range(v.shape[-1])]
     if observed:
@@ -167,8 +191,10 @@ def add_posterior_predictive(idata, draws: dict, units: dict) -> None:
     ``observed_data``."""
     import arviz as az
 
-    pp = az.from_dict(posterior_predictive={k: v[None] for k, v in draws.items()},
-                      dims={k: _record_dims(k, v[0]) for k, v in draws.items()})
+    pp = az.from_dict(
+        posterior_predictive={k: v[None] for k, v in draws.items()},
+        dims={k: _record_dims(k, v[0]) for k, v in draws.items()},
+    )
     idata.add_groups({"posterior_predictive": pp.posterior_predictive})
     for k in draws:
         idata.posterior_predictive[k].attrs["units"] = units.get(k, "")
@@ -184,10 +210,16 @@ def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
     out = {}
     for var, unit in space.report_units.items():
         row = s.loc[var]
-        out[var] = {"mean": float(row["mean"]), "sd": float(row["sd"]), "hdi_3%": float(row[lo]),
-                    "hdi_97%": float(row[hi]), "r_hat": float(row["r_hat"]),
-                    "ess_bulk": float(row["ess_bulk"]), "ess_tail": float(row["ess_tail"]),
-                    "units": unit}
+        out[var] = {
+            "mean": float(row["mean"]),
+            "sd": float(row["sd"]),
+            "hdi_3%": float(row[lo]),
+            "hdi_97%": float(row[hi]),
+            "r_hat": float(row["r_hat"]),
+            "ess_bulk": float(row["ess_bulk"]),
+            "ess_tail": float(row["ess_tail"]),
+            "units": unit,
+        }
     return out
 
 
@@ -209,8 +241,10 @@ class XSampler:
 
     def get_autocorr_time(self, **kw):
         import emcee
-        return emcee.autocorr.integrated_time(self.get_chain(discard=kw.get("discard", 0)), tol=kw.get("tol", 50),
-                                              quiet=kw.get("quiet", True))
+
+        return emcee.autocorr.integrated_time(
+            self.get_chain(discard=kw.get("discard", 0)), tol=kw.get("tol", 50), quiet=kw.get("quiet", True)
+        )
 
 
 def fraction_outside_box(U, box_sd: float, whitening: Whitening, space: ParameterSet) -> float:
@@ -235,7 +269,9 @@ def chain_diagnostics(sampler, burn: int, names) -> dict:
     # length in autocorrelation times is recorded instead (the default's 40-70 on the
     # beam and the Duffing), with R-hat and the bulk ESS beside it
     tau = sampler.get_autocorr_time(discard=burn, tol=0)
-    return {"autocorr_time_steps": dict(zip(names, map(float, tau))),
-            "chain_length_in_autocorr_times": float(chain.shape[0] / max(float(np.max(tau)), 1e-300)),
-            "acceptance_fraction": float(np.mean(sampler.acceptance_fraction)),
-            "n_draws": int(chain.shape[0] * chain.shape[1])}
+    return {
+        "autocorr_time_steps": dict(zip(names, map(float, tau))),
+        "chain_length_in_autocorr_times": float(chain.shape[0] / max(float(np.max(tau)), 1e-300)),
+        "acceptance_fraction": float(np.mean(sampler.acceptance_fraction)),
+        "n_draws": int(chain.shape[0] * chain.shape[1]),
+    }

@@ -17,6 +17,7 @@ Gauss-Newton model at the mode, ``r_0 + J (x' - x_0)`` (the mode's residual and
 Jacobian: no model run), exact for a model linear in its parameters near the
 mode; ``check`` records how far its stage sums fall from the chain's own log L.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,7 +38,7 @@ def observation_basis(problem, stage: str) -> np.ndarray:
         return q
     Q = np.zeros((k * q.shape[0], k * q.shape[1]))
     for j in range(k):
-        Q[j * q.shape[0]:(j + 1) * q.shape[0], j * q.shape[1]:(j + 1) * q.shape[1]] = q
+        Q[j * q.shape[0] : (j + 1) * q.shape[0], j * q.shape[1] : (j + 1) * q.shape[1]] = q
     return Q
 
 
@@ -52,12 +53,12 @@ def pointwise_log_likelihood(problem, likelihood, mode, X, adjustment=None) -> d
     for stage in problem.stages:
         ref = problem.output(stage, problem.reference_components(stage))
         n = ref.size
-        r0, J = mode.residual[row:row + n], mode.jacobian[row:row + n]
+        r0, J = mode.residual[row : row + n], mode.jacobian[row : row + n]
         row += n
         Q = observation_basis(problem, stage)
         a = (Q.T @ r0)[None, :] + dx @ (Q.T @ J).T
         norm = -math.log(likelihood.scales[stage].sd * float(np.linalg.norm(ref))) - 0.5 * math.log(2 * math.pi)
-        out[stage] = (-0.5 * a ** 2 + norm).astype(np.float32)
+        out[stage] = (-0.5 * a**2 + norm).astype(np.float32)
     return out
 
 

@@ -3,6 +3,7 @@ test, estimation and validation alike, with the error model of each
 (:mod:`bayes_update.core.error_model`); the share of each record's samples inside the
 50 % and 90 % bands; the prediction errors of the posterior's mean, median and MAP;
 and the surrogate's metrics against the model's at the draws."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -75,8 +76,7 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
     idx = rng.choice(len(res.draws), size=min(n, len(res.draws)), replace=False)
     X = res.draws[idx]
     run = _Predict(problem, res.space)
-    checks = evaluate_many(run, [("stages", x, None) for x in X], pool, progress=progress,
-                           desc="posterior predictive")
+    checks = evaluate_many(run, [("stages", x, None) for x in X], pool, progress=progress, desc="posterior predictive")
     ok = [i for i, o in enumerate(checks) if o is not None]
     pred = {"n_draws": len(X), "n_failed": len(X) - len(ok)}
     if not ok:
@@ -87,9 +87,13 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
     pred["parameters_by_test"] = None if draws is None else "recentred at each test's level (the tests disagree)"
     own = [] if draws is None else list(problem.tests.values())
     names = [t.name for t in own] + list(problem.validation)
-    runs = evaluate_many(run, [("test", draws[name][i] if draws is not None else X[j], name)
-                               for name in names for i, j in enumerate(ok)], pool, progress=False)
-    responses = {name: runs[k * len(ok):(k + 1) * len(ok)] for k, name in enumerate(names)}
+    runs = evaluate_many(
+        run,
+        [("test", draws[name][i] if draws is not None else X[j], name) for name in names for i, j in enumerate(ok)],
+        pool,
+        progress=False,
+    )
+    responses = {name: runs[k * len(ok) : (k + 1) * len(ok)] for k, name in enumerate(names)}
     if draws is None:
         responses.update({t.name: [checks[j]["time"][t.name] for j in ok] for t in problem.tests.values()})
     errors = error_models(problem, res.likelihood)
@@ -97,7 +101,7 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
     pred["error_model"] = {t: e.to_dict(sensors) for t, e in errors.items()}
     pred["coverage"], pred["_time"], pred["_draws"] = {}, {}, {}
     for name, y in records.items():
-        Y = np.array([v for v in responses[name] if v is not None], float)      # (m, n[, k])
+        Y = np.array([v for v in responses[name] if v is not None], float)  # (m, n[, k])
         if not len(Y):
             continue
         Y, y2 = Y.reshape(len(Y), len(y), -1), y.reshape(len(y), -1)
@@ -126,8 +130,10 @@ def test_draws(res, X) -> dict | None:
     problem, box = res.problem, res.space.box()
     c = adj.center
     Y = c + (np.asarray(X, float) - c) @ adj.within.T
-    stages = [(float(np.log(_rms(t.force))), np.asarray(adj.between_tests["offsets"][st], float))
-              for st, t in problem.tests.items()]
+    stages = [
+        (float(np.log(_rms(t.force))), np.asarray(adj.between_tests["offsets"][st], float))
+        for st, t in problem.tests.items()
+    ]
     stages.sort(key=lambda s: s[0])
     levels = np.array([s[0] for s in stages])
     offsets = np.array([s[1] for s in stages])
@@ -160,7 +166,7 @@ def _window_bands(Y, y2, sd, rng) -> dict:
     with :data:`ERROR_DRAWS` draws of its errors) and the record, on a window of
     :data:`FIGURE_SAMPLES` samples around the record's largest response."""
     n = len(y2)
-    centre = int(np.argmax(np.sum(y2 ** 2, axis=1)))
+    centre = int(np.argmax(np.sum(y2**2, axis=1)))
     start = int(np.clip(centre - FIGURE_SAMPLES // 2, 0, max(n - FIGURE_SAMPLES, 0)))
     cut = slice(start, start + FIGURE_SAMPLES)
     Yw = Y[:, cut]
@@ -176,8 +182,11 @@ def prediction_errors(res, pool) -> dict:
     problem = res.problem
     if not problem.validation:
         return {}
-    points = {"map": res.map.x, "posterior_mean": res.draws.mean(axis=0),
-              "posterior_median": np.median(res.draws, axis=0)}
+    points = {
+        "map": res.map.x,
+        "posterior_mean": res.draws.mean(axis=0),
+        "posterior_median": np.median(res.draws, axis=0),
+    }
     errs = evaluate_many(_PredictionErrors(problem, res.space), list(points.values()), pool, progress=False)
     return {name: {k: float(e[name]) for k, e in zip(points, errs)} for name in problem.validation}
 
@@ -198,8 +207,12 @@ def _surrogate_check(res, X, outs, ok) -> dict:
     pred, bands = {}, {}
     for st in problem.stages:
         Y = np.array([o[st] for o in outs])
-        bands[st] = {"low": np.percentile(Y, 5, axis=0), "high": np.percentile(Y, 95, axis=0),
-                     "median": np.median(Y, axis=0), "reference": problem.output(st, problem.reference_components(st))}
+        bands[st] = {
+            "low": np.percentile(Y, 5, axis=0),
+            "high": np.percentile(Y, 95, axis=0),
+            "median": np.median(Y, axis=0),
+            "reference": problem.output(st, problem.reference_components(st)),
+        }
         e_model = np.array([o[Likelihood.key(st)] for o in outs])
         pred[f"{Likelihood.key(st)}_model_median"] = float(np.median(e_model))
         if res.surrogates:

@@ -1,4 +1,5 @@
 """The pipeline of :func:`sample` (the package docstring)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -9,36 +10,63 @@ from typing import NamedTuple
 
 import numpy as np
 
-from bayes_update.core.logs import info
 from bayes_update.core.adjustment import curvature_adjustment, own_points
-from bayes_update.core.likelihood import Likelihood, errors_at_mode, estimate_likelihood, likelihood_runs
 from bayes_update.core.calibrate import find_start, problem_for
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
+from bayes_update.core.kept_start import kept_start
+from bayes_update.core.likelihood import Likelihood, errors_at_mode, estimate_likelihood, likelihood_runs
+from bayes_update.core.logs import info
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.posterior.design import build_surrogates, gauss_newton_means
-from bayes_update.core.posterior.laplace import map_result, capped_covariance, find_map, local_box
-from bayes_update.core.posterior.mcmc import (fraction_outside_box, chain_diagnostics, XSampler,
-                                              add_posterior_predictive, initial_walkers, run_emcee,
-                                              run_to_convergence, summarize, to_inference_data)
+from bayes_update.core.posterior.laplace import capped_covariance, find_map, local_box, map_result
+from bayes_update.core.posterior.mcmc import (
+    XSampler,
+    add_posterior_predictive,
+    chain_diagnostics,
+    fraction_outside_box,
+    initial_walkers,
+    run_emcee,
+    run_to_convergence,
+    summarize,
+    to_inference_data,
+)
 from bayes_update.core.posterior.pointwise import linearisation_check, pointwise_log_likelihood
 from bayes_update.core.posterior.predictive import posterior_predictive, prediction_runs
 from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.settings import PosteriorSettings
-from bayes_update.core.posterior.target import (DirectLogPosterior, Evaluate, Whitening, WhitenedEvaluate,
-                                                WhitenedLogPosterior, ExecutorPool)
+from bayes_update.core.posterior.target import (
+    DirectLogPosterior,
+    Evaluate,
+    ExecutorPool,
+    WhitenedEvaluate,
+    WhitenedLogPosterior,
+    Whitening,
+)
 from bayes_update.core.problem import Problem
-from bayes_update.core.kept_start import kept_start
 from bayes_update.core.runs import StoreSteps, store_in
 from bayes_update.core.sensitivity import sobol_indices
 from bayes_update.core.steps import StepLog
 from bayes_update.data.dataset import Dataset
 from surrogates.evaluation import executor_for
 
-def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *,
-           executor: Executor | None = None, workers: int | None = None, direct: bool = False,
-           start=None, space=None, likelihood: Likelihood | None = None, cache_dir=None,
-           metrics: str | None = None, progress: bool = True, log=info) -> PosteriorResult:
+
+def sample(
+    dataset: Dataset,
+    model,
+    settings: PosteriorSettings | None = None,
+    *,
+    executor: Executor | None = None,
+    workers: int | None = None,
+    direct: bool = False,
+    start=None,
+    space=None,
+    likelihood: Likelihood | None = None,
+    cache_dir=None,
+    metrics: str | None = None,
+    progress: bool = True,
+    log=info,
+) -> PosteriorResult:
     """Sample the posterior of a model's parameters given ``dataset`` (module docstring).
 
     Parameters
@@ -60,8 +88,10 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
         default: the model's ``default_metrics``, else ``full``).
     """
     if model is None:
-        raise ModelSpecError("no model given: pass a model of the contract (docs/models.md), e.g. "
-                             "bayes_update.models.beam.beam_model(data)")
+        raise ModelSpecError(
+            "no model given: pass a model of the contract (docs/models.md), e.g. "
+            "bayes_update.models.beam.beam_model(data)"
+        )
     settings = settings or PosteriorSettings()
     store = store_in(cache_dir, "sample") if cache_dir is not None else None
     steps = StoreSteps(store) if store is not None else StepLog()
@@ -85,8 +115,15 @@ def sample(dataset: Dataset, model, settings: PosteriorSettings | None = None, *
     return res
 
 
-def laplace_at(dataset: Dataset, problem: Problem, theta: dict, settings: PosteriorSettings | None = None, *,
-               executor: Executor | None = None, log=info) -> dict:
+def laplace_at(
+    dataset: Dataset,
+    problem: Problem,
+    theta: dict,
+    settings: PosteriorSettings | None = None,
+    *,
+    executor: Executor | None = None,
+    log=info,
+) -> dict:
     """Steps 2-3 of :func:`sample` from ``theta`` (e.g. a calibration's best point): the
     likelihood's scales measured there (noise replicates with the force's noise, the model
     error against ``refined()``), the MAP and its Laplace covariance with the curvature
@@ -109,22 +146,27 @@ def laplace_at(dataset: Dataset, problem: Problem, theta: dict, settings: Poster
     lik = _likelihood(run, theta, None)
     mp, _, adj, _ = _mode(run, lik, theta)
     cov = adj.covariance(mp.covariance) if adj is not None else mp.covariance
-    return {"mode": problem.space.to_parameters(mp.x), "sd": parameter_sd(problem.space, mp.x, cov),
-            "covariance": cov, "n_model_runs": sum(steps.runs.values()), "runs": dict(steps.runs)}
+    return {
+        "mode": problem.space.to_parameters(mp.x),
+        "sd": parameter_sd(problem.space, mp.x, cov),
+        "covariance": cov,
+        "n_model_runs": sum(steps.runs.values()),
+        "runs": dict(steps.runs),
+    }
 
 
 class StepSeeds(NamedTuple):
     """One seed per step of :func:`sample`, spawned from ``settings.seed`` in this order
     (a step's draws do not move when another step draws more or fewer numbers)."""
 
-    likelihood: int      # the noise replicates and the model-form draws
-    walkers: int         # the walkers' initial positions
-    chain: int           # emcee's moves
-    design: int          # the surrogates' design (plus the attempt, on a re-centred box)
-    predictive: int      # the posterior-predictive draws
-    linear_only: int     # the beam's linear-only posterior
-    sobol: int           # the global sensitivity indices
-    start: int           # the start search's designs
+    likelihood: int  # the noise replicates and the model-form draws
+    walkers: int  # the walkers' initial positions
+    chain: int  # emcee's moves
+    design: int  # the surrogates' design (plus the attempt, on a re-centred box)
+    predictive: int  # the posterior-predictive draws
+    linear_only: int  # the beam's linear-only posterior
+    sobol: int  # the global sensitivity indices
+    start: int  # the start search's designs
 
 
 def step_seeds(seed) -> StepSeeds:
@@ -148,8 +190,8 @@ class _Run:
     log: object
     steps: StepLog
     seeds: "StepSeeds"
-    reused: dict = field(default_factory=dict)     # model runs found in the cache, per design
-    warnings: list = field(default_factory=list)   # fit warnings at the start (bayes_update.core.checks)
+    reused: dict = field(default_factory=dict)  # model runs found in the cache, per design
+    warnings: list = field(default_factory=list)  # fit warnings at the start (bayes_update.core.checks)
 
 
 @dataclass
@@ -163,8 +205,8 @@ class _Chain:
     gps: dict = field(default_factory=dict)
     design: dict = field(default_factory=dict)
     diagnostics: dict = field(default_factory=dict)
-    log_likelihood: dict = field(default_factory=dict)    # stage -> (steps, walkers) of the kept draws
-    target: object = None                                 # the surrogate log posterior (u coordinates)
+    log_likelihood: dict = field(default_factory=dict)  # stage -> (steps, walkers) of the kept draws
+    target: object = None  # the surrogate log posterior (u coordinates)
 
 
 def _start(run: _Run, start) -> tuple[dict, dict]:
@@ -177,9 +219,17 @@ def _start(run: _Run, start) -> tuple[dict, dict]:
             start, n_kept = kept
             run.log(f"start: the best of {n_kept} points another command ran on these tests (the run cache)")
         elif start is None:
-            start, n = find_start(run.dataset, run.problem, space, n_points=run.settings.n_start,
-                                  seed=run.seeds.start, executor=run.pool, progress=run.progress, log=run.log,
-                                  coarse=run.settings.coarse_start)
+            start, n = find_start(
+                run.dataset,
+                run.problem,
+                space,
+                n_points=run.settings.n_start,
+                seed=run.seeds.start,
+                executor=run.pool,
+                progress=run.progress,
+                log=run.log,
+                coarse=run.settings.coarse_start,
+            )
             run.steps.add_runs(n)
         else:
             space.check(start, "start")
@@ -203,10 +253,13 @@ def _fit_check(run: _Run, theta, where: str) -> None:
     severe = severe_misfit(errors, run.problem)
     if severe:
         raise ModelFitError(
-            f"the model cannot fit the data: at its best {where} it misses " + "; ".join(
-                f"test {k} by {100 * e:.0f} % of its rms (noise allows {100 * f:.1f} %)" for k, (e, f) in severe.items())
+            f"the model cannot fit the data: at its best {where} it misses "
+            + "; ".join(
+                f"test {k} by {100 * e:.0f} % of its rms (noise allows {100 * f:.1f} %)" for k, (e, f) in severe.items()
+            )
             + ". A posterior of this model would describe nothing real: check the model's form and units and "
-              "the data set's roles, or run `bayes-update discrepancy` with the effects the model may miss")
+            "the data set's roles, or run `bayes-update discrepancy` with the effects the model may miss"
+        )
 
 
 def _likelihood(run: _Run, start, likelihood) -> Likelihood:
@@ -214,18 +267,30 @@ def _likelihood(run: _Run, start, likelihood) -> Likelihood:
     s, stages = run.settings, run.problem.stages
     with run.steps("likelihood_scales"):
         if likelihood is None:
-            lik = estimate_likelihood(run.problem, start, model_error=s.model_error, n_replicates=s.n_replicates,
-                                      seed=run.seeds.likelihood, space=run.space, model_replicates=s.model_replicates,
-                                      executor=run.pool)
-            run.steps.add_runs(likelihood_runs(run.problem, s.n_replicates, run.space, s.model_error,
-                                               model_replicates=s.model_replicates))
+            lik = estimate_likelihood(
+                run.problem,
+                start,
+                model_error=s.model_error,
+                n_replicates=s.n_replicates,
+                seed=run.seeds.likelihood,
+                space=run.space,
+                model_replicates=s.model_replicates,
+                executor=run.pool,
+            )
+            run.steps.add_runs(
+                likelihood_runs(
+                    run.problem, s.n_replicates, run.space, s.model_error, model_replicates=s.model_replicates
+                )
+            )
         else:
             if set(likelihood.stages) != set(stages):
                 raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")
             lik = likelihood
     for st, sc in lik.scales.items():
-        run.log(f"likelihood {st} at the start: noise sd {100 * sc.noise_sd:.3f} % per direction of the "
-                f"parameters' span ({sc.span_rank}), model error {100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %")
+        run.log(
+            f"likelihood {st} at the start: noise sd {100 * sc.noise_sd:.3f} % per direction of the "
+            f"parameters' span ({sc.span_rank}), model error {100 * sc.model_error:.3f} %, s = {100 * sc.sd:.3f} %"
+        )
     return lik
 
 
@@ -237,29 +302,46 @@ def _mode(run: _Run, lik: Likelihood, start, remeasure: bool = True):
     space, s = run.space, run.settings
     with run.steps("map_laplace"):
         ev = Evaluate(run.problem, space, run.problem.stages)
-        mp = find_map(ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False,
-                      frugal=s.frugal_map)
+        mp = find_map(
+            ev, lik, space.to_internal(start), run.pool, s.map_max_evaluations, progress=False, frugal=s.frugal_map
+        )
         run.steps.add_runs(len(run.problem.stages) * mp.n_evaluations)
         if s.coarse_start:
             _fit_check(run, space.to_parameters(mp.x), "MAP (from a coarse start)")
         if remeasure and mp.mode is not None and s.model_error:
             lik, mp = _rescaled(run, lik, mp)
         box = local_box(space, mp.x, mp.covariance, s.box_sd)
-    run.log("MAP: " + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
-            + "; Laplace sd: " + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance))))
+    run.log(
+        "MAP: "
+        + ", ".join(f"{n} = {v:.4g} {space.units[n]}" for n, v in zip(space.coordinate_names, mp.x))
+        + "; Laplace sd: "
+        + ", ".join(f"{v:.3g}" for v in np.sqrt(np.diag(mp.covariance)))
+    )
     adj = None
     if s.curvature_adjustment and mp.mode is not None:
-        adj = curvature_adjustment(lik, mp.mode.jacobian, mp.x, np.diff(space.box(), axis=1)[:, 0],
-                                   run.problem.stages, names=space.coordinate_names, residual=mp.mode.residual)
+        adj = curvature_adjustment(
+            lik,
+            mp.mode.jacobian,
+            mp.x,
+            np.diff(space.box(), axis=1)[:, 0],
+            run.problem.stages,
+            names=space.coordinate_names,
+            residual=mp.mode.residual,
+        )
         if adj is not None:
-            run.log("curvature adjustment: error variance / likelihood's along the parameters' directions "
-                    + ", ".join(f"{v:.2f}" for v in adj.variance_ratios) + "; sd x "
-                    + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios)))
+            run.log(
+                "curvature adjustment: error variance / likelihood's along the parameters' directions "
+                + ", ".join(f"{v:.2f}" for v in adj.variance_ratios)
+                + "; sd x "
+                + ", ".join(f"{n} {v:.2f}" for n, v in zip(space.coordinate_names, adj.sd_ratios))
+            )
             if adj.between_tests:
                 b = adj.between_tests
-                run.log(f"the tests disagree beyond their errors (chi^2 {b['chi2']:.1f} > {b['chi2_limit']:.1f}): "
-                        "their spread counts as model-form error, sd between tests "
-                        + ", ".join(f"{n} {v:.3g}" for n, v in b["between_test_sd"].items()))
+                run.log(
+                    f"the tests disagree beyond their errors (chi^2 {b['chi2']:.1f} > {b['chi2_limit']:.1f}): "
+                    "their spread counts as model-form error, sd between tests "
+                    + ", ".join(f"{n} {v:.3g}" for n, v in b["between_test_sd"].items())
+                )
     return mp, box, adj, lik
 
 
@@ -282,36 +364,64 @@ def _rescaled(run: _Run, lik: Likelihood, mp):
     problem, stages, space = run.problem, run.problem.stages, run.space
     n = [problem.output(st, problem.reference_components(st)).size for st in stages]
     own = own_points(mp.mode.jacobian, mp.mode.residual, n, mp.x, space.box())
-    new = errors_at_mode(problem, lik, space.to_parameters(mp.x), mp.mode.residual, mp.mode.jacobian,
-                         executor=run.pool, seed=run.seeds.likelihood,
-                         own_points={st: space.to_parameters(x) for st, x in zip(stages, own)})
+    new = errors_at_mode(
+        problem,
+        lik,
+        space.to_parameters(mp.x),
+        mp.mode.residual,
+        mp.mode.jacobian,
+        executor=run.pool,
+        seed=run.seeds.likelihood,
+        own_points={st: space.to_parameters(x) for st, x in zip(stages, own)},
+    )
     if new is lik:
         return lik, mp
     # per stage a run at the MAP and one at its own best point, and the refined model's at the MAP
     run.steps.add_runs(len(stages) * (2 + (problem.refined_model() is not None)))
     ratios = np.array([lik.scales[st].sd / new.scales[st].sd for st in stages])
     factor = np.concatenate([np.full(k, f) for k, f in zip(n, ratios)])
-    mode = dataclasses.replace(mp.mode, residual=mp.mode.residual * factor, jacobian=mp.mode.jacobian * factor[:, None],
-                               cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)))
-    run.log("at the MAP: " + "; ".join(
-        f"{st} model error {100 * new.scales[st].model_error:.3f} %, "
-        f"model form {100 * new.scales[st].model_form_sd:.3f} "
-        f"% per direction (noise {100 * new.scales[st].noise_sd:.3f} %): s {100 * lik.scales[st].sd:.3f} -> "
-        f"{100 * new.scales[st].sd:.3f} %" for st in stages))
+    mode = dataclasses.replace(
+        mp.mode,
+        residual=mp.mode.residual * factor,
+        jacobian=mp.mode.jacobian * factor[:, None],
+        cost=0.5 * float(np.sum((mp.mode.residual * factor) ** 2)),
+    )
+    run.log(
+        "at the MAP: "
+        + "; ".join(
+            f"{st} model error {100 * new.scales[st].model_error:.3f} %, "
+            f"model form {100 * new.scales[st].model_form_sd:.3f} "
+            f"% per direction (noise {100 * new.scales[st].noise_sd:.3f} %): s {100 * lik.scales[st].sd:.3f} -> "
+            f"{100 * new.scales[st].sd:.3f} %"
+            for st in stages
+        )
+    )
     n_evaluations = mp.n_evaluations
     step = np.linalg.lstsq(mode.jacobian, -mode.residual, rcond=None)[0]
-    shift = float(np.linalg.norm(mode.jacobian @ step))             # in sd of the Laplace approximation
+    shift = float(np.linalg.norm(mode.jacobian @ step))  # in sd of the Laplace approximation
     if shift > REWEIGHT_SHIFT_SD:
         box = space.box()
-        fun = ResidualFunction(problem, stages, tuple(new.scales[st].sd for st in stages),
-                               SpacePoint(space, problem.model))
-        mode = find_mode(fun, [mp.x], box[:, 0], box[:, 1], 1e-4 * (box[:, 1] - box[:, 0]), run.pool,
-                         max_iterations=max(5, run.settings.map_max_evaluations // (3 * (len(mp.x) + 1))),
-                         cost_tolerance=FRUGAL_TOLERANCE, central=False, known=(mp.x, mode.residual, mode.jacobian))
+        fun = ResidualFunction(
+            problem, stages, tuple(new.scales[st].sd for st in stages), SpacePoint(space, problem.model)
+        )
+        mode = find_mode(
+            fun,
+            [mp.x],
+            box[:, 0],
+            box[:, 1],
+            1e-4 * (box[:, 1] - box[:, 0]),
+            run.pool,
+            max_iterations=max(5, run.settings.map_max_evaluations // (3 * (len(mp.x) + 1))),
+            cost_tolerance=FRUGAL_TOLERANCE,
+            central=False,
+            known=(mp.x, mode.residual, mode.jacobian),
+        )
         run.steps.add_runs(len(stages) * mode.n_evaluations)
         n_evaluations += mode.n_evaluations
-        run.log(f"the stages' weights moved (x {ratios.max() / ratios.min():.3f}; a step of {shift:.2f} sd): "
-                f"the MAP searched again ({mode.n_evaluations} evaluations)")
+        run.log(
+            f"the stages' weights moved (x {ratios.max() / ratios.min():.3f}; a step of {shift:.2f} sd): "
+            f"the MAP searched again ({mode.n_evaluations} evaluations)"
+        )
     return new, map_result(mode, space, space.box(), n_evaluations)
 
 
@@ -336,20 +446,49 @@ def _direct_emcee(run: _Run, lik, mp, adj) -> _Chain:
     s = run.settings
     with run.steps("mcmc"):
         logp = DirectLogPosterior(Evaluate(run.problem, run.space, run.problem.stages), lik, adj)
-        x_init = initial_walkers(lambda X: np.array([logp(x)[0] for x in X]), mp.x, _walker_covariance(mp, adj),
-                                 s.direct_walkers, run.seeds.walkers, scale=1.0)
-        sampler = run_emcee(logp, x_init, s.direct_walkers, s.direct_steps, run.seeds.chain, vectorize=False,
-                            pool=ExecutorPool(run.pool) if run.pool is not None else None, progress=run.progress,
-                            desc="MCMC on the model")
+        x_init = initial_walkers(
+            lambda X: np.array([logp(x)[0] for x in X]),
+            mp.x,
+            _walker_covariance(mp, adj),
+            s.direct_walkers,
+            run.seeds.walkers,
+            scale=1.0,
+        )
+        sampler = run_emcee(
+            logp,
+            x_init,
+            s.direct_walkers,
+            s.direct_steps,
+            run.seeds.chain,
+            vectorize=False,
+            pool=ExecutorPool(run.pool) if run.pool is not None else None,
+            progress=run.progress,
+            desc="MCMC on the model",
+        )
 
         def extend(n):
             sampler.run_mcmc(None, n, progress=run.progress, progress_kwargs={"desc": "MCMC on the model (more)"})
-        burn, thin, conv = run_to_convergence(sampler, extend, run.space.report, s.direct_walkers, s.direct_burn, 1,
-                                              s.direct_steps, s.direct_max_steps, run.log)
+
+        burn, thin, conv = run_to_convergence(
+            sampler,
+            extend,
+            run.space.report,
+            s.direct_walkers,
+            s.direct_burn,
+            1,
+            s.direct_steps,
+            s.direct_max_steps,
+            run.log,
+        )
         run.steps.add_runs(len(run.problem.stages) * s.direct_walkers * sampler.iteration)
-    blobs = sampler.get_blobs(discard=burn, thin=thin)          # (steps, walkers, stages)
-    return _Chain(sampler, burn, thin, diagnostics={"convergence": conv},
-                  log_likelihood={st: blobs[..., i] for i, st in enumerate(run.problem.stages)})
+    blobs = sampler.get_blobs(discard=burn, thin=thin)  # (steps, walkers, stages)
+    return _Chain(
+        sampler,
+        burn,
+        thin,
+        diagnostics={"convergence": conv},
+        log_likelihood={st: blobs[..., i] for i, st in enumerate(run.problem.stages)},
+    )
 
 
 def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
@@ -364,13 +503,29 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
     design = None
     for attempt in range(s.box_attempts):
         with run.steps("design_and_gp"):
-            means = (gauss_newton_means(mp.mode, run.problem, stages, whitening)
-                     if s.gp_mean == "gauss_newton" and mp.mode is not None else None)
+            means = (
+                gauss_newton_means(mp.mode, run.problem, stages, whitening)
+                if s.gp_mean == "gauss_newton" and mp.mode is not None
+                else None
+            )
             earlier = None if design is None else (design["X"], design["z"])
             gps, U, Y, fit_time, n_earlier = build_surrogates(
-                WhitenedEvaluate(ev, whitening), lik, space=space, box=ubox, whitening=whitening, settings=s,
-                pool=run.pool, cache_dir=None, stages=stages, seed=run.seeds.design + attempt, progress=run.progress,
-                log=run.log, reused=run.reused, means=means, earlier=earlier)
+                WhitenedEvaluate(ev, whitening),
+                lik,
+                space=space,
+                box=ubox,
+                whitening=whitening,
+                settings=s,
+                pool=run.pool,
+                cache_dir=None,
+                stages=stages,
+                seed=run.seeds.design + attempt,
+                progress=run.progress,
+                log=run.log,
+                reused=run.reused,
+                means=means,
+                earlier=earlier,
+            )
             # the earlier box's points were run (and counted) there
             run.steps.add_runs(len(stages) * (int(np.sum(np.all(np.isfinite(Y), axis=1))) - n_earlier))
         run.steps.timing["gp_fit"] += fit_time
@@ -380,10 +535,24 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
             # the walkers over the (adjusted) Laplace posterior's whole width: from a ball of 0.3 sd
             # the ensemble took longer than a 3000-step chain to spread (R-hat 1.012-1.020)
             L_inv = np.linalg.inv(whitening.L)
-            u_init = initial_walkers(logp_u, whitening.to_u(mp.x)[0], L_inv @ _walker_covariance(mp, adj) @ L_inv.T,
-                                     s.n_walkers, run.seeds.walkers, scale=1.0)
-            sampler = run_emcee(logp_u, u_init, s.n_walkers, s.n_steps, run.seeds.chain, vectorize=True,
-                                progress=run.progress, desc="MCMC on the surrogate")
+            u_init = initial_walkers(
+                logp_u,
+                whitening.to_u(mp.x)[0],
+                L_inv @ _walker_covariance(mp, adj) @ L_inv.T,
+                s.n_walkers,
+                run.seeds.walkers,
+                scale=1.0,
+            )
+            sampler = run_emcee(
+                logp_u,
+                u_init,
+                s.n_walkers,
+                s.n_steps,
+                run.seeds.chain,
+                vectorize=True,
+                progress=run.progress,
+                desc="MCMC on the surrogate",
+            )
         u_draws = sampler.get_chain(discard=s.burn, flat=True)
         cut = fraction_outside_box(logp_u.gp_points(u_draws), s.box_sd, whitening, space)
         if cut <= 0.01 or attempt == s.box_attempts - 1:
@@ -392,22 +561,39 @@ def _surrogate_chain(run: _Run, lik, mp, adj) -> _Chain:
         # mode): re-centre and re-whiten on the surrogate posterior's draws, 3x wider (they are
         # truncated by the old box)
         x_draws = whitening.to_x(u_draws)
-        run.log(f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 3x wider "
-                f"(attempt {attempt + 2} of {s.box_attempts})")
-        whitening = Whitening.from_covariance(x_draws.mean(axis=0),
-                                              capped_covariance(9.0 * np.cov(x_draws.T), space, s.box_sd))
+        run.log(
+            f"the local box cut {100 * cut:.1f} % of the draws: re-centred on them, 3x wider "
+            f"(attempt {attempt + 2} of {s.box_attempts})"
+        )
+        whitening = Whitening.from_covariance(
+            x_draws.mean(axis=0), capped_covariance(9.0 * np.cov(x_draws.T), space, s.box_sd)
+        )
     with run.steps("mcmc"):
         burn, thin, conv = run_to_convergence(
-            sampler, lambda n: sampler.extend(logp_u, n, run.progress, "MCMC on the surrogate (more)"),
-            lambda U: space.report(whitening.to_x(U)), s.n_walkers, s.burn, s.thin, s.n_steps, s.max_steps, run.log)
-    diag = {"box_cut_fraction": fraction_outside_box(logp_u.gp_points(sampler.get_chain(discard=burn, flat=True)),
-                                                   s.box_sd, whitening, space),
-            "box_attempts": attempt + 1, "convergence": conv}
+            sampler,
+            lambda n: sampler.extend(logp_u, n, run.progress, "MCMC on the surrogate (more)"),
+            lambda U: space.report(whitening.to_x(U)),
+            s.n_walkers,
+            s.burn,
+            s.thin,
+            s.n_steps,
+            s.max_steps,
+            run.log,
+        )
+    diag = {
+        "box_cut_fraction": fraction_outside_box(
+            logp_u.gp_points(sampler.get_chain(discard=burn, flat=True)), s.box_sd, whitening, space
+        ),
+        "box_attempts": attempt + 1,
+        "convergence": conv,
+    }
     kept = sampler.get_chain(discard=burn, thin=thin)
     G = logp_u.gp_points(kept.reshape(-1, d))
     # z = log(1 + e^2 / s^2) >= 0; the GP's mean may dip a hair below it near the mode
-    ll = {st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)})
-          .reshape(kept.shape[:2]) for st, gp in gps.items()}
+    ll = {
+        st: Likelihood.log_likelihood_from_z({st: np.maximum(gp.mean_transformed(G), 0.0)}).reshape(kept.shape[:2])
+        for st, gp in gps.items()
+    }
     return _Chain(XSampler(sampler, whitening), burn, thin, gps, design, diag, ll, logp_u)
 
 
@@ -431,32 +617,62 @@ def _result(run: _Run, chain: _Chain, lik, mp, box, adj, start_info, direct) -> 
         pointwise = pointwise_log_likelihood(problem, lik, mp.mode, flat, adj)
         diag["pointwise_linearisation_error"] = linearisation_check(pointwise, chain.log_likelihood, lik, problem)
         pointwise = {names[st]: v.reshape(draws.shape[:2] + (-1,)) for st, v in pointwise.items()}
-    idata = to_inference_data(draws, lp, space, {"source": str(problem.source), "direct": int(direct),
-                                                 "model": type(problem.model).__name__,
-                                                 "metric_set": problem.metrics},
-                              log_likelihood=pointwise, observed=observed)
+    idata = to_inference_data(
+        draws,
+        lp,
+        space,
+        {
+            "source": str(problem.source),
+            "direct": int(direct),
+            "model": type(problem.model).__name__,
+            "metric_set": problem.metrics,
+        },
+        log_likelihood=pointwise,
+        observed=observed,
+    )
     summary = summarize(idata, space)
     diag["max_r_hat"] = max(v["r_hat"] for v in summary.values())
     diag["min_ess_bulk"] = min(v["ess_bulk"] for v in summary.values())
     diag["min_ess_tail"] = min(v["ess_tail"] for v in summary.values())
     conv = diag.get("convergence", {})
     if conv and not conv["converged"]:
-        msg = (f"the chain did not converge within its cap of {conv['n_steps']} steps: R-hat up to "
-               f"{diag['max_r_hat']:.4f} (target < 1.01), ESS bulk {diag['min_ess_bulk']:.0f} and tail "
-               f"{diag['min_ess_tail']:.0f} (target >= 400); raise max_steps (or direct_max_steps), or look "
-               "for a posterior with several modes")
+        msg = (
+            f"the chain did not converge within its cap of {conv['n_steps']} steps: R-hat up to "
+            f"{diag['max_r_hat']:.4f} (target < 1.01), ESS bulk {diag['min_ess_bulk']:.0f} and tail "
+            f"{diag['min_ess_tail']:.0f} (target >= 400); raise max_steps (or direct_max_steps), or look "
+            "for a posterior with several modes"
+        )
         run.log("WARNING: " + msg)
         warnings.warn(msg, RuntimeWarning)
     if diag.get("box_cut_fraction", 0.0) > 1e-2:
-        warnings.warn(f"after {diag['box_attempts']} boxes the surrogate's box still cuts "
-                      f"{100 * diag['box_cut_fraction']:.2f} % of the draws: the posterior is wider than the "
-                      "Laplace approximation says; raise box_sd or box_attempts", RuntimeWarning)
-    return PosteriorResult(idata=idata, summary=summary, likelihood=lik, space=space, map=mp, box=box,
-                           start=start_info, diagnostics=diag, timing={}, n_model_runs={},
-                           n_model_runs_reused=run.reused, settings=run.settings, direct=direct,
-                           problem=run.problem, surrogates=chain.gps, design=chain.design,
-                           draws=draws.reshape(-1, draws.shape[-1]), seeds=run.seeds, target=chain.target,
-                           adjustment=adj)
+        warnings.warn(
+            f"after {diag['box_attempts']} boxes the surrogate's box still cuts "
+            f"{100 * diag['box_cut_fraction']:.2f} % of the draws: the posterior is wider than the "
+            "Laplace approximation says; raise box_sd or box_attempts",
+            RuntimeWarning,
+        )
+    return PosteriorResult(
+        idata=idata,
+        summary=summary,
+        likelihood=lik,
+        space=space,
+        map=mp,
+        box=box,
+        start=start_info,
+        diagnostics=diag,
+        timing={},
+        n_model_runs={},
+        n_model_runs_reused=run.reused,
+        settings=run.settings,
+        direct=direct,
+        problem=run.problem,
+        surrogates=chain.gps,
+        design=chain.design,
+        draws=draws.reshape(-1, draws.shape[-1]),
+        seeds=run.seeds,
+        target=chain.target,
+        adjustment=adj,
+    )
 
 
 def _extras(run: _Run, res: PosteriorResult) -> None:
@@ -466,17 +682,21 @@ def _extras(run: _Run, res: PosteriorResult) -> None:
     if s.n_predictive:
         with run.steps("predictive"):
             res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds.predictive, run.progress)
-            run.steps.add_runs(prediction_runs(run.problem, s.n_predictive,
-                                               bool(res.predictive.get("parameters_by_test"))))
+            run.steps.add_runs(
+                prediction_runs(run.problem, s.n_predictive, bool(res.predictive.get("parameters_by_test")))
+            )
         draws = res.predictive.get("_draws", {})
         if draws:
             add_posterior_predictive(res.idata, draws, dict.fromkeys(draws, run.problem.response_unit))
         for test, cov in res.predictive.get("coverage", {}).items():
-            run.log(f"predictive bands, {test}: " + ", ".join(
-                f"{sensor} {100 * c['50']:.0f} % / {100 * c['90']:.0f} %" for sensor, c in cov.items())
-                + " of the samples inside the 50 % / 90 % bands")
+            run.log(
+                f"predictive bands, {test}: "
+                + ", ".join(f"{sensor} {100 * c['50']:.0f} % / {100 * c['90']:.0f} %" for sensor, c in cov.items())
+                + " of the samples inside the 50 % / 90 % bands"
+            )
     if s.n_global:
         with run.steps("sensitivity"):
-            res.sensitivity = sobol_indices(run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds.sobol,
-                                            run.progress)
+            res.sensitivity = sobol_indices(
+                run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds.sobol, run.progress
+            )
             run.steps.add_runs(len(stages) * s.n_global)

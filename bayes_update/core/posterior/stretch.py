@@ -16,6 +16,7 @@ a seed it gives emcee's chain itself, to the last bit
 posterior is emcee's, only sooner.  A model's log probability (the direct path,
 one run per walker through a process pool) stays in emcee.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -30,7 +31,7 @@ class StretchChain:
 
     def __init__(self, chain: np.ndarray, log_prob: np.ndarray, n_accepted: np.ndarray, random=None):
         self.chain, self.log_prob, self.n_accepted = chain, log_prob, n_accepted
-        self.random = random            # the RandomState the run drew from (a continuation draws on from it)
+        self.random = random  # the RandomState the run drew from (a continuation draws on from it)
 
     def extend(self, log_prob, n_steps: int, progress: bool = False, desc: str = "MCMC") -> "StretchChain":
         """``n_steps`` more steps from the last walkers, drawing on from the same
@@ -52,7 +53,7 @@ class StretchChain:
 
     @staticmethod
     def _read(values, discard: int, thin: int, flat: bool):
-        out = values[discard + thin - 1::thin]         # emcee's slice of the stored steps
+        out = values[discard + thin - 1 :: thin]  # emcee's slice of the stored steps
         return out.reshape(-1, *out.shape[2:]) if flat else out
 
     def get_chain(self, discard: int = 0, thin: int = 1, flat: bool = False) -> np.ndarray:
@@ -74,8 +75,15 @@ class StretchChain:
         return emcee.State(self.chain[-1].copy(), log_prob=self.log_prob[-1].copy())
 
 
-def stretch_sample(log_prob, x_init, n_steps: int, random: np.random.RandomState, a: float = 2.0,
-                   progress: bool = False, desc: str = "MCMC") -> StretchChain:
+def stretch_sample(
+    log_prob,
+    x_init,
+    n_steps: int,
+    random: np.random.RandomState,
+    a: float = 2.0,
+    progress: bool = False,
+    desc: str = "MCMC",
+) -> StretchChain:
     """``n_steps`` of the stretch move from the walkers ``x_init`` (n_walkers, d)
     on ``log_prob`` ((m, d) -> (m,), -inf outside the support), drawing from
     ``random`` exactly as ``emcee.EnsembleSampler(..., vectorize=True)`` with its
@@ -93,7 +101,7 @@ def stretch_sample(log_prob, x_init, n_steps: int, random: np.random.RandomState
     n_accepted = np.zeros(n)
     half = np.arange(n) % 2
     for t in tqdm(range(n_steps), desc=desc, unit="step", disable=None if progress else True):
-        random.random_sample()            # emcee's choice among its moves (one move: a draw all the same)
+        random.random_sample()  # emcee's choice among its moves (one move: a draw all the same)
         inds = half.copy()
         random.shuffle(inds)
         for split in (0, 1):

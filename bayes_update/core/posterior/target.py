@@ -1,13 +1,16 @@
 """What emcee and the surrogates evaluate: picklable log posteriors on model runs or on the
 GP surrogates, in the internal coordinates or whitened by the Laplace covariance."""
+
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
 import numpy as np
-from bayes_update.core.parameters import ParameterSet
+
 from bayes_update.core.adjustment import CurvatureAdjustment
 from bayes_update.core.likelihood import Likelihood
+from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.problem import Problem
 
 
@@ -44,8 +47,7 @@ class DirectLogPosterior:
             box = self.evaluate.space.box()
             x = np.clip(self.adjustment(x)[0], box[:, 0], box[:, 1])
         metrics = self.evaluate(x)
-        per_stage = np.array([Likelihood({st: self.likelihood.scales[st]}).log_likelihood(metrics)
-                              for st in stages])
+        per_stage = np.array([Likelihood({st: self.likelihood.scales[st]}).log_likelihood(metrics) for st in stages])
         return lp + float(np.sum(per_stage)), per_stage
 
 
@@ -62,7 +64,7 @@ class ExecutorPool:
         chunk = max(1, math.ceil(len(items) / (self.workers * self.chunks)))
         try:
             return list(self.executor.map(func, items, chunksize=chunk))
-        except TypeError:            # executors without chunksize
+        except TypeError:  # executors without chunksize
             return list(self.executor.map(func, items))
 
 
@@ -70,7 +72,7 @@ class ExecutorPool:
 class SurrogateLogPosterior:
     """Vectorised log posterior from GP means of z per stage (restricted to ``box``)."""
 
-    gps: dict            # stage -> fitted GPSurrogate of z
+    gps: dict  # stage -> fitted GPSurrogate of z
     space: ParameterSet
     box: np.ndarray
 
@@ -145,10 +147,12 @@ class WhitenedLogPosterior:
         if self.adjustment is None:
             return U
         if getattr(self, "_affine", None) is None:
+
             def composed(V):
                 return self.whitening.to_u(self.adjustment(self.whitening.to_x(V)))
+
             offset = composed(np.zeros((1, U.shape[1])))[0]
-            self._affine = (composed(np.eye(U.shape[1])) - offset, offset)    # rows: images of the unit vectors
+            self._affine = (composed(np.eye(U.shape[1])) - offset, offset)  # rows: images of the unit vectors
         M, offset = self._affine
         return U @ M + offset
 
@@ -159,7 +163,7 @@ class WhitenedLogPosterior:
         # the GPs are read where they were trained (the u box); the adjusted argument G
         # may lie a little outside the prior near a bound, where the GP is still smooth
         inside = np.all((G >= self.box[:, 0]) & (G <= self.box[:, 1]), axis=1) & np.isfinite(lp)
-        if inside.all():                    # the usual step: no copies of the walkers inside
+        if inside.all():  # the usual step: no copies of the walkers inside
             return lp + Likelihood.log_likelihood_from_z({st: gp.mean_transformed(G) for st, gp in self.gps.items()})
         out = np.full(len(U), -np.inf)
         if inside.any():

@@ -22,16 +22,16 @@ release):
 
 Units: velocities [m/s], frequencies [Hz], damping ratios [-], levels [dB].
 """
+
 from __future__ import annotations
 
 import numpy as np
 from scipy import signal as ss
 
 import volterra
-
-from bayes_update.data.dataset import Dataset
 from bayes_update.core.basis import basis_from_reference
 from bayes_update.core.metrics import relative_error
+from bayes_update.data.dataset import Dataset
 
 HARMONICS = (1, 2, 3)
 
@@ -67,9 +67,9 @@ def decay_curve(v, fs: float, f1: float, t_start: float, n_bins: int = 6) -> dic
     env = np.abs(z)
     phase = np.unwrap(np.angle(z))
     t = np.arange(x.size) / fs
-    trim = int(0.1 * fs)                       # the filter's and the transform's edges
+    trim = int(0.1 * fs)  # the filter's and the transform's edges
     env, phase, t = env[trim:-trim], phase[trim:-trim], t[trim:-trim]
-    a0 = env[:int(0.05 * fs)].mean()
+    a0 = env[: int(0.05 * fs)].mean()
     edges = a0 * np.geomspace(0.9, 0.1, n_bins + 1)
     amp, zeta, freq = [], [], []
     for hi, lo in zip(edges[:-1], edges[1:]):
@@ -97,13 +97,16 @@ def diagnose(dataset: Dataset, beam, theta: dict, basis: volterra.KautzBasis | N
             raise ValueError("no test has role 'linear': pass the Kautz basis explicitly")
         basis = basis_from_reference(lin[0].force, lin[0].velocity, fs, feedthrough=())
     f1 = basis.pole(1).freq_hz
-    out = {"by_test": {}, "by_order": {}, "by_frequency": {}, "by_amplitude": {}, "f1_hz": f1,
-           "_velocity": {}}
+    out = {"by_test": {}, "by_order": {}, "by_frequency": {}, "by_amplitude": {}, "f1_hz": f1, "_velocity": {}}
     for t in dataset.tests:
         v = np.asarray(beam.simulate(theta, t.force, fs), float)
         out["_velocity"][t.name] = v
-        out["by_test"][t.name] = {"role": t.role, "signal": t.signal, "level": t.level,
-                                  "rel_l2": relative_error(t.velocity, v)}
+        out["by_test"][t.name] = {
+            "role": t.role,
+            "signal": t.signal,
+            "level": t.level,
+            "rel_l2": relative_error(t.velocity, v),
+        }
         if t.signal == "chirp":
             proj = volterra.VolterraProjector(t.force, basis)
             res = proj.components(t.velocity - v)
@@ -115,18 +118,24 @@ def diagnose(dataset: Dataset, beam, theta: dict, basis: volterra.KautzBasis | N
                 dm = decay_curve(v, fs, f1, sweep + 0.05)
             except ValueError:
                 continue
-            out["by_amplitude"][t.name] = {"data": {k: a.tolist() for k, a in dd.items()},
-                                           "model": {k: a.tolist() for k, a in dm.items()}}
+            out["by_amplitude"][t.name] = {
+                "data": {k: a.tolist() for k, a in dd.items()},
+                "model": {k: a.tolist() for k, a in dm.items()},
+            }
         elif t.signal == "sine":
             f0 = float(t.meta.get("frequency_hz", 35.0))
             hd = harmonic_amplitudes(t.velocity, fs, f0)
             hm = harmonic_amplitudes(v, fs, f0)
             noise = _noise_amplitude(t.velocity, fs, f0)
             out["by_frequency"][t.name] = {
-                f"{k}x": {"data": hd[k], "model": hm[k],
-                          "difference_db": float(20 * np.log10(hm[k] / hd[k])) if hd[k] > 0 and hm[k] > 0 else None,
-                          "data_above_noise": bool(hd[k] > 3 * noise)}
-                for k in HARMONICS}
+                f"{k}x": {
+                    "data": hd[k],
+                    "model": hm[k],
+                    "difference_db": float(20 * np.log10(hm[k] / hd[k])) if hd[k] > 0 and hm[k] > 0 else None,
+                    "data_above_noise": bool(hd[k] > 3 * noise),
+                }
+                for k in HARMONICS
+            }
     return out
 
 
@@ -167,8 +176,9 @@ def diagnostics_figure(diag: dict):
         a3.legend(fontsize=7)
     for i, (n, d) in enumerate(diag["by_amplitude"].items()):
         a4.semilogx(d["data"]["amplitude"], 100 * np.array(d["data"]["zeta"]), "o-", color=f"C{i}", label=f"{n} data")
-        a4.semilogx(d["model"]["amplitude"], 100 * np.array(d["model"]["zeta"]), "x--", color=f"C{i}",
-                    label=f"{n} model")
+        a4.semilogx(
+            d["model"]["amplitude"], 100 * np.array(d["model"]["zeta"]), "x--", color=f"C{i}", label=f"{n} model"
+        )
     a4.set_xlabel("envelope amplitude [m/s]")
     a4.set_ylabel("damping ratio [%]")
     a4.set_title("by amplitude (free decay after the sweep)")

@@ -1,6 +1,7 @@
 """How nonlinear each level of the virtual rig is: the Volterra share of a record
 and the physics' own departure from linearity (the level choice of
 :mod:`bayes_update.models.beam.virtual_rig`, checked in tests/test_rig_virtual.py)."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -12,8 +13,7 @@ from bayes_update.models.beam.virtual_rig import TestSpec, VirtualRig
 __all__ = ["linear_departure", "nonlinear_shares"]
 
 
-def nonlinear_shares(force, velocity, f1_hz: float, zeta1: float, fs: float,
-                     n_functions=(2, 2, 4)) -> dict:
+def nonlinear_shares(force, velocity, f1_hz: float, zeta1: float, fs: float, n_functions=(2, 2, 4)) -> dict:
     """Volterra decomposition of one record: nonlinear share ||y2 + y3|| / ||y||,
     ||y3|| / ||y1||, ||y2|| / ||y1|| and the fit's relative residual.
 
@@ -31,9 +31,12 @@ def nonlinear_shares(force, velocity, f1_hz: float, zeta1: float, fs: float,
     y1, y2, y3 = model.components(np.asarray(force, float))
     y = np.asarray(velocity, float)
     n = np.linalg.norm
-    return {"share": float(n(y2 + y3) / n(y)), "y3_over_y1": float(n(y3) / n(y1)),
-            "y2_over_y1": float(n(y2) / n(y1)),
-            "residual": float(n(y - y1 - y2 - y3) / n(y))}
+    return {
+        "share": float(n(y2 + y3) / n(y)),
+        "y3_over_y1": float(n(y3) / n(y1)),
+        "y2_over_y1": float(n(y2) / n(y1)),
+        "residual": float(n(y - y1 - y2 - y3) / n(y)),
+    }
 
 
 def linear_departure(vrig: VirtualRig, spec: TestSpec, reference_n: float = 1e-4) -> float:

@@ -20,6 +20,7 @@ It wraps an ``fe`` model (``fe.BeamModel``, the full FE, or ``fe.ModalROM``,
   (harmonics, free decays, kernel orders; the discrepancy workflow's
   signature check).
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -29,11 +30,20 @@ from dataclasses import dataclass, field
 import numpy as np
 
 import fe
-
 from bayes_update.core.model import ModelError, ModelSpecError
 from bayes_update.core.parameters import Parameter
 
-__all__ = ["Beam", "EFFECT_PARAMETERS", "HIDDEN_EFFECT_RANGES", "hidden_effects", "MPA_S", "N_PER_MM", "N_S_PER_MM", "PRIOR", "beam_model"]
+__all__ = [
+    "Beam",
+    "EFFECT_PARAMETERS",
+    "HIDDEN_EFFECT_RANGES",
+    "hidden_effects",
+    "MPA_S",
+    "N_PER_MM",
+    "N_S_PER_MM",
+    "PRIOR",
+    "beam_model",
+]
 
 MPA_S, N_S_PER_MM, N_PER_MM = 1e6, 1e3, 1e3
 
@@ -49,16 +59,19 @@ _TO_SI = {"eta": MPA_S, "c": N_S_PER_MM, "F": 1.0, "k_s": N_PER_MM}
 EFFECT_PARAMETERS = {
     "initial_imperfection": (("bow_amplitude", "mm", -1.0, 1.0, 1e-3),),
     "amplitude_dependent_damping": (("quadratic_damping", "MN s^2/m^2", 0.0, 200.0, 1e6),),
-    "shaker_attachment": (("shaker_mass", "g", 0.0, 40.0, 1e-3),
-                          ("shaker_stiffness", "N/mm", 0.0, 4.0, 1e3)),
+    "shaker_attachment": (("shaker_mass", "g", 0.0, 40.0, 1e-3), ("shaker_stiffness", "N/mm", 0.0, 4.0, 1e3)),
     "clamp_compliance": (("clamp_flexibility", "rad/(N m)", 0.0, 0.2, 1.0),),
 }
 assert set(EFFECT_PARAMETERS) == set(fe.EFFECTS)
 
 #: What each effect's physics moves (the diagnostic that should shrink when it
 #: is named): a key of :meth:`Beam.signature_values`.
-SIGNATURES = {"initial_imperfection": "y2", "amplitude_dependent_damping": "y3",
-              "shaker_attachment": "validation", "clamp_compliance": "validation"}
+SIGNATURES = {
+    "initial_imperfection": "y2",
+    "amplitude_dependent_damping": "y3",
+    "shaker_attachment": "validation",
+    "clamp_compliance": "validation",
+}
 SIGNATURE_MEANING = {
     "y2": "the residual's second-order share in the high-level chirp (a broken symmetry)",
     "y3": "the residual's third-order share in the high-level chirp (nonlinear dissipation)",
@@ -85,10 +98,10 @@ def _effect(name: str, si: list):
 #: a guide that rubs), at magnitudes where the effect moves the high-level
 #: response by more than the noise.
 HIDDEN_EFFECT_RANGES = {
-    "initial_imperfection": {"amplitude": (0.05e-3, 0.2e-3)},          # m, either sign
-    "amplitude_dependent_damping": {"coefficient": (30e6, 80e6)},      # N s^2/m^2 (quadratic)
-    "shaker_attachment": {"mass": (5e-3, 20e-3), "stiffness": (0.5e3, 2e3)},   # kg, N/m
-    "clamp_compliance": {"stiffness": (40.0, 120.0)},                  # N m/rad
+    "initial_imperfection": {"amplitude": (0.05e-3, 0.2e-3)},  # m, either sign
+    "amplitude_dependent_damping": {"coefficient": (30e6, 80e6)},  # N s^2/m^2 (quadratic)
+    "shaker_attachment": {"mass": (5e-3, 20e-3), "stiffness": (0.5e3, 2e3)},  # kg, N/m
+    "clamp_compliance": {"stiffness": (40.0, 120.0)},  # N m/rad
 }
 
 
@@ -164,8 +177,10 @@ class Beam:
             if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
                 raise ValueError(f"prior range of {name} must be finite with low < high, got {(lo, hi)}")
             if lo < 0 or (name in ("eta", "F") and lo <= 0):
-                raise ValueError(f"prior range of {name} must be {'positive' if name in ('eta', 'F') else 'non-negative'}"
-                                 f", got {(lo, hi)} {UNITS[name]}")
+                raise ValueError(
+                    f"prior range of {name} must be {'positive' if name in ('eta', 'F') else 'non-negative'}"
+                    f", got {(lo, hi)} {UNITS[name]}"
+                )
         object.__setattr__(self, "prior", box)
 
     # -- the contract -----------------------------------------------------
@@ -200,16 +215,19 @@ class Beam:
         if not added:
             return self.fe_model
         if isinstance(self.fe_model, fe.ModalROM):
-            raise ModelError("the modal ROM cannot carry the beam's effects (only a bow fits its reduced "
-                             "form): use the full FE model (--model fe)")
+            raise ModelError(
+                "the modal ROM cannot carry the beam's effects (only a bow fits its reduced "
+                "form): use the full FE model (--model fe)"
+            )
         return dataclasses.replace(self.fe_model, effects=tuple(self.fe_model.effects) + added)
 
     def simulate(self, theta, force, fs):
         """Transverse velocity at the sensor [m/s] under ``force`` [N] sampled at ``fs`` [Hz]."""
         model = self.with_effects(theta)
         try:
-            return fe.simulate(model, self.fe_parameters(theta), force, fs=fs,
-                               positions=[self.rig.sensor_position_m]).sensor_velocity
+            return fe.simulate(
+                model, self.fe_parameters(theta), force, fs=fs, positions=[self.rig.sensor_position_m]
+            ).sensor_velocity
         except (fe.BucklingError, fe.ConvergenceError) as exc:
             raise ModelError(f"{type(exc).__name__}: {exc}") from exc
 
@@ -218,8 +236,10 @@ class Beam:
         from bayes_update.models.beam.rig import rig_of
 
         if self.rig != rig_of(dataset):
-            raise ValueError("the model was built for another rig than the data set's "
-                             f"(model: {self.rig}, data: {rig_of(dataset)}); build it with beam_model(dataset)")
+            raise ValueError(
+                "the model was built for another rig than the data set's "
+                f"(model: {self.rig}, data: {rig_of(dataset)}); build it with beam_model(dataset)"
+            )
 
     # -- internal coordinates: (eta, c, P_eff, k_s) in paper units ------------
     @property
@@ -228,8 +248,9 @@ class Beam:
         return self.rig.axial_stiffness / N_PER_MM
 
     def to_internal(self, theta) -> np.ndarray:
-        return np.array([theta["eta"], theta["c"], theta["F"] * self.kb / (self.kb + theta["k_s"]), theta["k_s"]],
-                        float)
+        return np.array(
+            [theta["eta"], theta["c"], theta["F"] * self.kb / (self.kb + theta["k_s"]), theta["k_s"]], float
+        )
 
     def from_internal(self, x) -> dict:
         kb, (eta, c, p_eff, k_s) = self.kb, (float(v) for v in x)
@@ -257,8 +278,12 @@ class Beam:
         elements and 4x the substeps (the ROM: the full FE at those settings)."""
         m = self.fe_model
         if isinstance(m, fe.ModalROM):
-            finer = fe.BeamModel(rig=m.rig, n_elements=3 * fe.model.DEFAULT_ELEMENTS,
-                                 substeps=4 * fe.model.DEFAULT_SUBSTEPS, effects=m.effects)
+            finer = fe.BeamModel(
+                rig=m.rig,
+                n_elements=3 * fe.model.DEFAULT_ELEMENTS,
+                substeps=4 * fe.model.DEFAULT_SUBSTEPS,
+                effects=m.effects,
+            )
         else:
             finer = dataclasses.replace(m, n_elements=3 * m.n_elements, substeps=4 * m.substeps)
         return dataclasses.replace(self, fe_model=finer)
@@ -266,10 +291,14 @@ class Beam:
     def candidate_effects(self) -> dict:
         """{effect: [Parameter(..., null=0)]}: the four effects of :data:`fe.EFFECTS`."""
         if isinstance(self.fe_model, fe.ModalROM):
-            raise ModelSpecError("the discrepancy workflow adds effects the modal ROM cannot carry (only a "
-                                 "bow fits its reduced form): use the full FE model (--model fe)")
-        return {e: [Parameter(n, lo, hi, unit=u, null=0.0) for n, u, lo, hi, _ in pars]
-                for e, pars in EFFECT_PARAMETERS.items()}
+            raise ModelSpecError(
+                "the discrepancy workflow adds effects the modal ROM cannot carry (only a "
+                "bow fits its reduced form): use the full FE model (--model fe)"
+            )
+        return {
+            e: [Parameter(n, lo, hi, unit=u, null=0.0) for n, u, lo, hi, _ in pars]
+            for e, pars in EFFECT_PARAMETERS.items()
+        }
 
     def extra_starts(self, x, n: int = 3) -> list:
         """Points on the (c, k_s) band at the (eta, P_eff) of internal point ``x``: an
@@ -285,8 +314,9 @@ class Beam:
                     out.append(p)
         return out
 
-    def start(self, dataset, executor=None, progress: bool = False, coarse: bool = False,
-              store=None) -> tuple[dict, int]:
+    def start(
+        self, dataset, executor=None, progress: bool = False, coarse: bool = False, store=None
+    ) -> tuple[dict, int]:
         """(theta, model runs): the paper's two-stage updating on coarse grids,
         the start of ``find_discrepancy`` for the beam; with ``coarse`` (the start
         of ``sample``, whose MAP search goes on from it) only eta and P_eff from
@@ -297,8 +327,15 @@ class Beam:
 
         if coarse:
             return coarse_start(dataset, self, executor, progress, store=store)
-        cal = calibrate(dataset, self, CalibrationSettings.quick(), executor=executor, progress=progress,
-                        log=lambda *a: None, store=store)
+        cal = calibrate(
+            dataset,
+            self,
+            CalibrationSettings.quick(),
+            executor=executor,
+            progress=progress,
+            log=lambda *a: None,
+            store=store,
+        )
         return cal.final_theta, cal.setup["n_model_runs"]
 
     def diagnose(self, dataset, theta, basis=None) -> dict:
@@ -312,8 +349,10 @@ class Beam:
         out = diagnose(dataset, self, theta, basis=basis)
         high = dataset.by_role("nonlinear")
         out["nonlinear_test"] = high[0].name if high else None
-        out["validation"] = {t.name: compare_test(t, out["_velocity"][t.name], dataset.sampling_rate_hz)
-                             for t in dataset.by_role("validation")}
+        out["validation"] = {
+            t.name: compare_test(t, out["_velocity"][t.name], dataset.sampling_rate_hz)
+            for t in dataset.by_role("validation")
+        }
         return out
 
     def signature(self, effect: str, diagnostics: dict, gap: dict):

@@ -12,7 +12,6 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import fe
-
 from bayes_update.data.dataset import DatasetError
 
 __all__ = ["rig_of"]
@@ -44,8 +43,9 @@ def rig_of(dataset) -> fe.Rig:
     if rig is None:
         rig = {}
     if not isinstance(rig, Mapping):
-        raise DatasetError(f"{_where(dataset)}: 'rig' must be an object (the rig block) or an fe.Rig, "
-                           f"got {type(rig).__name__}")
+        raise DatasetError(
+            f"{_where(dataset)}: 'rig' must be an object (the rig block) or an fe.Rig, got {type(rig).__name__}"
+        )
     try:
         return fe.Rig.from_dict(dict(rig))
     except (TypeError, ValueError) as exc:

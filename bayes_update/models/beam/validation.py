@@ -11,12 +11,13 @@ Numbers, not only plots:
   difference of the two PSDs over the bins of 1-140 Hz where the data stand
   10 dB above their floor.
 """
+
 from __future__ import annotations
 
 import numpy as np
 
-from bayes_update.data.dataset import Dataset
 from bayes_update.core.metrics import relative_error
+from bayes_update.data.dataset import Dataset
 from bayes_update.data.spectral import psd
 
 PSD_BAND_HZ = (1.0, 140.0)
@@ -38,8 +39,12 @@ def sine_frequency(test) -> float:
 
 def compare_test(test, simulated_velocity, fs: float) -> dict:
     """Agreement numbers of one test (see the module docstring)."""
-    out = {"test": test.name, "signal": test.signal, "level": test.level,
-           "rel_l2": relative_error(test.velocity, simulated_velocity)}
+    out = {
+        "test": test.name,
+        "signal": test.signal,
+        "level": test.level,
+        "rel_l2": relative_error(test.velocity, simulated_velocity),
+    }
     if test.signal == "sine":
         f0 = sine_frequency(test)
         f, p_data = psd(test.velocity, fs)

@@ -57,12 +57,11 @@ import numpy as np
 from scipy import signal as ss
 
 import fe
-from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
-
 from bayes_update.data import signals
-from bayes_update.models.beam.rig import rig_of
 from bayes_update.data.dataset import Dataset, Record
 from bayes_update.data.folder import read_dataset, write_dataset
+from bayes_update.models.beam.rig import rig_of
+from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
 PAPER_EQUIVALENT_RIG = fe.Rig(bending_stiffness_factor=1.24)
 """The rig of the embedded data set: the paper's geometry with EI x 1.24."""
@@ -143,7 +142,8 @@ class TestSpec:
 
 PAPER_TESTS = tuple(
     [TestSpec("chirp", lvl, a) for lvl, a in CHIRP_LEVELS_N.items()]
-    + [TestSpec("sine", lvl, a) for lvl, a in SINE_LEVELS_N.items()])
+    + [TestSpec("sine", lvl, a) for lvl, a in SINE_LEVELS_N.items()]
+)
 """The six tests of the default data set, in file order."""
 
 
@@ -194,12 +194,17 @@ class VirtualRig:
     @functools.cached_property
     def model(self) -> fe.BeamModel:
         """The FE model the rig runs (at ``fs_fine``)."""
-        return fe.BeamModel(rig=self.rig, n_elements=self.n_elements, substeps=self.substeps,
-                            rho_inf=self.rho_inf, effects=self.effects,
-                            # the rig's force is the analytic signal on the fine grid:
-                            # linear between fine samples (gain error 2.7e-4 at 37 Hz)
-                            # keeps the embedded data set bit for bit
-                            input_interpolation="linear")
+        return fe.BeamModel(
+            rig=self.rig,
+            n_elements=self.n_elements,
+            substeps=self.substeps,
+            rho_inf=self.rho_inf,
+            effects=self.effects,
+            # the rig's force is the analytic signal on the fine grid:
+            # linear between fine samples (gain error 2.7e-4 at 37 Hz)
+            # keeps the embedded data set bit for bit
+            input_interpolation="linear",
+        )
 
     @property
     def fs_fine(self) -> float:
@@ -211,15 +216,15 @@ class VirtualRig:
         """FIR taps of the anti-alias filter (at ``fs_fine``, unit DC gain)."""
         if self.oversampling == 1:
             return np.array([1.0])
-        return ss.firwin(DECIMATION_TAPS, DECIMATION_CUTOFF * self.fs,
-                         window=("kaiser", DECIMATION_KAISER_BETA), fs=self.fs_fine)
+        return ss.firwin(
+            DECIMATION_TAPS, DECIMATION_CUTOFF * self.fs, window=("kaiser", DECIMATION_KAISER_BETA), fs=self.fs_fine
+        )
 
     def decimate(self, x_fine: np.ndarray, n_samples: int) -> np.ndarray:
         """Zero-phase low-pass and decimation of a fine-rate signal to ``n_samples`` at ``fs``."""
         if self.oversampling == 1:
             return np.asarray(x_fine[:n_samples], dtype=float).copy()
-        y = ss.resample_poly(np.asarray(x_fine, dtype=float), 1, self.oversampling,
-                             window=self.decimation_filter)
+        y = ss.resample_poly(np.asarray(x_fine, dtype=float), 1, self.oversampling, window=self.decimation_filter)
         if y.size < n_samples:
             raise ValueError(f"fine signal too short for {n_samples} output samples")
         return y[:n_samples].copy()
@@ -236,10 +241,13 @@ class VirtualRig:
         force_fine = np.asarray(force_fine, dtype=float)
         need = n_samples * self.oversampling + self.margin_fine_samples
         if force_fine.size < need:
-            raise ValueError(f"force_fine has {force_fine.size} samples, needs {need} "
-                             f"({n_samples} x {self.oversampling} + filter margin)")
-        result = fe.simulate(self.model, self.truth, force_fine, fs=self.fs_fine,
-                             positions=[self.rig.sensor_position_m])
+            raise ValueError(
+                f"force_fine has {force_fine.size} samples, needs {need} "
+                f"({n_samples} x {self.oversampling} + filter margin)"
+            )
+        result = fe.simulate(
+            self.model, self.truth, force_fine, fs=self.fs_fine, positions=[self.rig.sensor_position_m]
+        )
         return self.decimate(force_fine, n_samples), self.decimate(result.sensor_velocity, n_samples)
 
     def clean(self, spec: TestSpec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -251,8 +259,7 @@ class VirtualRig:
         """(time, recorded force, recorded velocity) of one test: noise-free
         channels plus noise at the rig's SNRs, drawn from ``rng`` (force first)."""
         t, f, v = _clean_run(self, spec)
-        return (t.copy(), signals.add_noise(f, self.snr_force_db, rng),
-                signals.add_noise(v, self.snr_velocity_db, rng))
+        return (t.copy(), signals.add_noise(f, self.snr_force_db, rng), signals.add_noise(v, self.snr_velocity_db, rng))
 
     def modes(self, n_modes: int = 2) -> fe.Modes:
         """Modes of the rig's model linearised at the truth."""
@@ -264,32 +271,43 @@ class VirtualRig:
         modes = self.modes(1)
         f1 = float(modes.frequencies_hz[0])
         return {
-            "note": "virtual rig: true parameters and settings; the updating code never reads "
-                    "this block",
+            "note": "virtual rig: true parameters and settings; the updating code never reads this block",
             "parameters_si": p.to_dict(),
-            "parameters_paper_units": {"eta_mpa_s": _sig(p.eta / 1e6), "c_n_s_per_mm": _sig(p.c / 1e3),
-                                       "F_n": _sig(p.F), "k_s_n_per_mm": _sig(p.k_s / 1e3)},
+            "parameters_paper_units": {
+                "eta_mpa_s": _sig(p.eta / 1e6),
+                "c_n_s_per_mm": _sig(p.c / 1e3),
+                "F_n": _sig(p.F),
+                "k_s_n_per_mm": _sig(p.k_s / 1e3),
+            },
             "effects": [dict({"name": e.name}, **e.parameters()) for e in self.effects],
             "rig_model": {
-                "model": "fe.BeamModel", "formulation": self.model.formulation,
-                "n_elements": self.n_elements, "rho_inf": self.rho_inf,
-                "fs_fine_hz": self.fs_fine, "substeps_per_fine_sample": self.substeps,
+                "model": "fe.BeamModel",
+                "formulation": self.model.formulation,
+                "n_elements": self.n_elements,
+                "rho_inf": self.rho_inf,
+                "fs_fine_hz": self.fs_fine,
+                "substeps_per_fine_sample": self.substeps,
                 "steps_per_output_sample": self.substeps * self.oversampling,
-                "decimation": (f"linear-phase FIR, {self.decimation_filter.size} taps, Kaiser "
-                               f"beta {DECIMATION_KAISER_BETA:g}, cutoff "
-                               f"{DECIMATION_CUTOFF * self.fs:g} Hz, delay compensated (zero "
-                               f"phase), scipy.signal.resample_poly, factor {self.oversampling}"
-                               if self.oversampling > 1 else "none"),
+                "decimation": (
+                    f"linear-phase FIR, {self.decimation_filter.size} taps, Kaiser "
+                    f"beta {DECIMATION_KAISER_BETA:g}, cutoff "
+                    f"{DECIMATION_CUTOFF * self.fs:g} Hz, delay compensated (zero "
+                    f"phase), scipy.signal.resample_poly, factor {self.oversampling}"
+                    if self.oversampling > 1
+                    else "none"
+                ),
             },
             "noise": {
                 "kind": "white Gaussian, SNR relative to each channel's RMS over the record",
-                "snr_force_db": self.snr_force_db, "snr_velocity_db": self.snr_velocity_db,
+                "snr_force_db": self.snr_force_db,
+                "snr_velocity_db": self.snr_velocity_db,
                 "seed": seed,
                 "generator": "numpy.random.Generator(PCG64(SeedSequence(seed, "
-                             "spawn_key=(test index,)))), force noise drawn first",
+                "spawn_key=(test index,)))), force noise drawn first",
             },
             "linearised": {
-                "f1_hz": _sig(f1), "zeta1": _sig(float(modes.damping_ratios[0])),
+                "f1_hz": _sig(f1),
+                "zeta1": _sig(float(modes.damping_ratios[0])),
                 "sine_frequency_over_f1": _sig(signals.PAPER_SINE_HZ / f1),
                 "p_eff_n": _sig(p.effective_preload(self.rig)),
                 "euler_load_n": _sig(self.rig.euler_load),
@@ -308,8 +326,7 @@ def _sig(x: float, digits: int = 6) -> float:
 def _clean_run(vrig: VirtualRig, spec: TestSpec):
     n = int(round(spec.duration_s * vrig.fs))
     n_fine = n * vrig.oversampling + vrig.margin_fine_samples
-    force_fine = signals.test_signal(spec.signal, spec.amplitude_n, fs=vrig.fs_fine,
-                                     duration=n_fine / vrig.fs_fine)
+    force_fine = signals.test_signal(spec.signal, spec.amplitude_n, fs=vrig.fs_fine, duration=n_fine / vrig.fs_fine)
     f, v = vrig.respond(force_fine, n)
     t = np.arange(n) / vrig.fs
     for a in (t, f, v):
@@ -319,14 +336,20 @@ def _clean_run(vrig: VirtualRig, spec: TestSpec):
 
 def noise_generator(seed: int, index: int) -> np.random.Generator:
     """The noise generator of test ``index`` of a data set made with ``seed``."""
-    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed),
-                                                                      spawn_key=(int(index),))))
+    return np.random.Generator(np.random.PCG64(np.random.SeedSequence(int(seed), spawn_key=(int(index),))))
 
 
-def make_dataset(out=None, *, seed: int = DEFAULT_SEED, snr_force_db: float | None = DEFAULT_SNR_DB,
-                 snr_velocity_db: float | None = DEFAULT_SNR_DB, imperfection: float = 0.0,
-                 rig: VirtualRig | None = None, tests=PAPER_TESTS,
-                 name: str = DATASET_NAME) -> Dataset:
+def make_dataset(
+    out=None,
+    *,
+    seed: int = DEFAULT_SEED,
+    snr_force_db: float | None = DEFAULT_SNR_DB,
+    snr_velocity_db: float | None = DEFAULT_SNR_DB,
+    imperfection: float = 0.0,
+    rig: VirtualRig | None = None,
+    tests=PAPER_TESTS,
+    name: str = DATASET_NAME,
+) -> Dataset:
     """Make a virtual data set (and write it to the folder ``out`` if given).
 
     Parameters
@@ -351,16 +374,16 @@ def make_dataset(out=None, *, seed: int = DEFAULT_SEED, snr_force_db: float | No
     effects = tuple(vrig.effects)
     if imperfection != 0.0:
         effects += (fe.InitialImperfection(amplitude=float(imperfection)),)
-    vrig = dataclasses.replace(vrig, effects=effects, snr_force_db=snr_force_db,
-                               snr_velocity_db=snr_velocity_db)
+    vrig = dataclasses.replace(vrig, effects=effects, snr_force_db=snr_force_db, snr_velocity_db=snr_velocity_db)
     records = []
     for index, spec in enumerate(tests):
         t, f, v = vrig.measure(spec, noise_generator(seed, index))
-        records.append(Record(f"{spec.name}.csv", spec.signal, spec.level, spec.role, t, f, v,
-                              spec.meta()))
-    extra = {"description": "Virtual measurements of the preloaded-beam rig (bayes_update."
-                            "virtual_rig); regenerate with: bayes-update make-dataset",
-             "truth": vrig.truth_block(seed)}
+        records.append(Record(f"{spec.name}.csv", spec.signal, spec.level, spec.role, t, f, v, spec.meta()))
+    extra = {
+        "description": "Virtual measurements of the preloaded-beam rig (bayes_update."
+        "virtual_rig); regenerate with: bayes-update make-dataset",
+        "truth": vrig.truth_block(seed),
+    }
     ds = Dataset(name, vrig.fs, vrig.rig, records, extra)
     if out is not None:
         write_dataset(ds, out)
@@ -380,8 +403,13 @@ def truth_paper_units(dataset) -> dict | None:
     if not t:
         return None
     kb = rig_of(dataset).axial_stiffness
-    return {"eta": t["eta"] / 1e6, "c": t["c"] / 1e3, "F": t["F"], "k_s": t["k_s"] / 1e3,
-            "P_eff": t["F"] * kb / (kb + t["k_s"])}
+    return {
+        "eta": t["eta"] / 1e6,
+        "c": t["c"] / 1e3,
+        "F": t["F"],
+        "k_s": t["k_s"] / 1e3,
+        "P_eff": t["F"] * kb / (kb + t["k_s"]),
+    }
 
 
 def default_dataset_path() -> Path:
