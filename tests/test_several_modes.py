@@ -32,8 +32,9 @@ M1, M2 = 0.9, 0.45  # [kg], known
 TRUTH = {"k1": 19.0, "k2": 23.5, "c": 4.0, "k3": 0.2}  # kN/m, kN/m, N s/m, GN/m^3
 LEVELS = {"low": ("linear", 0.15, 11), "high": ("nonlinear", 3.0, 12), "mid": ("validation", 1.8, 13)}
 NOISE = (0.005, 0.01)  # force, response: sd / rms
-PARAMETER_TOL = 0.01  # relative, every parameter
-FLOOR_FACTOR = 1.3  # held-out error / the truth's
+# at about twice the accuracy measured (the same data both ways: calibrate and the CLI's --quick):
+PARAMETER_TOL = 0.003  # relative, every parameter (measured at most 0.15 %, k3)
+FLOOR_FACTOR = 1.01  # held-out error / the truth's (measured 1.0036)
 
 
 @njit(cache=False)
