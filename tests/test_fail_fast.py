@@ -10,6 +10,7 @@ when it is called).
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
@@ -523,3 +524,15 @@ def test_a_model_changed_since_its_check_is_checked_again(data, no_long_steps):
     model.kind = "velocity"  # another state: checked again
     preflight(data, model)
     assert Counting.runs == 2
+
+
+def test_cli_prior_on_the_beams_calibrate_is_refused(tmp_path, capsys):
+    """The beam's calibrate searches the paper's grids: a --prior would be ignored, so it is
+    refused in one line (status 2) before the data are read, naming what to use instead."""
+    from bayes_update.cli import main
+
+    t0 = time.perf_counter()
+    code = main(["calibrate", "--model", "rom", "--prior", "eta=3.5:4", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and time.perf_counter() - t0 < 5.0, err
+    assert len(err.strip().splitlines()) == 1 and "eta_values" in err and "sample" in err, err

@@ -308,6 +308,12 @@ def cmd_calibrate(args) -> int:
                 "--metrics full: the beam's calibrate is the paper's grids on the paper's metrics; "
                 "use `sample --metrics full` for the beam under the full set"
             )
+        if args.prior:
+            # the paper's grids are the beam calibrate's search: a prior would be ignored without a word
+            raise ValueError(
+                "--prior: the beam's calibrate searches the paper's grids, not a prior; set them in a [calibrate] "
+                "table of --config (eta_values, c_values, k_s_values), or use --prior with `sample` or `discrepancy`"
+            )
         settings = settings_from(CalibrationSettings, args.quick, config)
     else:
         from bayes_update.core.calibrate import check_settings

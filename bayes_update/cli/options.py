@@ -106,7 +106,8 @@ def add_model(p: argparse.ArgumentParser) -> None:
         default=[],
         metavar="NAME=LO:HI",
         help="change one parameter's prior range, in the unit the model declares for it "
-        "(the beam: eta MPa s, c N s/mm, F N, k_s N/mm), e.g. --prior F=20:95; repeatable",
+        "(the beam: eta MPa s, c N s/mm, F N, k_s N/mm), e.g. --prior F=20:95; repeatable (the beam's "
+        "calibrate searches the paper's grids instead and refuses it)",
     )
 
 
