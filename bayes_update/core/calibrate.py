@@ -539,7 +539,7 @@ def calibrate_model(
 def _laplace(dataset, problem, theta, executor, log) -> dict | None:
     """:func:`~bayes_update.core.posterior.sampler.laplace_at` at the result; None (said in
     the log) where the model cannot run there or the Laplace approximation fails."""
-    from bayes_update.core.posterior.sampler import laplace_at
+    from bayes_update.core.posterior.laplace_steps import laplace_at
 
     try:
         return laplace_at(dataset, problem, theta, executor=executor, log=lambda *a: None)
