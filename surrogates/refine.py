@@ -30,6 +30,7 @@ add nothing and make the kernel matrix ill-conditioned).
 
 from __future__ import annotations
 
+import time
 import warnings
 from dataclasses import dataclass, field
 
@@ -199,12 +200,16 @@ class RefinementResult:
         ``X_new``, ``y_new``, ``y_pred`` (the previous surrogate's transformed mean
         at ``X_new``, before they were run; not in round 0), ``results`` (raw
         outputs of func), ``surrogate``.
+    seconds : wall time [s] by part: ``fit`` (the surrogates' fits), ``runs`` (evaluating
+        func), ``until`` (the stopping rule's checks), ``propose`` (candidates and the
+        points chosen among them).
     """
 
     X: np.ndarray
     y: np.ndarray
     surrogate: object
     rounds: list = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
 
 
 def _n_positional(func) -> int:
@@ -332,7 +337,17 @@ def refine(
     takes_rounds = until is not None and _n_positional(until) >= 2  # (surrogate) alone: the older form
     seeds = np.random.SeedSequence(seed).spawn(int(n_rounds))
     fit_pool = executor if parallel_fits else None
+    seconds = {"fit": 0.0, "runs": 0.0, "until": 0.0, "propose": 0.0}
+    clock = time.perf_counter()
+
+    def lap(part):
+        nonlocal clock
+        now = time.perf_counter()
+        seconds[part] += now - clock
+        clock = now
+
     sur, n_ok = _fit(surrogate_factory, X, y, executor=fit_pool)
+    lap("fit")
     rounds = [
         {
             "round": 0,
@@ -345,7 +360,9 @@ def refine(
         }
     ]
     for r in range(1, int(n_rounds) + 1):
-        if until is not None and (until(sur, rounds) if takes_rounds else until(sur)):
+        stop = until is not None and (until(sur, rounds) if takes_rounds else until(sur))
+        lap("until")
+        if stop:
             break
         rng = np.random.default_rng(seeds[r - 1])
         cand = candidates(sur, rng) if callable(candidates) else candidates
@@ -360,13 +377,16 @@ def refine(
             log_weight=log_weight,
             power=power,
         )
+        lap("propose")
         results = evaluate(func, list(X_new), executor=executor, progress=progress)
+        lap("runs")
         y_new = np.array([target(res) for res in results], dtype=float)
         y_pred = np.column_stack([s.mean_transformed(X_new) for s in _as_list(sur)])
         if y_new.shape[1:] != y.shape[1:]:
             raise ValueError(f"target gave values of shape {y_new.shape[1:]}, y has {y.shape[1:]}")
         X, y = np.vstack([X, X_new]), np.concatenate([y, y_new])
         sur, n_ok = _fit(surrogate_factory, X, y, previous=sur if warm_start else None, executor=fit_pool)
+        lap("fit")
         rounds.append(
             {
                 "round": r,
@@ -382,4 +402,5 @@ def refine(
     if warm_start and len(rounds) > 1:
         sur, _ = _fit(surrogate_factory, X, y, executor=fit_pool)
         rounds[-1]["surrogate"] = sur
-    return RefinementResult(X=X, y=y, surrogate=sur, rounds=rounds)
+        lap("fit")
+    return RefinementResult(X=X, y=y, surrogate=sur, rounds=rounds, seconds=seconds)

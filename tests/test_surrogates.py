@@ -5,6 +5,7 @@ literal JSON string, and evaluations through another executor."""
 
 import hashlib
 import math
+import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
@@ -438,6 +439,37 @@ def test_refine_through_an_executor_with_failed_runs_and_a_cache(tmp_path):
     assert res.rounds[-1]["n_failed"] == failed.sum() and res.rounds[-1]["n_train"] == 21 - failed.sum()
     for x, v in zip(res.X[13:], res.y[13:]):
         assert cache.get(x)["v"] == v or (math.isnan(v) and math.isnan(cache.get(x)["v"]))
+
+
+def _slow_bowl(x):
+    time.sleep(0.02)
+    return float(np.sum((np.asarray(x) - 0.5) ** 2))
+
+
+def test_refine_splits_its_wall_time_into_fits_runs_checks_and_proposals():
+    """The model runs' time is counted as runs, not as the surrogates' fits (a design's
+    "GP fit" time once held its runs and checks too): a function that sleeps 20 ms a point
+    gives at least that much per point to ``runs``, and the parts sum to at most the wall time."""
+    bounds = [[0.0, 1.0], [0.0, 1.0]]
+    X0 = design(bounds, 8, seed=0)
+    y0 = np.array([float(np.sum((x - 0.5) ** 2)) for x in X0])
+    t0 = time.perf_counter()
+    res = refine(
+        _slow_bowl,
+        partial(GPSurrogate, bounds, n_restarts_optimizer=0),
+        X0,
+        y0,
+        lambda s: lambda P: np.ones(len(P)),
+        n_rounds=3,
+        batch=4,
+        seed=1,
+        progress=False,
+        until=lambda sur, rounds: False,
+    )
+    wall = time.perf_counter() - t0
+    assert set(res.seconds) == {"fit", "runs", "until", "propose"}
+    assert res.seconds["runs"] >= 0.02 * 12 and res.seconds["fit"] > 0
+    assert sum(res.seconds.values()) <= wall
 
 
 # -- cache -----------------------------------------------------------------
