@@ -31,7 +31,7 @@ its declared parameters:
    point of a valley without a word.
 5. **uncertainty** (``uncertainty=True``): each parameter's sd from steps 2-3
    of ``sample`` at the calibrated point
-   (:func:`bayes_update.core.posterior.sampler.laplace_at`: the noise
+   (:func:`bayes_update.core.posterior.laplace_steps.laplace_at`: the noise
    replicates with the force's noise, the model error against ``refined()``,
    the Laplace covariance with the curvature adjustment), some 50 runs.  The
    Gauss-Newton covariance of the fit alone assumes white noise of one level
@@ -537,7 +537,7 @@ def calibrate_model(
 
 
 def _laplace(dataset, problem, theta, executor, log) -> dict | None:
-    """:func:`~bayes_update.core.posterior.sampler.laplace_at` at the result; None (said in
+    """:func:`~bayes_update.core.posterior.laplace_steps.laplace_at` at the result; None (said in
     the log) where the model cannot run there or the Laplace approximation fails."""
     from bayes_update.core.posterior.laplace_steps import laplace_at
 

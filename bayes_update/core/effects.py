@@ -300,7 +300,7 @@ def _note(row) -> str:
         return "on a bound of its prior"
     held = row.get("held_out")
     if row["two_ln_B"] > DECISIVE and held is not None and not held["improves"]:
-        worse = [t for t, v in held["tests"].items() if v.get("z", 0.0) <= -3.0]
+        worse = held.get("worse", [])
         return (
             "decisive, but the held-out tests are not predicted better"
             if not worse

@@ -60,7 +60,7 @@ def held_out_runs(problem, thetas: list, executor=None) -> list:
 
 def held_out_comparison(problem, before: dict | None, after: dict | None) -> dict | None:
     """Compare two models' responses on the validation tests (:func:`held_out_runs`):
-    ``{"gain", "sd", "z", "improves", "tests": {test: {"before", "after", "z"}}}`` with the
+    ``{"gain", "sd", "z", "improves", "worse", "tests": {test: {"before", "after", "z"}}}`` with the
     relative output errors per test and each test's own gain in sd of its noise (rms over its sensors, as
     :meth:`~bayes_update.core.problem.Problem.prediction_errors`), or None without
     validation tests or where a model could not run."""
@@ -83,13 +83,14 @@ def held_out_comparison(problem, before: dict | None, after: dict | None) -> dic
     sd = math.sqrt(var)
     z = gain / sd if sd > 0 else 0.0
     distinct = sd >= 1.0
-    none_worse = all(t["z"] > -SIGNIFICANT_SD for t in tests.values())
+    worse = [name for name, t in tests.items() if t["z"] <= -SIGNIFICANT_SD]
     return {
         "gain": gain,
         "sd": sd,
         "z": z,
         "distinct": distinct,
-        "improves": bool(distinct and z > SIGNIFICANT_SD and none_worse),
+        "improves": bool(distinct and z > SIGNIFICANT_SD and not worse),
+        "worse": worse,
         "tests": tests,
     }
 
