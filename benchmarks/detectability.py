@@ -28,7 +28,8 @@ sys.path[:0] = [str(HERE), str(HERE.parent)]
 from _machine import machine  # noqa: E402
 
 from bayes_update.core.discrepancy import DiscrepancySettings, find_discrepancy  # noqa: E402
-from bayes_update.models.beam.model import EFFECT_PARAMETERS, _effect, beam_model  # noqa: E402
+from bayes_update.models.beam.effects import effect_from_si  # noqa: E402
+from bayes_update.models.beam.model import EFFECT_PARAMETERS, beam_model  # noqa: E402
 from bayes_update.models.beam.virtual_rig import VirtualRig, load_default_dataset, make_dataset  # noqa: E402
 
 
@@ -108,7 +109,7 @@ def main(argv=None):
             continue
         for factor in a.factors:
             si = [factor * lim[p[0]] * p[4] for p in EFFECT_PARAMETERS[effect]]
-            data = make_dataset(rig=VirtualRig(effects=(_effect(effect, si),)))
+            data = make_dataset(rig=VirtualRig(effects=(effect_from_si(effect, si),)))
             res = _run(data)
             row = {
                 "effect": effect,

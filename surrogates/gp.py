@@ -16,42 +16,34 @@ what emulating an expensive positive metric needs:
   overconfidently; the white term absorbs the numerical noise of the model
   (time stepping, Newton tolerances) and keeps the kernel matrix invertible;
 * seeded optimizer restarts, so that a fit is reproducible.
+
+The output transform and the predictions mapped back through it are
+:mod:`surrogates.gp_transform`, the report of a fit :mod:`surrogates.gp_report`,
+the checks of points and of held-out accuracy :mod:`surrogates.gp_validation`;
+this module holds the surrogate itself: its kernel, fit and transformed-space
+predictions.
 """
 
 from __future__ import annotations
 
-import re
 import warnings
 from functools import partial
 
 import numpy as np
-from scipy.stats import norm
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
 from sklearn.gaussian_process.kernels import ConstantKernel, Matern, WhiteKernel
 
 from .design import check_bounds
 from .gp_mean import kernel_mean
+from .gp_report import GPReport
+from .gp_transform import TRANSFORMS, OutputTransform
+from .gp_validation import check_X, holdout_validation, validation_metrics
 
 __all__ = ["TRANSFORMS", "GPSurrogate", "holdout_validation", "validation_metrics"]
 
-TRANSFORMS = ("log", "sqrt", "none")
 
-
-def _check_X(X, d=None, what="X") -> np.ndarray:
-    X = np.asarray(X, dtype=float)
-    if X.ndim == 1 and d is not None and d == 1:
-        X = X[:, None]
-    if X.ndim != 2:
-        raise ValueError(f"{what} must have shape (n, d), got shape {X.shape}")
-    if d is not None and X.shape[1] != d:
-        raise ValueError(f"{what} has {X.shape[1]} columns, the surrogate has {d} inputs")
-    if not np.all(np.isfinite(X)):
-        raise ValueError(f"{what} contains non-finite values")
-    return X
-
-
-class GPSurrogate:
+class GPSurrogate(OutputTransform, GPReport):
     """Gaussian-process regressor of ``y = f(x)``, x in a box of d inputs.
 
     Parameters
@@ -150,31 +142,6 @@ class GPSurrogate:
             raise ValueError("prior_mean must return one finite value per point")
         return m
 
-    # -- transforms ---------------------------------------------------------
-    def _forward(self, y: np.ndarray) -> np.ndarray:
-        if self.transform == "log":
-            bad = ~(y > 0)
-            if bad.any():
-                raise ValueError(
-                    f"transform='log' needs y > 0; {bad.sum()} of {y.size} values are not "
-                    f"(e.g. {y[bad][:3].tolist()}); use transform='sqrt' or 'none'"
-                )
-            return np.log(y)
-        if self.transform == "sqrt":
-            bad = ~(y >= 0)
-            if bad.any():
-                raise ValueError(f"transform='sqrt' needs y >= 0; {bad.sum()} of {y.size} values are not")
-            return np.sqrt(y)
-        return y.copy()
-
-    def _inverse(self, z: np.ndarray) -> np.ndarray:
-        if self.transform == "log":
-            return np.exp(z)
-        if self.transform == "sqrt":
-            # max(z, 0)^2 is monotone, so quantiles of t(y) map to quantiles of y
-            return np.maximum(z, 0.0) ** 2
-        return z
-
     # -- fitting ------------------------------------------------------------
     @property
     def n_inputs(self) -> int | None:
@@ -184,7 +151,7 @@ class GPSurrogate:
     def scale_inputs(self, X) -> np.ndarray:
         """Points (n, d) in input units -> unit-box coordinates (what the GP sees)."""
         self._check_fitted()
-        X = _check_X(X, self.n_inputs)
+        X = check_X(X, self.n_inputs)
         lo, hi = self.bounds_[:, 0], self.bounds_[:, 1]
         return (X - lo) / (hi - lo)
 
@@ -216,7 +183,7 @@ class GPSurrogate:
         ``y`` must be finite (drop failed model runs first) and compatible
         with the transform.  Returns self.
         """
-        X = _check_X(X, None if self.bounds is None else len(self.bounds))
+        X = check_X(X, None if self.bounds is None else len(self.bounds))
         y = np.asarray(y, dtype=float)
         if y.ndim != 1 or len(y) != len(X):
             raise ValueError(f"y must have shape ({len(X)},), got {y.shape}")
@@ -323,152 +290,18 @@ class GPSurrogate:
             mu = gp._y_train_std * mu + gp._y_train_mean
         return np.asarray(mu, float).reshape(-1) + self._mean(X)
 
-    def predict(self, X, return_std: bool = True):
-        """Prediction at ``X`` (n, d) in the original units of y.
-
-        The point prediction is ``t^-1(mu)``: for ``"log"`` the predictive
-        median ``exp(mu)`` (not the mean ``exp(mu + sd^2/2)``, which a large
-        sd inflates), for ``"sqrt"`` the median ``max(mu, 0)^2``, for ``"none"``
-        the mean.  The sd (``return_std=True``) is the exact sd of the
-        back-transformed Gaussian: lognormal ``sqrt((exp(sd^2) - 1) exp(2 mu +
-        sd^2))`` for ``"log"`` (not a delta-method ``exp(mu) sd``, which
-        understates it once sd is not small), the sd of ``max(z, 0)^2`` for
-        ``"sqrt"``.  Being a median with the sd of a skewed law, ``median +-
-        2 sd`` is not a 95 % band: use :meth:`predict_interval`.
-
-        Returns ``pred`` (n,), or ``(pred, sd)``.
-        """
-        mu, sd = self.predict_transformed(X)
-        pred = self._inverse(mu)
-        if not return_std:
-            return pred
-        return pred, self._back_transformed_sd(mu, sd)
-
-    def _back_transformed_sd(self, mu, sd):
-        if self.transform == "none":
-            return sd
-        if self.transform == "log":
-            s2 = sd**2
-            return np.sqrt(np.expm1(s2)) * np.exp(mu + s2 / 2)
-        # y = max(z, 0)^2, z ~ N(mu, sd^2): raw moments from those of the
-        # normal truncated to z > 0 (a = mu/sd, Phi, phi at a)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            a = np.where(sd > 0, mu / sd, np.sign(mu) * np.inf)
-        P, p = norm.cdf(a), norm.pdf(a)
-        m2 = (mu**2 + sd**2) * P + mu * sd * p
-        m4 = (mu**4 + 6 * mu**2 * sd**2 + 3 * sd**4) * P + (mu**3 * sd + 5 * mu * sd**3) * p
-        return np.sqrt(np.maximum(m4 - m2**2, 0.0))
-
-    def predict_interval(self, X, level: float = 0.95):
-        """Central predictive interval in original units: ``(low, high)``, each (n,).
-
-        The transformed-space quantiles ``mu -+ z sd`` mapped back through the
-        (monotone) inverse transform, so the interval is exact for the GP's
-        Gaussian in t(y) whatever the transform.
-        """
-        if not 0 < level < 1:
-            raise ValueError(f"level must be in (0, 1), got {level}")
-        mu, sd = self.predict_transformed(X)
-        k = norm.ppf(0.5 + level / 2)
-        return self._inverse(mu - k * sd), self._inverse(mu + k * sd)
-
     def score(self, X, y, level: float = 0.95) -> dict:
         """Validation metrics at held-out points (see :func:`validation_metrics`).
 
         Unlike scikit-learn's ``score`` (a single R^2) this returns a dict.
         """
-        X = _check_X(X, self.n_inputs)
+        X = check_X(X, self.n_inputs)
         y = np.asarray(y, dtype=float)
         if y.shape != (len(X),):
             raise ValueError(f"y must have shape ({len(X)},), got {y.shape}")
         pred = self.predict(X, return_std=False)
         lo, hi = self.predict_interval(X, level)
         return validation_metrics(y, pred, lo, hi) | {"level": level}
-
-    # -- reporting ----------------------------------------------------------
-    def _input_names(self):
-        d = self.n_inputs or 0
-        return self.names if self.names is not None else [f"x{i}" for i in range(d)]
-
-    def hyperparameters(self) -> dict:
-        """Fitted hyperparameters of the default kernel, in readable units.
-
-        ``length_scales_unit`` (d,) in unit-box units, ``length_scales`` (d,)
-        in input units, ``signal_sd`` and ``noise_sd`` in units of t(y), and
-        the ``log_marginal_likelihood``.  Empty dict for a custom kernel.
-        """
-        self._check_fitted()
-        k = self.gp_.kernel_
-        try:
-            c, m, w = k.k1.k1, k.k1.k2, k.k2
-            ls = np.broadcast_to(np.asarray(m.length_scale, float), (self.n_inputs,))
-            # normalize_y divides t(y) by its std (ddof 0; 1 when constant)
-            scale = float(np.std(self._forward(self.y_train_))) or 1.0
-            return {
-                "length_scales_unit": ls.copy(),
-                "length_scales": ls * (self.bounds_[:, 1] - self.bounds_[:, 0]),
-                "signal_sd": float(np.sqrt(c.constant_value)) * scale,
-                "noise_sd": float(np.sqrt(w.noise_level)) * scale,
-                "log_marginal_likelihood": float(self.gp_.log_marginal_likelihood_value_),
-            }
-        except AttributeError:
-            return {}
-
-    def __repr__(self) -> str:
-        fitted = hasattr(self, "gp_")
-        n = f", n_train={len(self.X_train_)}" if fitted else ", not fitted"
-        names = f", names={self._input_names()}" if (self.names is not None or fitted) else ""
-        return f"GPSurrogate(transform={self.transform!r}{names}{n})"
-
-    def summary(self) -> str:
-        """Multi-line description of the fitted kernel: length scale per input
-        (in unit-box and input units), signal and noise sd, warnings."""
-        if not hasattr(self, "gp_"):
-            return repr(self)
-        kernel = f"Matern nu={self.nu}" if self.kernel is None else "custom kernel"
-        lines = [f"GPSurrogate: transform={self.transform!r}, {len(self.X_train_)} training points, {kernel}"]
-        hp = self.hyperparameters()
-        if not hp:
-            lines.append(f"  kernel: {self.gp_.kernel_}")
-        else:
-            lines.append(
-                f"  signal sd {hp['signal_sd']:.4g}, noise sd {hp['noise_sd']:.3g} (units of "
-                f"{'log y' if self.transform == 'log' else 'sqrt y' if self.transform == 'sqrt' else 'y'})"
-                f", log marginal likelihood {hp['log_marginal_likelihood']:.4g}"
-            )
-            names = self._input_names()
-            w = max(8, max(len(n) for n in names))
-            lines.append(f"  {'input':<{w}} {'low':>11} {'high':>11} {'length scale':>13} {'(unit box)':>11}")
-            for i, name in enumerate(names):
-                lo, hi = self.bounds_[i]
-                lines.append(
-                    f"  {name:<{w}} {lo:>11.4g} {hi:>11.4g} {hp['length_scales'][i]:>13.4g} "
-                    f"{hp['length_scales_unit'][i]:>11.4g}"
-                )
-        for msg in self.fit_warnings_:
-            lines.append(f"  note: {self._explain(msg)}")
-        return "\n".join(lines)
-
-    def _explain(self, msg: str) -> str:
-        # sklearn names hyperparameters by their place in the kernel tree
-        m = re.search(r"dimension (\d+) of parameter (\S+) is close to the specified (upper|lower) bound", msg)
-        if not m or self.kernel is not None:
-            return msg
-        i, param, side = int(m.group(1)), m.group(2), m.group(3)
-        if param.endswith("length_scale"):
-            name = self._input_names()[i]
-            why = (
-                "the function is nearly constant or linear along it"
-                if side == "upper"
-                else "the function varies faster than the design resolves"
-            )
-            return f"length scale of {name!r} at its {side} bound: {why}"
-        if param.endswith("noise_level"):
-            why = "the data look noise-free" if side == "lower" else "the data look noisy or too rough for the kernel"
-            return f"white-noise variance at its {side} bound: {why}"
-        if param.endswith("constant_value"):
-            return f"signal variance at its {side} bound"
-        return msg
 
 
 def _default_form(kernel) -> bool:
@@ -493,66 +326,3 @@ def _lbfgs(obj_func, initial_theta, bounds, max_iterations: int):
         obj_func, initial_theta, method="L-BFGS-B", jac=True, bounds=bounds, options={"maxiter": max_iterations}
     )
     return res.x, res.fun
-
-
-def validation_metrics(y_true, y_pred, low, high) -> dict:
-    """Accuracy of predictions against true values, all arrays (n,).
-
-    Returns ``n``, ``median_rel_error`` and ``max_rel_error`` of
-    ``|y_pred - y_true| / |y_true|``, and ``coverage``: the fraction of
-    ``y_true`` inside ``[low, high]`` (about the band's level if the
-    predictive sd is calibrated).
-    """
-    y_true, y_pred = np.asarray(y_true, float), np.asarray(y_pred, float)
-    low, high = np.asarray(low, float), np.asarray(high, float)
-    if not (y_true.shape == y_pred.shape == low.shape == high.shape) or y_true.ndim != 1:
-        raise ValueError("y_true, y_pred, low and high must be 1-D arrays of one length")
-    if y_true.size == 0:
-        raise ValueError("no points to validate on")
-    with np.errstate(divide="ignore", invalid="ignore"):
-        rel = np.abs(y_pred - y_true) / np.abs(y_true)
-    return {
-        "n": int(y_true.size),
-        "median_rel_error": float(np.median(rel)),
-        "max_rel_error": float(np.max(rel)),
-        "coverage": float(np.mean((y_true >= low) & (y_true <= high))),
-    }
-
-
-def holdout_validation(gp_factory, X, y, fraction: float = 0.25, seed=0, level: float = 0.95) -> dict:
-    """Fit a fresh surrogate on a random part of ``(X, y)`` and score it on the rest.
-
-    Parameters
-    ----------
-    gp_factory : callable with no argument returning an unfitted surrogate
-        (e.g. ``lambda: GPSurrogate(bounds, seed=0)``).
-    X, y : (n, d) points and (n,) values.
-    fraction : share of points held out (at least one point each side).
-    seed : seeds the split.
-    level : level of the predictive band whose coverage is reported.
-
-    Returns
-    -------
-    dict: ``n_train``, ``n_test``, ``median_rel_error``, ``max_rel_error``,
-    ``coverage`` (fraction of held-out values inside the ``level`` band),
-    ``level``, ``surrogate`` (the fitted one) and ``test_index``.
-    """
-    X = _check_X(X)
-    y = np.asarray(y, dtype=float)
-    if y.shape != (len(X),):
-        raise ValueError(f"y must have shape ({len(X)},), got {y.shape}")
-    if not 0 < fraction < 1:
-        raise ValueError(f"fraction must be in (0, 1), got {fraction}")
-    n_test = int(round(fraction * len(X)))
-    if n_test < 1 or len(X) - n_test < 2:
-        raise ValueError(f"fraction={fraction} of {len(X)} points leaves no test point or < 2 training points")
-    perm = np.random.default_rng(seed).permutation(len(X))
-    test, train = np.sort(perm[:n_test]), np.sort(perm[n_test:])
-    sur = gp_factory().fit(X[train], y[train])
-    return {
-        "n_train": len(train),
-        "n_test": n_test,
-        **sur.score(X[test], y[test], level),
-        "surrogate": sur,
-        "test_index": test,
-    }

@@ -47,9 +47,11 @@ def test_one_point_rule_is_one_point():
     # scikit-fem's intorder=1 gives 2x2x2 points on hexahedra; the module passes the rule
     from skfem import ElementHex1, MeshHex
 
+    from fe.continuum_strip import _scalar_basis
+
     mesh = MeshHex.init_tensor(np.linspace(0, 1, 3), np.linspace(0, 1, 2), np.linspace(0, 1, 2))
-    assert fc._scalar_basis(mesh, ElementHex1(), 1).X.shape[1] == 1
-    assert fc._scalar_basis(mesh, ElementHex1(), 2).X.shape[1] == 8
+    assert _scalar_basis(mesh, ElementHex1(), 1).X.shape[1] == 1
+    assert _scalar_basis(mesh, ElementHex1(), 2).X.shape[1] == 8
 
 
 def test_nu0_continuum_equals_euler_bernoulli(beam_nu0):

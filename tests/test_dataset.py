@@ -121,7 +121,7 @@ def test_dataset_json_may_reference_uff_files_and_sets_the_rig(tmp_path):
 def test_uff_units_are_converted_explicitly(tmp_path):
     import pyuff
 
-    from bayes_update.data.uff import _record_dict
+    from bayes_update.data.uff_writer import _record_dict
 
     rec = make_records()[0]
     f = _record_dict(rec, "force", 1, False, FS)
@@ -282,7 +282,7 @@ def test_errors_are_value_errors():
 def test_uff_wrong_channel_type_rate_and_lengths(tmp_path):
     import pyuff
 
-    from bayes_update.data.uff import _record_dict
+    from bayes_update.data.uff_writer import _record_dict
 
     rec = make_records()[0]
     f = _record_dict(rec, "force", 1, False, FS)

@@ -14,7 +14,8 @@ import fe
 from bayes_update.models.beam.rig import rig_of
 from bayes_update.models.beam.virtual_rig import PAPER_EQUIVALENT_RIG, load_default_dataset
 from fe import _kernels as K
-from fe.model import KD, _beam_axial_force, hermite_weights
+from fe.equilibrium import _beam_axial_force
+from fe.model import KD, hermite_weights
 from fe.rom import ModalROM
 
 RIG = PAPER_EQUIVALENT_RIG

@@ -262,7 +262,7 @@ def test_batch_variance_update_is_exact_gp_conditioning():
     """The kriging-believer update of propose_points against refitting the GP
     (same hyperparameters) with the picked points added: the posterior
     variance of a GP does not depend on the values observed."""
-    from surrogates.refine import _ConditionalVariance
+    from surrogates.proposal import _ConditionalVariance
 
     bounds = [[0.0, 1.0], [0.0, 2.0]]
     X = design(bounds, 10, seed=0)

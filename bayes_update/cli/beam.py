@@ -1,7 +1,8 @@
 """The beam's part of the command line: its model options (--model fe|rom, mesh,
 integrator, bending-stiffness factor), the rig a command runs on, and the
 beam's own commands (``simulate``, ``make-dataset``, ``plot-data``,
-``reproduce``)."""
+``reproduce``).  The options and the rig are held in :mod:`.beam_model` and
+handed on here."""
 
 from __future__ import annotations
 
@@ -14,51 +15,41 @@ from pathlib import Path
 import numpy as np
 
 import fe
+from bayes_update.cli.beam_model import (
+    BEAM_MODELS,
+    FAILURES,
+    add_model_options,
+    fe_model_for,
+    model_for,
+    rig_for,
+    stated_factor,
+)
 from bayes_update.data import signals
 from bayes_update.data.dataset import Dataset, Record, SensorError, is_single_velocity
 from bayes_update.data.folder import read_dataset, write_dataset
 from bayes_update.models.beam.rig import rig_of
-from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
 
-#: what a beam run raises where the point cannot be run (the CLI reports it in one line)
-FAILURES = (fe.ConvergenceError,)
-
+__all__ = [
+    "BEAM_MODELS",
+    "DEFAULT_CHIRP_AMPLITUDE",
+    "FAILURES",
+    "add_commands",
+    "add_model_options",
+    "add_parameter_options",
+    "check_parameters",
+    "cmd_make_dataset",
+    "cmd_plot_data",
+    "cmd_reproduce",
+    "cmd_simulate",
+    "default_dataset",
+    "fe_model_for",
+    "model_for",
+    "rig_for",
+    "stated_factor",
+]
 
 # the paper's high-level chirp on the default (locking-free) rig [N]
 DEFAULT_CHIRP_AMPLITUDE = 0.1
-
-
-def add_model_options(p: argparse.ArgumentParser) -> None:
-    """The beam's model options (used with --model fe|rom)."""
-    g = p.add_argument_group("the beam's model (--model fe or rom)")
-    g.add_argument("--modes", type=int, default=None, help="modes kept by --model rom (default 3)")
-    g.add_argument("--elements", type=int, default=DEFAULT_ELEMENTS, help=f"beam elements (default {DEFAULT_ELEMENTS})")
-    g.add_argument(
-        "--substeps",
-        type=int,
-        default=DEFAULT_SUBSTEPS,
-        help=f"generalized-alpha steps per sample (default {DEFAULT_SUBSTEPS})",
-    )
-    g.add_argument(
-        "--rho-inf",
-        type=float,
-        default=DEFAULT_RHO_INF,
-        help=f"generalized-alpha spectral radius at infinity (default {DEFAULT_RHO_INF}; the paper used 0.01)",
-    )
-    g.add_argument(
-        "--bending-stiffness-factor",
-        type=float,
-        default=None,
-        metavar="X",
-        help="multiply the model's EI by X (default: the data set's "
-        "rig.bending_stiffness_factor, 1.0 when absent; 1.24 reproduces the "
-        "paper's shear-locking mesh)",
-    )
-    g.add_argument(
-        "--override-factor",
-        action="store_true",
-        help="allow --bending-stiffness-factor to differ from the factor the data set states",
-    )
 
 
 def add_parameter_options(p: argparse.ArgumentParser) -> None:
@@ -71,67 +62,6 @@ def add_parameter_options(p: argparse.ArgumentParser) -> None:
         p.add_argument(
             f"--{name}", type=float, default=value, help=f"{key} [{UNITS[key]}] (default {value:g}, the paper's)"
         )
-
-
-BEAM_MODELS = ("fe", "rom")
-
-
-def model_for(args, rig: fe.Rig, prior: dict | None = None):
-    """The beam model of the contract the options ask for, on ``rig``, with the
-    prior ranges ``prior`` ({name: (low, high)}, paper units)."""
-    from bayes_update.models.beam.model import Beam
-
-    return Beam(fe_model_for(args, rig), prior or {})
-
-
-def fe_model_for(args, rig: fe.Rig):
-    """The ``fe`` model the options ask for, on ``rig``."""
-    if args.model not in BEAM_MODELS:
-        raise ValueError(
-            f"--model {args.model}: `{args.command}` runs the beam models ({', '.join(BEAM_MODELS)}) "
-            "only so far; `bayes-update sample` takes a model of your own"
-        )
-    if args.model == "rom":
-        from fe.rom import DEFAULT_ROM_MODES
-
-        return fe.ModalROM(rig=rig, n_modes=args.modes or DEFAULT_ROM_MODES)
-    if args.modes is not None:
-        raise ValueError("--modes applies to --model rom only")
-    return fe.BeamModel(rig=rig, n_elements=args.elements, substeps=args.substeps, rho_inf=args.rho_inf)
-
-
-def rig_for(data: Dataset, args) -> fe.Rig:
-    """The model's rig: the data set's, with the factor from the command line if given.
-    A factor that contradicts the one the data set states needs --override-factor."""
-    import dataclasses
-
-    rig = rig_of(data)
-    factor = getattr(args, "bending_stiffness_factor", None)
-    if factor is None:
-        return rig
-    stated = stated_factor(data)
-    if stated is not None and stated != factor and not args.override_factor:
-        raise ValueError(
-            f"the data set states bending_stiffness_factor = {stated:g} but "
-            f"--bending-stiffness-factor {factor:g} was given; pass --override-factor "
-            "to use it anyway (e.g. to calibrate a locking-free model on the "
-            "paper-equivalent data)"
-        )
-    return dataclasses.replace(rig, bending_stiffness_factor=factor)
-
-
-def stated_factor(data: Dataset):
-    """The factor written in the data set's dataset.json, or None when absent."""
-    if data.source is None:
-        return None
-    path = Path(data.source)
-    path = path / "dataset.json" if path.is_dir() else path
-    try:
-        rig = json.loads(path.read_text()).get("rig", {})
-    except (OSError, ValueError):
-        return None
-    value = rig.get("bending_stiffness_factor")
-    return None if value is None else float(value)
 
 
 def default_dataset() -> Dataset:

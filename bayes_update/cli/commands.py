@@ -8,13 +8,13 @@ then the options on the command line.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import sys
-from pathlib import Path
 
 from bayes_update.cli import beam as beam_cli
+from bayes_update.cli.execution import DASK_PORT, SCHEDULER_TIMEOUT, check_scheduler, executor_from, workers_from
+from bayes_update.cli.modelless import add_cache_command, add_inspect_command, cmd_cache, cmd_inspect
 from bayes_update.cli.options import (
     add_cache,
     add_common,
@@ -29,7 +29,16 @@ from bayes_update.cli.options import (
 )
 from bayes_update.data.folder import read_dataset
 
-__all__ = ["add_commands", "cmd_calibrate", "cmd_discrepancy", "cmd_inspect", "cmd_sample"]
+__all__ = [
+    "DASK_PORT",
+    "SCHEDULER_TIMEOUT",
+    "add_commands",
+    "cmd_cache",
+    "cmd_calibrate",
+    "cmd_discrepancy",
+    "cmd_inspect",
+    "cmd_sample",
+]
 
 
 def add_commands(sub) -> None:
@@ -86,38 +95,8 @@ def add_commands(sub) -> None:
     add_scheduler(p)
     p.set_defaults(func=cmd_sample)
 
-    p = sub.add_parser(
-        "inspect",
-        help="a first look at a data set, no model needed",
-        description="The noise of every channel of every test and how it was found, the "
-        "excited band, the modes of the linear test, how each mode's frequency and "
-        "damping move with the level, and warnings (offsets, drift, clipping, "
-        "coherence). Writes inspection.json and figures (FRF per sensor by level "
-        "with coherence, noise spectra against the response, the modes' level "
-        "dependence). Without --data: the beam's embedded default data set.",
-    )
-    add_data_out(p)
-    add_common(p, seed=False)
-    p.set_defaults(func=cmd_inspect)
-
-    p = sub.add_parser(
-        "cache",
-        help="what the run cache holds; --clear to free it",
-        description="The folder of kept model runs (--cache DIR, else $BAYES_UPDATE_CACHE, else "
-        "~/.cache/bayes-update), how many runs of how many models, and their size. "
-        "With --clear, delete them (all, or with --older-than DAYS those last written "
-        "before); a command run afterwards makes its runs again.",
-    )
-    p.add_argument("--cache", type=Path, default=None, metavar="DIR", help="the cache folder (default: as above)")
-    p.add_argument("--clear", action="store_true", help="delete the kept runs")
-    p.add_argument(
-        "--older-than",
-        type=float,
-        default=None,
-        metavar="DAYS",
-        help="with --clear: only the runs last written more than DAYS days ago",
-    )
-    p.set_defaults(func=cmd_cache)
+    add_inspect_command(sub)
+    add_cache_command(sub)
 
     p = sub.add_parser(
         "discrepancy",
@@ -225,80 +204,10 @@ def _first_look(data, out) -> None:
         print(f"bayes-update: data: {w}", file=sys.stderr)
 
 
-def _workers(args):
-    if args.workers is not None and args.workers < 1:
-        raise ValueError(f"--workers must be at least 1, got {args.workers}")
-    return args.workers
-
-
-#: seconds a Dask scheduler has to accept a connection (the check before any long step)
-SCHEDULER_TIMEOUT = 3.0
-#: Dask's scheduler port when an address gives none
-DASK_PORT = 8786
-
-
-def _check_scheduler(args) -> None:
-    """``--scheduler ADDRESS``, before any long step: Dask's distributed is installed and
-    a tcp (or tls) address accepts a connection within :data:`SCHEDULER_TIMEOUT`.  Another
-    transport (inproc, ucx, ws) is left to Dask's own connection in :func:`_executor`."""
-    address = getattr(args, "scheduler", None)
-    if not address:
-        return
-    import importlib.util
-    import socket
-
-    if importlib.util.find_spec("distributed") is None:
-        raise ValueError("--scheduler needs Dask's distributed scheduler: pip install 'dask[distributed]'")
-    scheme, sep, rest = address.rpartition("://")
-    if sep and scheme not in ("tcp", "tls"):
-        return
-    if rest.startswith("["):  # [IPv6]:port
-        host, _, tail = rest[1:].partition("]")
-        port = tail[1:] if tail.startswith(":") else ""
-    else:
-        host, _, port = rest.partition(":") if rest.count(":") == 1 else (rest, "", "")
-    if not host or (port and not port.isdigit()):
-        raise ValueError(f"--scheduler {address}: expected tcp://HOST:PORT (e.g. tcp://10.0.0.5:{DASK_PORT})")
-    try:
-        socket.create_connection((host, int(port or DASK_PORT)), timeout=SCHEDULER_TIMEOUT).close()
-    except OSError as exc:
-        raise ValueError(
-            f"--scheduler {address}: no Dask scheduler answers there ({exc.strerror or exc}); start "
-            "one (`dask scheduler`) or check the address and port"
-        ) from None
-
-
-@contextlib.contextmanager
-def _executor(args):
-    """The executor of the model runs: a Dask cluster's (``--scheduler``, checked first by
-    :func:`_check_scheduler`), else None (the functions then start a local process pool
-    over ``--workers``)."""
-    if not getattr(args, "scheduler", None):
-        yield None
-        return
-    import distributed
-
-    try:
-        client = distributed.Client(args.scheduler, set_as_default=False, timeout="10s")
-    except (OSError, TimeoutError) as exc:
-        raise ValueError(f"--scheduler {args.scheduler}: no Dask scheduler answers there ({exc})") from None
-    try:
-        workers = len(client.scheduler_info().get("workers", {}))
-        print(f"bayes-update: model runs on the Dask cluster at {args.scheduler} ({workers} workers)", file=sys.stderr)
-        where = str(getattr(args, "model", "")).rpartition(":")[0]
-        if where.endswith(".py"):
-            # a model file of the user's: the workers import it by its name, as local processes
-            # do (the files it imports beside it must be importable there too)
-            client.upload_file(str(Path(where).expanduser().resolve()), load=False)
-        yield client.get_executor()
-    finally:
-        client.close()
-
-
 # ----------------------------------------------------------------- commands
 def cmd_calibrate(args) -> int:
     # every check before the first long step (the first look at the data, then the calibration)
-    workers = _workers(args)
+    workers = workers_from(args)
     config = read_config(args.config, "calibrate")
     if args.model in beam_cli.BEAM_MODELS:
         from bayes_update.models.beam.calibrate import CalibrationSettings
@@ -324,7 +233,7 @@ def cmd_calibrate(args) -> int:
             **check_settings(config, f"--config {args.config}: [calibrate]"),
             **({"seed": args.seed} if args.seed is not None else {}),
         }
-    _check_scheduler(args)
+    check_scheduler(args)
     model, data, space, _ = _model_and_data(args)
     _check_first(data, model, space)
     _first_look(data, args.out)
@@ -332,7 +241,7 @@ def cmd_calibrate(args) -> int:
         from bayes_update.models.beam.calibrate import calibrate, format_tables
         from bayes_update.reports.beam_calibration import write_result
 
-        with _executor(args) as pool:
+        with executor_from(args) as pool:
             result = calibrate(data, model, settings, workers=workers, executor=pool)
         write_result(result, data, args.out)
         print(format_tables(result))
@@ -340,7 +249,7 @@ def cmd_calibrate(args) -> int:
         from bayes_update.core.calibrate import calibrate_model
         from bayes_update.reports.calibration import format_calibration, write_calibration
 
-        with _executor(args) as pool:
+        with executor_from(args) as pool:
             cal = calibrate_model(
                 data,
                 model,
@@ -363,7 +272,7 @@ def cmd_sample(args) -> int:
     from bayes_update.reports.posterior import write_posterior
 
     # every check before the first long step (the first look at the data, then the posterior)
-    workers = _workers(args)
+    workers = workers_from(args)
     if args.thorough and args.quick:
         raise ValueError("--thorough and --quick: choose one")
     config = {**(THOROUGH if args.thorough else {}), **read_config(args.config, "sample")}
@@ -385,11 +294,11 @@ def cmd_sample(args) -> int:
             "evaluation (a few hours); --model rom is the intended use",
             file=sys.stderr,
         )
-    _check_scheduler(args)
+    check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     _check_first(data, model, space)
     _first_look(data, args.out)
-    with _executor(args) as pool:
+    with executor_from(args) as pool:
         res = sample(
             data,
             model,
@@ -425,14 +334,14 @@ def cmd_discrepancy(args) -> int:
 
     # every check before the first long step; find_discrepancy's own first (the model's contract and
     # candidate effects, the data set's roles, one run) comes before its long ones
-    workers = _workers(args)
+    workers = workers_from(args)
     settings = settings_from(DiscrepancySettings, args.quick, read_config(args.config, "discrepancy"), seed=args.seed)
-    _check_scheduler(args)
+    check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     if args.model in beam_cli.BEAM_MODELS:
         hidden = data.extra.get("truth", {}).get("effects") if isinstance(data.extra.get("truth"), dict) else None
         truth = {"parameters": truth, "effects": hidden} if truth else None
-    with _executor(args) as pool:
+    with executor_from(args) as pool:
         res = find_discrepancy(
             data,
             model,
@@ -446,47 +355,4 @@ def cmd_discrepancy(args) -> int:
     write_discrepancy(res, args.out, truth=truth)
     print(format_result(res))
     print(f"{res.n_model_runs['total']} model runs, {res.timing['total']:.0f} s; wrote {args.final_out}")
-    return 0
-
-
-def cmd_cache(args) -> int:
-    from bayes_update.core.runs import clear_runs, default_root, runs_usage
-
-    if args.older_than is not None and not args.clear:
-        raise ValueError("--older-than goes with --clear")
-    root = args.cache if args.cache is not None else default_root()
-    if args.clear:
-        n, freed = clear_runs(root, args.older_than)
-        print(f"deleted {n} runs ({freed / 1e6:.1f} MB) from {Path(root) / 'runs'}")
-    u = runs_usage(root)
-    age = "" if u["oldest_days"] is None else f", the oldest {u['oldest_days']:.1f} days old"
-    print(f"{u['folder']}: {u['runs']} runs of {u['models']} model(s), {u['bytes'] / 1e6:.1f} MB{age}")
-    return 0
-
-
-def cmd_inspect(args) -> int:
-    from bayes_update.reports.inspection import write_inspection
-
-    if args.data is None:
-        from bayes_update.models.beam.virtual_rig import load_default_dataset
-
-        data = load_default_dataset()
-    else:
-        data = read_dataset(args.data)
-    paths = write_inspection(data, args.out)
-    doc = json.loads(paths["inspection.json"].read_text())
-    for name, t in doc["tests"].items():
-        noise = ", ".join(
-            f"{ch} {v['sd']:.3g} ({v['method']})" if v["sd"] is not None else f"{ch} unknown"
-            for ch, v in t["noise"].items()
-        )
-        band = t.get("excited_band_hz")
-        print(f"{name}: band {band[0]:.1f}-{band[1]:.1f} Hz; noise sd: {noise}" if band else f"{name}: {noise}")
-    print(
-        "modes of the linear test: "
-        + (", ".join(f"{m['freq_hz']:.3f} Hz (zeta {m['damping_ratio']:.4f})" for m in doc["modes"]) or "none found")
-    )
-    for w in doc["warnings"]:
-        print(f"WARNING: {w}")
-    print(f"wrote {args.final_out}")
     return 0

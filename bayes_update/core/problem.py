@@ -5,13 +5,15 @@ Reference and model responses are expanded in the *same* Kautz basis under the
 set from the reference linear test, and the model is driven by the recorded
 input of each test, so the regressors are factored once per test
 (:class:`volterra.VolterraProjector`) and an evaluation costs one model run per
-test plus two small matrix-vector products."""
+test plus two small matrix-vector products.
+
+Running the model (through the run store, each response checked), its refined
+model and its identity are the base class's (:mod:`bayes_update.core.problem_model`);
+the roles a data set's tests must have are :mod:`bayes_update.core.roles`'s."""
 
 from __future__ import annotations
 
-import hashlib
 import math
-import pickle
 import uuid
 from dataclasses import dataclass
 
@@ -27,41 +29,14 @@ from bayes_update.core.metrics import (
     relative_error,
     stage_output,
 )
-from bayes_update.core.model import ModelError, check_response, run_error
+from bayes_update.core.problem_model import ProblemModel
+from bayes_update.core.roles import require_roles
 from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
 from bayes_update.data.checks import require_live_force
 from bayes_update.data.dataset import DatasetError
 from bayes_update.data.noise import dataset_noise
 
 __all__ = ["Problem", "require_roles"]
-
-
-def require_roles(dataset, needed=("linear",)) -> None:
-    """The data set's roles as the metrics need them: one test with each role of
-    :data:`STAGES` at most (e_lin and e_nlin compare one test each, and the
-    code supports no more), and one with each role in ``needed`` (the linear
-    test always: the basis's poles come from it).  Raises :class:`DatasetError`
-    naming the tests and what to set in dataset.json."""
-    source = dataset.source or dataset.name
-    for role in STAGES:
-        found = dataset.by_role(role)
-        if len(found) > 1:
-            raise DatasetError(
-                f"{source}: {len(found)} tests have role {role!r} ({[t.name for t in found]}); the "
-                f"metrics need exactly one: give the others role 'validation' (predicted and "
-                "reported, never fitted) in dataset.json"
-            )
-    what = {
-        "linear": "the low-level test that e_lin and the Kautz basis's poles come from",
-        "nonlinear": "the high-level test that e_nlin comes from, which calibrate, sample and discrepancy "
-        "need as well as the linear one",
-    }
-    for role in dict.fromkeys(("linear", *needed)):
-        if not dataset.by_role(role):
-            raise DatasetError(
-                f"{source}: no test has role {role!r} ({what[role]}); set it in dataset.json "
-                f"(roles now: {[(t.name, t.role) for t in dataset.tests]})"
-            )
 
 
 @dataclass(frozen=True)
@@ -80,7 +55,7 @@ class _Test:
 _WORKER_PROJECTORS: dict = {}
 
 
-class Problem:
+class Problem(ProblemModel):
     """Reference data + a model + a fixed Kautz basis -> metrics.
 
     Parameters
@@ -103,12 +78,11 @@ class Problem:
     the metrics never see them.
 
     The object pickles without its factored projectors (they are rebuilt
-    lazily), so it can be shipped to worker processes.
+    lazily), so it can be shipped to worker processes.  Its model's runs
+    (:meth:`run`), refined model and identity come from its base,
+    :class:`~bayes_update.core.problem_model.ProblemModel`.
     """
 
-    #: exceptions that mean "the model cannot run at this point": the point gets
-    #: NaN metrics (and a message) instead of stopping a design
-    failures: tuple = (ModelError,)
     #: names of the parameters the linear test moves, once a screen has found them
     #: (:func:`bayes_update.core.calibrate.problem_for`), and their sensitivities; None before
     linear_parameters: tuple | None = None
@@ -119,8 +93,6 @@ class Problem:
     n_screen_runs: int = 0
     #: the candidate effects the builder checked, for the discrepancy workflow ({} otherwise)
     effects: dict | None = None
-    #: where model runs are kept and found (:class:`bayes_update.core.runs.RunStore`), or None
-    run_store = None
 
     def __init__(self, dataset, model, n_functions=DEFAULT_N_FUNCTIONS, basis=None, metrics=None, noise=None):
         if not hasattr(model, "simulate"):
@@ -268,42 +240,6 @@ class Problem:
             self._reference[stage] = self.components(stage, self.tests[stage].response)
         return self._reference[stage]
 
-    def run(self, params, force, model=None) -> np.ndarray:
-        """Response of ``model`` (default: the problem's) at ``params`` to ``force``
-        sampled at the data's rate: ``model.simulate(theta, force, fs)``, (n,)
-        for one sensor, (n, n_sensors) for several."""
-        model = self.model if model is None else model
-        store = self.run_store
-        if store is not None:
-            kept = store.get(model, force, self.fs, params)
-            if isinstance(kept, Exception):
-                raise kept
-            if kept is not None:
-                return self._checked(model, params, kept, len(force))
-        try:
-            y = model.simulate(params, force, self.fs)
-        except self.failures as exc:
-            if store is not None:
-                store.put(model, force, self.fs, params, error=str(exc))
-            raise  # this point cannot run: the caller gives it NaN metrics
-        except Exception as exc:  # a bug of the model, not a region of its parameters
-            raise run_error(
-                model,
-                params,
-                f"raised {type(exc).__name__}: {exc}",
-                "fix the model there, or, where it cannot run, raise bayes_update.ModelError "
-                "(that point then gets no likelihood and the run goes on)",
-            ) from exc
-        y = self._checked(model, params, y, len(force))
-        if store is not None:
-            store.put(model, force, self.fs, params, response=y)
-        return y
-
-    def _checked(self, model, params, y, n: int) -> np.ndarray:
-        """A model's response as (n,) or (n, n_sensors), or a :class:`~bayes_update.core.model.ModelRunError`
-        naming the model, the theta and the remedy (:func:`~bayes_update.core.model.check_response`)."""
-        return check_response(model, params, y, n, len(self.sensors))
-
     def simulate(self, params, stage: str) -> np.ndarray:
         """Model response under the stage's recorded force."""
         self._check_stage(stage)
@@ -425,42 +361,3 @@ class Problem:
             "tests": {s: t.name for s, t in self.tests.items()},
             "model": self.describe_model(),
         }
-
-    # ------------------------------------------------ what a model may refine
-    def default_space(self):
-        """The prior when none is given: the model's declared parameters."""
-        from bayes_update.core.parameters import ParameterSet
-
-        return ParameterSet(self.model.parameters, self.model)
-
-    def refined_model(self):
-        """The finer model of the same physics for the model-error term: the
-        model's ``refined()``, else the model at twice the sampling rate where it
-        runs there as a discretisation (:mod:`bayes_update.core.refinement`), else
-        None (the term is then zero); :meth:`refinement_source` says which."""
-        return self._refinement()[0]
-
-    def refinement_source(self) -> str:
-        """What the model error is measured against, or why it is zero (for the log)."""
-        return self._refinement()[1]
-
-    def _refinement(self):
-        if getattr(self, "_refined", None) is None:
-            if hasattr(self.model, "refined"):
-                self._refined = (self.model.refined(), f"{type(self.model).__name__}.refined()")
-            else:
-                from bayes_update.core.refinement import twice_the_rate
-
-                test = self.tests[self.stages[0]]
-                # probed inside the prior in use (a run outside a prior the user narrowed can fail)
-                space = getattr(self, "space", None) or self.default_space()
-                self._refined = twice_the_rate(self.model, space.center(), test.force, self.fs)
-        return self._refined
-
-    def describe_model(self) -> dict:
-        """What identifies the model in a cache key and a report: the model's own
-        ``describe()``, else its class and a hash of its pickled state (its constants)."""
-        if callable(getattr(self.model, "describe", None)):
-            return self.model.describe()
-        state = hashlib.sha256(pickle.dumps(self.model)).hexdigest()[:16]
-        return {"kind": type(self.model).__name__, "state_sha256": state}

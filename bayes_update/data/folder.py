@@ -112,16 +112,15 @@ interpolate or reorder: data that do not meet the format are refused with one of
 
 from __future__ import annotations
 
-import copy
 import json
 from pathlib import Path
 
 import numpy as np
 
+from bayes_update.data.csv_reader import read_test_csv
 from bayes_update.data.dataset import (
     DEFAULT_LEVEL,
     DEFAULT_RESPONSE,
-    DEFAULT_SENSORS,
     DEFAULT_SIGNAL,
     NOISE_TEST_KEYS,
     RESERVED_KEYS,
@@ -130,9 +129,6 @@ from bayes_update.data.dataset import (
     TEST_KEYS,
     Dataset,
     DatasetError,
-    LengthMismatchError,
-    MissingColumnError,
-    NonFiniteError,
     Record,
     SensorError,
     UnknownResponseError,
@@ -140,19 +136,29 @@ from bayes_update.data.dataset import (
     check_noise_sd,
     check_period_samples,
     check_sensors,
-    check_time,
     is_single_velocity,
     source_label,
 )
+from bayes_update.data.folder_writer import (
+    TIME_FORMAT,
+    VALUE_FORMAT,
+    dataset_metadata,
+    sensors_metadata,
+    write_dataset,
+)
+
+__all__ = [
+    "TIME_FORMAT",
+    "UFF_SUFFIXES",
+    "VALUE_FORMAT",
+    "dataset_metadata",
+    "read_dataset",
+    "sensors_from_metadata",
+    "sensors_metadata",
+    "write_dataset",
+]
 
 UFF_SUFFIXES = (".uff", ".unv")
-
-
-# Formats of the CSV writer: fixed, so that the same arrays give the same bytes.
-TIME_FORMAT = "%.12g"
-
-
-VALUE_FORMAT = "%.9e"
 
 
 # ---------------------------------------------------------------------- reading
@@ -218,7 +224,7 @@ def read_dataset(folder) -> Dataset:
 
             time, force, response, _ = read_uff_test(path, fs, entry.get("uff_load_case"))
         else:
-            time, force, response = _read_csv(path, fs, sensors, meta_path)
+            time, force, response = read_test_csv(path, fs, sensors, meta_path)
         where = f"{meta_path} (test {entry['file']})"
         period = check_period_samples(entry.get("period_samples"), len(time), where)
         test_noise = check_noise_sd(entry.get("noise_sd"), channels, where)
@@ -282,144 +288,3 @@ def sensors_from_metadata(meta: dict, meta_path=None) -> tuple:
             )
         sensors.append((entry["name"], kind))
     return check_sensors(sensors, where)
-
-
-def _diagnose_rows(path: Path, n_columns: int) -> None:
-    """Find the first malformed data line of a CSV and raise a precise error."""
-    with path.open() as fh:
-        fh.readline()
-        for lineno, line in enumerate(fh, start=2):
-            if not line.strip():
-                continue
-            fields = [f.strip() for f in line.rstrip("\r\n").split(",")]
-            if len(fields) != n_columns:
-                raise LengthMismatchError(
-                    f"{path}: line {lineno} has {len(fields)} value(s), the header has {n_columns} column(s)"
-                )
-            for f in fields:
-                try:
-                    float(f)
-                except ValueError:
-                    what = "an empty value" if f == "" else f"{f!r}, not a number"
-                    raise DatasetError(f"{path}: line {lineno} has {what}") from None
-
-
-def _read_csv(path: Path, fs: float, sensors=DEFAULT_SENSORS, meta_path=None):
-    """Read one test CSV: time [s], force [N], one column per sensor; checks everything.
-    Returns ``(time, force, response)``, response (n,) for one sensor, (n, k) for k."""
-    names = [n for n, _ in sensors]
-    columns = ("time", "force", *names)
-    try:
-        with path.open() as fh:
-            first = fh.readline()
-    except UnicodeDecodeError:
-        raise DatasetError(f"{path}: not a text (CSV) file") from None
-    header = [h.strip() for h in first.strip().split(",")]
-    missing = [c for c in columns if c not in header]
-    if missing:
-        hint = ""
-        if any(c in names for c in missing):
-            declared = f"{meta_path or 'dataset.json'} declares the sensor(s) {[list(s) for s in sensors]}"
-            hint = (
-                f"; {declared}: name the response column(s) after the sensors, or set "
-                "'response'/'sensors' in dataset.json to match the header"
-            )
-        raise MissingColumnError(f"{path}: missing column(s) {missing}; header is {header}{hint}")
-    dup = sorted({h for h in header if header.count(h) > 1 and h in columns})
-    if dup:
-        raise DatasetError(f"{path}: duplicate column(s) {dup} in header {header}")
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError:
-        _diagnose_rows(path, len(header))
-        raise DatasetError(f"{path}: could not parse the numbers") from None
-    if data.shape[0] == 0:
-        raise DatasetError(f"{path}: no data rows")
-    if data.shape[1] != len(header):
-        raise LengthMismatchError(
-            f"{path}: {data.shape[1]} value(s) per row but {len(header)} column name(s) in the header"
-        )
-    cols = {name: data[:, header.index(name)] for name in columns}
-    for name, values in cols.items():
-        bad = ~np.isfinite(values)
-        if bad.any():
-            line = int(np.flatnonzero(bad)[0]) + 2
-            raise NonFiniteError(f"{path}: column {name!r} has NaN or inf (line {line})")
-    check_time(cols["time"], fs, path, line_offset=2)
-    if len(names) == 1:
-        response = cols[names[0]]
-    else:
-        response = np.column_stack([cols[n] for n in names])
-    return cols["time"], cols["force"], response
-
-
-# ---------------------------------------------------------------------- writing
-def sensors_metadata(sensors) -> dict:
-    """The ``dataset.json`` keys of the sensors, canonical form: ``{}`` for the default
-    single velocity sensor, ``{"response": kind}`` for one sensor named after its
-    kind, ``{"sensors": [{"name", "response"}, ...]}`` otherwise."""
-    sensors = [tuple(s) for s in sensors]
-    if sensors == list(DEFAULT_SENSORS):
-        return {}
-    if len(sensors) == 1 and sensors[0][0] == sensors[0][1]:
-        return {"response": sensors[0][1]}
-    return {"sensors": [{"name": n, "response": k} for n, k in sensors]}
-
-
-def dataset_metadata(dataset: Dataset) -> dict:
-    """The ``dataset.json`` content of a data set (the contract keys, then the extra keys)."""
-    meta = {"name": dataset.name, "sampling_rate_hz": dataset.sampling_rate_hz}
-    meta.update(sensors_metadata(dataset.sensors))
-    if dataset.rig is not None:
-        meta["rig"] = dataset.rig.to_dict()
-    if dataset.noise_sd:
-        meta["noise_sd"] = dict(dataset.noise_sd)
-    meta["tests"] = []
-    for t in dataset.tests:
-        entry = {"file": t.file, "signal": t.signal, "level": t.level, "role": t.role}
-        if t.period_samples is not None:
-            entry["period_samples"] = int(t.period_samples)
-        if t.noise_sd:
-            entry["noise_sd"] = dict(t.noise_sd)
-        meta["tests"].append(dict(entry, **copy.deepcopy(t.meta)))
-    for key, value in dataset.extra.items():
-        if key not in meta:
-            meta[key] = copy.deepcopy(value)
-    return meta
-
-
-def write_dataset(dataset: Dataset, folder) -> Path:
-    """Write a data set in the folder format (dataset.json + one CSV per test).
-
-    The CSV numbers have a fixed format (time ``%.12g`` [s]; force [N] and
-    each response column ``%.9e``, ten significant digits), so the same
-    arrays always give the same bytes.  The response columns are named by the
-    sensors (default: ``velocity``).  Test files are always written as CSV (a
-    ``.uff`` file name is replaced by ``.csv``).  The ``rig`` block is written
-    as held (:attr:`Dataset.rig`: the raw block, or ``to_dict()`` of an
-    ``fe.Rig``), and not at all when None; ``noise_sd`` (top level and per
-    test) and ``period_samples`` only when set.
-    """
-    dataset = copy.copy(dataset)
-    dataset.tests = [copy.copy(t) for t in dataset.tests]
-    for t in dataset.tests:
-        if Path(t.file).suffix.lower() != ".csv":
-            t.file = Path(t.file).stem + ".csv"
-            t.meta = {k: v for k, v in t.meta.items() if k != "uff_load_case"}
-    dataset.validate()
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    meta = dataset_metadata(dataset)
-    names = [n for n, _ in dataset.sensors]
-    (folder / "dataset.json").write_text(json.dumps(meta, indent=2) + "\n")
-    for t in dataset.tests:
-        arr = np.column_stack([t.time, t.force, t.response])
-        np.savetxt(
-            folder / t.file,
-            arr,
-            delimiter=",",
-            header=",".join(("time", "force", *names)),
-            comments="",
-            fmt=(TIME_FORMAT, VALUE_FORMAT) + (VALUE_FORMAT,) * len(names),
-        )
-    return folder

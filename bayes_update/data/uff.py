@@ -54,7 +54,6 @@ significant digits in ASCII (pyuff writes E20.11).
 from __future__ import annotations
 
 import math
-import os
 import re
 from pathlib import Path
 
@@ -69,45 +68,37 @@ from bayes_update.data.dataset import (
     NonFiniteError,
     Record,
     SamplingRateError,
-    SensorError,
     UnknownRoleError,
     check_time,
-    is_single_velocity,
 )
+from bayes_update.data.uff_codes import (
+    FORCE_TYPE,
+    FORCE_UNITS,
+    RATE_TOLERANCE,
+    SPEC_NAMES,
+    TIME_RESPONSE,
+    TIME_TYPE,
+    TIME_UNITS,
+    VELOCITY_TYPE,
+    VELOCITY_UNITS,
+    load_pyuff,
+)
+from bayes_update.data.uff_writer import write_uff
 
-FORCE_TYPE = 13  # UFF specific data type: excitation force
-VELOCITY_TYPE = 11  # UFF specific data type: velocity
-TIME_TYPE = 17  # UFF specific data type: time
-TIME_RESPONSE = 1  # UFF function type: time response
-
-FORCE_UNITS = {"": 1.0, "n": 1.0, "kn": 1e3, "mn": 1e-3, "lbf": 4.4482216152605}
-VELOCITY_UNITS = {"": 1.0, "m/s": 1.0, "mm/s": 1e-3, "um/s": 1e-6, "µm/s": 1e-6, "in/s": 0.0254}
-TIME_UNITS = {"": 1.0, "s": 1.0, "ms": 1e-3}
-SPEC_NAMES = {
-    0: "unknown",
-    1: "general",
-    2: "stress",
-    3: "strain",
-    5: "temperature",
-    8: "displacement",
-    9: "reaction force",
-    11: "velocity",
-    12: "acceleration",
-    13: "excitation force",
-    15: "pressure",
-    17: "time",
-}
-RATE_TOLERANCE = 1e-5  # relative, the precision of the E13.5 abscissa increment
-
-
-def _pyuff():
-    try:
-        import pyuff
-    except ImportError as exc:  # pragma: no cover - pyuff is an extra
-        raise ImportError(
-            "reading or writing UFF files needs pyuff: pip install 'bayes-update[uff]' (or pip install pyuff)"
-        ) from exc
-    return pyuff
+__all__ = [
+    "FORCE_TYPE",
+    "FORCE_UNITS",
+    "RATE_TOLERANCE",
+    "SPEC_NAMES",
+    "TIME_RESPONSE",
+    "TIME_TYPE",
+    "TIME_UNITS",
+    "VELOCITY_TYPE",
+    "VELOCITY_UNITS",
+    "read_uff",
+    "read_uff_test",
+    "write_uff",
+]
 
 
 def _round_sig(x: float, digits: int = 6) -> float:
@@ -117,7 +108,7 @@ def _round_sig(x: float, digits: int = 6) -> float:
 
 
 def _read_sets(path: Path) -> list:
-    pyuff = _pyuff()
+    pyuff = load_pyuff()
     if not path.is_file():
         raise DatasetError(f"{path}: UFF file does not exist")
     try:
@@ -331,88 +322,3 @@ def read_uff(
     ds = Dataset(name or path.stem, float(fs), rig, records, source=str(path))
     ds.validate()
     return ds
-
-
-def _record_dict(test: Record, channel: str, case: int, binary: bool, fs: float) -> dict:
-    force = channel == "force"
-    data = np.ascontiguousarray(test.force if force else test.velocity, dtype=float)
-    t0 = float(test.time[0])
-    return dict(
-        type=58,
-        binary=int(bool(binary)),
-        id1=test.name,
-        id2=f"signal={test.signal} level={test.level} role={test.role}",
-        id3=f"{channel} [{'N' if force else 'm/s'}]",
-        id4="bayes_update",
-        id5="",
-        func_type=TIME_RESPONSE,
-        func_id=0,
-        ver_num=0,
-        load_case_id=case,
-        rsp_ent_name="beam",
-        rsp_node=1 if force else 2,
-        rsp_dir=2,
-        ref_ent_name="beam",
-        ref_node=1,
-        ref_dir=2,
-        ord_data_type=4,
-        abscissa_spacing=1,
-        abscissa_min=t0,
-        abscissa_inc=1.0 / fs,
-        z_axis_value=0.0,
-        num_pts=data.size,
-        abscissa_spec_data_type=TIME_TYPE,
-        abscissa_len_unit_exp=0,
-        abscissa_force_unit_exp=0,
-        abscissa_temp_unit_exp=0,
-        abscissa_axis_lab="Time",
-        abscissa_axis_units_lab="s",
-        ordinate_spec_data_type=FORCE_TYPE if force else VELOCITY_TYPE,
-        ordinate_len_unit_exp=0 if force else 1,
-        ordinate_force_unit_exp=1 if force else 0,
-        ordinate_temp_unit_exp=0,
-        ordinate_axis_lab="Force" if force else "Velocity",
-        ordinate_axis_units_lab="N" if force else "m/s",
-        orddenom_spec_data_type=0,
-        orddenom_len_unit_exp=0,
-        orddenom_force_unit_exp=0,
-        orddenom_temp_unit_exp=0,
-        orddenom_axis_lab="",
-        orddenom_axis_units_lab="",
-        z_axis_spec_data_type=0,
-        z_axis_len_unit_exp=0,
-        z_axis_force_unit_exp=0,
-        z_axis_temp_unit_exp=0,
-        z_axis_axis_lab="",
-        z_axis_axis_units_lab="",
-        data=data,
-        x=np.asarray(test.time, dtype=float),
-    )
-
-
-def write_uff(dataset: Dataset, path, binary: bool = False) -> Path:
-    """Write every test of ``dataset`` to one UFF file (two type-58 records per test,
-    load cases 1, 2, ... in test order; mapping in the module docstring).
-
-    ``binary=True`` stores the values as doubles (exact round trip); ASCII
-    (default) keeps twelve significant digits.  An existing file is replaced.
-    Only the records are written: the rig and extra keys (e.g. ``truth``)
-    belong in a ``dataset.json``.
-    """
-    pyuff = _pyuff()
-    dataset.validate()
-    if not is_single_velocity(dataset.sensors):
-        raise SensorError(
-            f"{path}: UFF files hold force and velocity records only, but the data set "
-            f"{dataset.name!r} has the sensors {dataset.sensors}; write it as a folder "
-            "(write_dataset)"
-        )
-    path = Path(path)
-    if path.exists():
-        os.remove(path)
-    sets = []
-    for case, test in enumerate(dataset.tests, start=1):
-        for channel in ("force", "velocity"):
-            sets.append(_record_dict(test, channel, case, binary, dataset.sampling_rate_hz))
-    pyuff.UFF(str(path)).write_sets(sets, mode="add")
-    return path

@@ -23,94 +23,41 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import Executor
-from dataclasses import asdict, dataclass, field
 from functools import partial
 
 import numpy as np
-from scipy.optimize import brentq, minimize
+from scipy.optimize import minimize
 
-import fe
 from bayes_update.core.logs import info
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.problem import Problem
 from bayes_update.data.dataset import Dataset
+from bayes_update.models.beam.calibration_grid import (
+    CalibrationSettings,
+    paper_units,
+    parameters_from,
+    preload_for_frequency,
+)
+from bayes_update.models.beam.calibration_result import CalibrationResult, format_tables
 from bayes_update.models.beam.validation import validate
 from surrogates.evaluation import evaluate_many, executor_for
 
-
-@dataclass(frozen=True)
-class CalibrationSettings:
-    """Grids in the paper's units (c [N s/mm], k_s [N/mm], P_eff [N], eta [MPa s])."""
-
-    c_values: tuple = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0)
-    k_s_values: tuple = tuple(float(k) for k in range(0, 601, 60))
-    p_eff_halfwidth: float = 3.0
-    p_eff_step: float = 0.5
-    eta_values: tuple = tuple(float(e) for e in np.round(np.arange(1.0, 6.001, 0.25), 2))
-    refine_max_evaluations: int = 80
-
-    def __post_init__(self):
-        for name in ("c_values", "k_s_values", "eta_values"):
-            v = np.asarray(getattr(self, name), float)
-            if v.ndim != 1 or v.size == 0 or not np.all(np.isfinite(v)) or np.any(v < 0):
-                raise ValueError(f"{name} must be a non-empty list of non-negative numbers")
-        if len(self.eta_values) < 3:
-            raise ValueError("eta_values needs at least 3 values (a parabola is fitted)")
-        if not (self.p_eff_step > 0 and self.p_eff_halfwidth >= self.p_eff_step):
-            raise ValueError("need p_eff_step > 0 and p_eff_halfwidth >= p_eff_step")
-
-    @classmethod
-    def quick(cls) -> "CalibrationSettings":
-        """Coarse grids for tests and a first look (about 1/10 of the runs)."""
-        return cls(
-            c_values=(5.0, 15.0, 25.0),
-            k_s_values=(0.0, 200.0, 400.0, 600.0),
-            p_eff_halfwidth=1.0,
-            p_eff_step=0.5,
-            eta_values=(2.0, 2.5, 3.0, 3.5, 4.0, 4.5),
-            refine_max_evaluations=40,
-        )
+__all__ = [
+    "MPA_S",
+    "CalibrationResult",
+    "CalibrationSettings",
+    "calibrate",
+    "coarse_start",
+    "format_tables",
+    "paper_units",
+    "parabola_vertex",
+    "parameters_from",
+    "preload_for_frequency",
+]
 
 
 #: Pa s per MPa s (the grids are in the paper's units)
 MPA_S = 1e6
-
-
-def parameters_from(beam, eta_mpa_s: float, c_n_s_per_mm: float, k_s_n_per_mm: float, p_eff_n: float) -> dict:
-    """theta (paper units) from (eta, c, k_s) and the preload P_eff [N] carried
-    by the beam: F = P_eff (K_b + k_s) / K_b."""
-    return beam.from_internal([eta_mpa_s, c_n_s_per_mm, p_eff_n, k_s_n_per_mm])
-
-
-def paper_units(theta: dict, beam) -> dict:
-    """A point's row of the tables: the parameters and P_eff, paper units."""
-    return {
-        "eta_MPa_s": theta["eta"],
-        "c_N_s_per_mm": theta["c"],
-        "F_N": theta["F"],
-        "k_s_N_per_mm": theta["k_s"],
-        "P_eff_N": float(beam.to_internal(theta)[2]),
-    }
-
-
-def preload_for_frequency(model, freq_hz: float, eta: float = 0.0) -> float:
-    """P_eff [N] at which the model's linearised first mode is ``freq_hz``
-    (k_s = c = 0 so that F = P_eff)."""
-    p_cr = model.buckling_load()
-
-    def f1(p):
-        return model.modal_analysis(fe.Parameters(eta=eta, c=0.0, F=p, k_s=0.0), n_modes=1).frequencies_hz[0]
-
-    lo, hi = 0.0, 0.995 * p_cr
-    if not f1(hi) < freq_hz < f1(lo):
-        raise ValueError(
-            f"no preload between 0 and {hi:.1f} N gives a first mode at {freq_hz:.2f} Hz "
-            f"(model: {f1(lo):.2f} Hz unloaded, {f1(hi):.2f} Hz near buckling); "
-            "check the rig (length, thickness, modulus, bending_stiffness_factor)"
-        )
-    # Brent's method to 1e-9 of the buckling load: some ten modal analyses against the 50 of a
-    # bisection to machine precision (0.2 s each on the default rig)
-    return float(brentq(lambda p: f1(p) - freq_hz, lo, hi, xtol=1e-9 * p_cr))
 
 
 def parabola_vertex(x, y) -> float:
@@ -122,48 +69,6 @@ def parabola_vertex(x, y) -> float:
         return float(x[i])
     a, b, _ = np.polyfit(x[i - 1 : i + 2], y[i - 1 : i + 2], 2)
     return float(-b / (2 * a)) if a > 0 else float(x[i])
-
-
-@dataclass
-class CalibrationResult:
-    """Everything the two stages produced (paper units in the tables)."""
-
-    final: dict
-    linear_grid: list
-    eta_scan: list
-    nonlinear_grid: list
-    refinement: list
-    table1: list
-    table2: list
-    table3: dict
-    ridge: dict
-    validation: dict
-    setup: dict
-    timing: dict
-    settings: CalibrationSettings
-    final_theta: dict = field(repr=False, default=None)  # paper units
-    final_params: fe.Parameters = field(repr=False, default=None)  # the same, SI
-    velocities: dict = field(repr=False, default_factory=dict)
-    problem: Problem | None = field(repr=False, default=None)
-
-    def calibration_json(self) -> dict:
-        f = self.final_params
-        return {
-            "eta": f.eta,
-            "c": f.c,
-            "F": f.F,
-            "k_s": f.k_s,
-            "P_eff": self.final["P_eff_N"],
-            "e_lin": self.final["e_lin"],
-            "e_nlin": self.final["e_nlin"],
-            "units": {"eta": "Pa s", "c": "N s/m", "F": "N", "k_s": "N/m", "P_eff": "N"},
-            "paper_units": self.table3,
-            "ridge": self.ridge,
-            "validation": {k: v for k, v in self.validation.items() if not k.startswith("_")},
-            "setup": self.setup,
-            "timing_s": self.timing,
-            "settings": asdict(self.settings),
-        }
 
 
 def _best(rows, key):
@@ -443,55 +348,3 @@ def _ridge_profile(grid, c_best, c_values, rise=0.5) -> dict:
         "rise": rise,
         "k_s_interval_N_per_mm": [crossing(-1), crossing(+1)],
     }
-
-
-# ---------------------------------------------------------------------- output
-
-
-def format_tables(result: CalibrationResult) -> str:
-    """Tables 1-3 in the paper's units, as text."""
-    lines = [
-        "Table 1 (linear stage, low-level chirp): minimum of e_lin per c",
-        f"{'c [N s/mm]':>11} {'e_lin [%]':>10} {'F [N]':>8} {'k_s [N/mm]':>11} {'P_eff [N]':>10}",
-    ]
-    for r in result.table1:
-        lines.append(
-            f"{r['c_N_s_per_mm']:11g} {100 * r['e_lin']:10.3f} {r['F_N']:8.2f} "
-            f"{r['k_s_N_per_mm']:11g} {r['P_eff_N']:10.2f}"
-        )
-    lines += [
-        "",
-        f"e_lin against eta: minimum at eta = {result.table3['eta_MPa_s']:.3f} MPa s",
-        "",
-        "Table 2 (nonlinear stage, high-level chirp): minimum of e_lin + e_nlin per c",
-        f"{'c [N s/mm]':>11} {'e_lin+nlin [%]':>15} {'F [N]':>8} {'k_s [N/mm]':>11} {'P_eff [N]':>10}",
-    ]
-    for r in result.table2:
-        lines.append(
-            f"{r['c_N_s_per_mm']:11g} {100 * r['e_lin_nlin']:15.3f} {r['F_N']:8.2f} "
-            f"{r['k_s_N_per_mm']:11g} {r['P_eff_N']:10.2f}"
-        )
-    t = result.table3
-    lines += [
-        "",
-        "Table 3 (final, after local refinement)",
-        f"eta = {t['eta_MPa_s']:.3f} MPa s, c = {t['c_N_s_per_mm']:.2f} N s/mm, F = {t['F_N']:.2f} N, "
-        f"k_s = {t['k_s_N_per_mm']:.1f} N/mm, P_eff = {t['P_eff_N']:.2f} N; "
-        f"e_lin = {100 * t['e_lin']:.3f} %, e_nlin = {100 * t['e_nlin']:.2f} %",
-        f"k_s along the ridge: min over P_eff of e_lin+nlin stays within "
-        f"{100 * result.ridge['rise']:.0f} % of its minimum for k_s in "
-        f"{result.ridge['k_s_interval_N_per_mm'][0]:.0f}..{result.ridge['k_s_interval_N_per_mm'][1]:.0f}"
-        f" N/mm (c = {result.ridge['c_N_s_per_mm']:g} N s/mm)",
-        "",
-        "Validation",
-    ]
-    for name, v in result.validation.items():
-        if name.startswith("_"):
-            continue
-        s = f"  {name:14s} velocity rel. L2 = {100 * v['rel_l2']:.2f} %"
-        if "harmonics_db" in v:
-            h = ", ".join(f"{k} {'n/a' if d is None else f'{d:+.2f} dB'}" for k, d in v["harmonics_db"].items())
-            s += f"; PSD model - data: {h}; RMS over 1-140 Hz {v['psd_db_rms']:.2f} dB"
-        lines.append(s)
-    lines.append(f"\n{result.setup['n_model_runs']} model runs in {result.timing['total']:.1f} s")
-    return "\n".join(lines)

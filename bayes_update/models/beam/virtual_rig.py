@@ -48,10 +48,8 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.resources
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy import signal as ss
@@ -59,9 +57,47 @@ from scipy import signal as ss
 import fe
 from bayes_update.data import signals
 from bayes_update.data.dataset import Dataset, Record
-from bayes_update.data.folder import read_dataset, write_dataset
-from bayes_update.models.beam.rig import rig_of
+from bayes_update.data.folder import write_dataset
+from bayes_update.models.beam.default_dataset import (
+    DEFAULT_DATASET_DIR,
+    default_dataset_path,
+    load_default_dataset,
+    truth_paper_units,
+)
+from bayes_update.models.beam.paper_tests import (
+    CHIRP_LEVELS_N,
+    LEVEL_NOTES,
+    PAPER_TESTS,
+    ROLES_BY_TEST,
+    SINE_LEVELS_N,
+    TestSpec,
+)
 from fe.model import DEFAULT_ELEMENTS, DEFAULT_RHO_INF, DEFAULT_SUBSTEPS
+
+__all__ = [
+    "CHIRP_LEVELS_N",
+    "DATASET_NAME",
+    "DECIMATION_CUTOFF",
+    "DECIMATION_KAISER_BETA",
+    "DECIMATION_TAPS",
+    "DEFAULT_DATASET_DIR",
+    "DEFAULT_OVERSAMPLING",
+    "DEFAULT_SEED",
+    "DEFAULT_SNR_DB",
+    "LEVEL_NOTES",
+    "PAPER_EQUIVALENT_RIG",
+    "PAPER_TESTS",
+    "ROLES_BY_TEST",
+    "SINE_LEVELS_N",
+    "TestSpec",
+    "VirtualRig",
+    "default_dataset_path",
+    "load_default_dataset",
+    "make_dataset",
+    "noise_generator",
+    "truth_paper_units",
+]
+
 
 PAPER_EQUIVALENT_RIG = fe.Rig(bending_stiffness_factor=1.24)
 """The rig of the embedded data set: the paper's geometry with EI x 1.24."""
@@ -71,80 +107,9 @@ DEFAULT_SNR_DB = 40.0
 DEFAULT_OVERSAMPLING = 4
 DATASET_NAME = "buckled-beam-virtual-rig"
 
-CHIRP_LEVELS_N = {"low": 0.02, "medium": 0.1, "high": 0.2}
-"""Chirp force amplitudes [N]: the paper's 1 : 5 : 10 ratio of generator voltages."""
-
-SINE_LEVELS_N = {"low": 0.02, "medium": 0.2, "high": 0.7}
-"""35 Hz sine force amplitudes [N].  Low = the chirp's low, medium = the chirp's
-high; the high level is 0.7 N because 35 Hz lies below the hardening first
-mode, which moves away from it as the amplitude grows: the sine needs 3.5x
-the chirp's high force to reach a comparable nonlinear share."""
-
-LEVEL_NOTES = """\
-Nonlinear shares at the default levels, measured on the noise-free rig output
-at the truth (benchmarks/rig_levels.py; Volterra pole = f1, zeta1 of fe's
-modal analysis; share = ||y2 + y3|| / ||y||; departure = ||y(A) - (A/A0)
-y(A0)|| / ||y(A)||, A0 = 1e-4 N):
-
-test          A [N]  peak v [m/s]  share J=(2,2,4)  share J=(2,2,6)  y3/y1 (2,2,4)  departure
-chirp_low     0.02   0.022         0.021            0.052            0.021          0.008
-chirp_medium  0.10   0.105         0.146            0.140            0.142          0.181
-chirp_high    0.20   0.184         0.486            0.505            0.447          0.554
-sine_low      0.02   0.013         0.006            0.028            0.006          0.001
-sine_medium   0.20   0.112         0.069            0.072            0.071          0.098
-sine_high     0.70   0.257         0.346            0.405            0.271          0.503
-
-On the chirp the Volterra share has a floor at vanishing force (0.025 with
-J = (2, 2, 4), 0.058 with (2, 2, 6)): the linear response is not exactly in
-the span of J1 = 2 Kautz functions and the cubic regressors of a narrow-band
-sweep take up part of the rest.  That floor is the basis, not the physics:
-the low chirp departs from linear scaling by 0.8 %.  The sine's floor is
-0.007 (J = (2, 2, 4)).
-"""
-
-ROLES_BY_TEST = {("chirp", "low"): "linear", ("chirp", "high"): "nonlinear"}
-
 DECIMATION_TAPS = 161
 DECIMATION_KAISER_BETA = 8.0
 DECIMATION_CUTOFF = 0.390625  # fraction of the output sampling rate (400 Hz at 1024 Hz)
-
-
-@dataclass(frozen=True)
-class TestSpec:
-    """One test of the paper: ``signal`` ('chirp' or 'sine'), ``level`` name,
-    force ``amplitude_n`` [N], record ``duration_s`` [s], and its role."""
-
-    signal: str
-    level: str
-    amplitude_n: float
-    duration_s: float = signals.PAPER_DURATION
-
-    __test__ = False  # not a pytest class
-
-    @property
-    def name(self) -> str:
-        return f"{self.signal}_{self.level}"
-
-    @property
-    def role(self) -> str:
-        return ROLES_BY_TEST.get((self.signal, self.level), "validation")
-
-    def meta(self) -> dict:
-        """Extra keys of the test entry in dataset.json (nominal excitation)."""
-        out = {"force_amplitude_n": self.amplitude_n}
-        if self.signal == "chirp":
-            c = signals.PAPER_CHIRP
-            out.update(f_start_hz=c["f_start"], f_end_hz=c["f_end"], sweep_time_s=c["sweep_time"])
-        elif self.signal == "sine":
-            out.update(frequency_hz=signals.PAPER_SINE_HZ)
-        return out
-
-
-PAPER_TESTS = tuple(
-    [TestSpec("chirp", lvl, a) for lvl, a in CHIRP_LEVELS_N.items()]
-    + [TestSpec("sine", lvl, a) for lvl, a in SINE_LEVELS_N.items()]
-)
-"""The six tests of the default data set, in file order."""
 
 
 @dataclass(frozen=True)
@@ -389,39 +354,6 @@ def make_dataset(
         write_dataset(ds, out)
         ds.source = str(out)
     return ds
-
-
-DEFAULT_DATASET_DIR = Path(__file__).resolve().parent / "default_data"
-"""Folder of the embedded default data set (inside the package)."""
-
-
-def truth_paper_units(dataset) -> dict | None:
-    """The true parameters a virtual-rig data set states (paper units, with
-    P_eff), or None: for marking figures and checking results, never read by
-    the updating."""
-    t = (dataset.extra or {}).get("truth", {}).get("parameters_si")
-    if not t:
-        return None
-    kb = rig_of(dataset).axial_stiffness
-    return {
-        "eta": t["eta"] / 1e6,
-        "c": t["c"] / 1e3,
-        "F": t["F"],
-        "k_s": t["k_s"] / 1e3,
-        "P_eff": t["F"] * kb / (kb + t["k_s"]),
-    }
-
-
-def default_dataset_path() -> Path:
-    """Path of the embedded default data set folder."""
-    res = importlib.resources.files("bayes_update").joinpath("models", "beam", "default_data")
-    return Path(str(res))
-
-
-def load_default_dataset() -> Dataset:
-    """The embedded default data set: the paper's six tests from the
-    paper-equivalent virtual rig at Table 3 (see the module docstring)."""
-    return read_dataset(default_dataset_path())
 
 
 # ------------------------------------------------------------ level diagnostics
