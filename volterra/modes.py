@@ -34,7 +34,8 @@
    sensors jointly (variable projection), each in a box around its start,
    re-centred where a pole ends on it; a mode whose half-power band leaves
    the band or whose damping reaches ``max_damping`` becomes a pseudo pole,
-   one that does not settle is dropped; then the selection again.  A mode the
+   one that does not settle is dropped; then the selection again, and of two
+   overlapping modes of one shape the weaker is dropped (:func:`volterra.selection.overlapped`).  A mode the
    LSCF did not stabilise (weak beside strong ones) leaves a peak in the
    fit's residual: up to 8 such starts are tried, each kept only if it
    survives the selection.
@@ -61,6 +62,7 @@ from .selection import (
     energies,
     fit_lines,
     inside,
+    overlapped,
     peak_mode,
     refine_modes,
     relative_residual,
@@ -192,6 +194,10 @@ def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max
     demoted = [m for m, g in zip(modes, good) if not g]
     modes = [m for m, g in zip(modes, good) if g]
     modes, sig = select(dk, modes, pseudo + demoted, fixed, min_significance, spacing, corr)
+    one = None if fixed else overlapped(dk, modes, sig, pseudo + demoted)
+    if one is not None:  # two modes the record cannot tell from one: the weaker is the other's misfit
+        rest = modes[:one] + modes[one + 1 :]
+        return _refined(d, rest, pseudo + demoted, band, spacing, fixed, min_significance, corr, max_damping)
     return modes, sig, pseudo + demoted
 
 
