@@ -295,3 +295,33 @@ def test_the_lpm_refuses_a_record_whose_lines_are_mostly_unresolved():
     force, y, _ = _resonant_record(fs, 194, 2, modes, 0.01, seed=404)
     with pytest.raises(ValueError, match="cannot follow the FRF on .* record longer or declare noise_sd"):
         lpm_noise(force, y, fs)
+
+
+# ------------------------------------------------------------------ one estimate per data set
+def test_a_data_set_is_estimated_once_and_again_when_a_sample_changes(random_pair, monkeypatch):
+    """The first look and the problem ask for the same data set's noise: the second ask reuses
+    the first's estimates (no record estimated again), strict or not; a data set whose samples
+    or declared noise differ is estimated anew, and a caller's fit residuals bypass the reuse."""
+    import copy
+
+    import bayes_update.data.noise as noise
+
+    ds = lab.lab_dataset(list(random_pair))
+    calls = []
+    real = noise.record_noise
+    monkeypatch.setattr(noise, "record_noise", lambda *a, **k: calls.append(1) or real(*a, **k))
+    monkeypatch.setattr(noise, "_ESTIMATES", type(noise._ESTIMATES)())
+    first = dataset_noise(ds, strict=False)
+    assert len(calls) == 2  # one per test
+    again = dataset_noise(ds)
+    assert len(calls) == 2 and again == first and again is not first
+    again["random_low"]["acc1"] = None  # a caller's edit does not reach the next caller
+    assert dataset_noise(ds)["random_low"]["acc1"] == first["random_low"]["acc1"]
+    changed = copy.deepcopy(ds)
+    changed.tests[1].response[100, 0] += 1e-3  # one sample of one sensor
+    dataset_noise(changed)
+    assert len(calls) == 4
+    declared = lab.lab_dataset(list(random_pair), noise_sd={"acc1": 0.01})
+    assert dataset_noise(declared)["random_low"]["acc1"].method == "declared" and len(calls) == 6
+    dataset_noise(ds, fit_residuals={"random_low": {}})
+    assert len(calls) == 8

@@ -45,14 +45,15 @@ kind's SI unit), of the noise over the recorded band.
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import welch
 
 from bayes_update.data.dataset import RESPONSE_UNITS, DatasetError
 from bayes_update.data.lpm import lpm_noise, noise_from_fit_residual
-from bayes_update.data.periodic import MIN_PERIODS, PeriodLayout, find_periods, period_noise
+from bayes_update.data.periodic import MIN_PERIODS, find_periods, period_noise
 from bayes_update.data.quiet import MIN_TOTAL, band_noise, noise_band, quiet_sections, zero_input_noise
 
 METHODS = ("declared", "periods", "zero_input", "quiet_band", "fit_residual", "carried", "unknown")
@@ -322,31 +323,31 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
     fit_residuals : ``{test name: {sensor: NoiseEstimate}}`` from the
         caller's own complete fits (:func:`from_fit_residual`), in place of
         the LPM on those tests.
+
+    A command's first look and its problem ask for the same data set: the
+    estimates are made once per data set content (:data:`CACHED_DATASETS`
+    kept, by a digest of every sample and setting they read) and handed out
+    as fresh dicts.
     """
-    fs = float(dataset.sampling_rate_hz)
-    fits = fit_residuals or {}
-    out = {
-        t.name: record_noise(
-            t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear", fit_residual=fits.get(t.name)
-        )
-        for t in dataset.tests
-    }
-    _uncontaminated(dataset, out)
-    linear = [t.name for t in dataset.tests if t.role == "linear"]
-    kinds = dict(dataset.sensors)
-    missing = []
-    for t in dataset.tests:
-        for name, est in out[t.name].items():
-            if est.known or name == "force":
-                continue
-            source = next(
-                (s for s in linear if s != t.name and out[s][name].known and out[s][name].method != "carried"), None
-            )
-            if source is not None:
-                out[t.name][name] = carried(out[source][name], source)
-            else:
-                missing.append((t, name, est.detail))
+    key = None if fit_residuals else _content_key(dataset)
+    if key is not None and key in _ESTIMATES:
+        _ESTIMATES.move_to_end(key)
+        out = {t: dict(chans) for t, chans in _ESTIMATES[key].items()}
+    else:
+        out = _estimates(dataset, fit_residuals or {})
+        if key is not None:
+            _ESTIMATES[key] = {t: dict(chans) for t, chans in out.items()}
+            while len(_ESTIMATES) > CACHED_DATASETS:
+                _ESTIMATES.popitem(last=False)
+    tests = {t.name: t for t in dataset.tests}
+    missing = [
+        (tests[name], ch, est.detail)
+        for name, chans in out.items()
+        for ch, est in chans.items()
+        if not est.known and ch != "force"
+    ]
     if strict and missing:
+        kinds = dict(dataset.sensors)
         lines = [
             f"test {t.name!r} ({t.source or t.file}), sensor {name!r}: no noise estimate ({why}); "
             f"{what_to_add(name, kinds.get(name))}"
@@ -356,35 +357,44 @@ def dataset_noise(dataset, *, strict: bool = True, fit_residuals: dict | None = 
     return out
 
 
-def noise_spectrum(record, name: str, estimate: NoiseEstimate, fs: float | None = None):
-    """``(f [Hz], one-sided PSD [unit^2/Hz])`` of a channel's noise as its estimate
-    saw it: ``periods``, the PSD of the deviations from the period mean (x P / (P - 1));
-    ``zero_input``, of the stretches used; ``fit_residual`` of the LPM, its noise
-    spectrum; otherwise (declared, quiet band, carried, a caller's fit) white at the estimate's
-    sd, ``2 sd^2 / fs``.  None when the noise is unknown."""
-    if not estimate.known:
-        return None
-    fs = float(record.sampling_rate_hz if fs is None else fs)
-    x = np.asarray(record.force if name == "force" else record.channel(name), float)
-    white = (np.array([0.0, fs / 2]), np.full(2, 2.0 * estimate.sd**2 / fs))
-    if estimate.method == "periods":
-        layout = find_periods(record.force, record.period_samples)
-        if not isinstance(layout, PeriodLayout):
-            return white
-        ((a, b),) = estimate.spans
-        Y = x[a:b].reshape(-1, layout.period)
-        P = Y.shape[0]
-        D = (Y - Y.mean(axis=0)).ravel()
-        f, p = welch(D, fs=fs, nperseg=min(layout.period, 512), detrend="linear")
-        return f, p * P / (P - 1)
-    if estimate.method == "zero_input":
-        parts = [x[a:b] for a, b in estimate.spans]
-        nper = min(256, min(len(q) for q in parts))
-        spectra = [welch(q, fs=fs, nperseg=nper, detrend="linear") for q in parts]
-        weights = np.array([len(q) for q in parts], float)
-        return spectra[0][0], np.average([p for _, p in spectra], axis=0, weights=weights)
-    # the LPM's fit: its own detail, or one that leads with why it replaced a quiet band's
-    if estimate.method == "fit_residual" and "local polynomial method" in estimate.detail:
-        est = lpm_noise(record.force, x, fs)
-        return est.f, est.psd
-    return white
+#: the estimates of the last data sets asked for, by their content: the first look (the inspection
+#: report) and the problem of every command ask for the same data set's noise, estimated once
+_ESTIMATES: OrderedDict = OrderedDict()
+CACHED_DATASETS = 4
+
+
+def _content_key(dataset) -> str:
+    """A digest of everything :func:`dataset_noise` reads: the rate, each test's name, role,
+    signal, level, sensors, period, declared noise and samples."""
+    h = hashlib.blake2b(digest_size=20)
+    h.update(repr(float(dataset.sampling_rate_hz)).encode())
+    for t in dataset.tests:
+        declared = sorted(dataset.declared_noise_sd(t).items())
+        h.update(repr((t.name, t.role, t.signal, t.level, tuple(t.sensors), t.period_samples, declared)).encode())
+        for a in (t.time, t.force, t.response):
+            h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+    return h.hexdigest()
+
+
+def _estimates(dataset, fits: dict) -> dict:
+    """Every test's estimates, contaminated ones and unknown sensors carried where a
+    ``linear`` test has one (:func:`dataset_noise`)."""
+    fs = float(dataset.sampling_rate_hz)
+    out = {
+        t.name: record_noise(
+            t, fs, declared=dataset.declared_noise_sd(t), fit=t.role == "linear", fit_residual=fits.get(t.name)
+        )
+        for t in dataset.tests
+    }
+    _uncontaminated(dataset, out)
+    linear = [t.name for t in dataset.tests if t.role == "linear"]
+    for t in dataset.tests:
+        for name, est in out[t.name].items():
+            if est.known or name == "force":
+                continue
+            source = next(
+                (s for s in linear if s != t.name and out[s][name].known and out[s][name].method != "carried"), None
+            )
+            if source is not None:
+                out[t.name][name] = carried(out[source][name], source)
+    return out

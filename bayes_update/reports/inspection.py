@@ -9,7 +9,7 @@ inspect``; the numbers are :func:`bayes_update.data.inspect.inspect_dataset`).
   coherence (:func:`bayes_update.data.inspect.frf`);
 * ``noise_<channel>.png``: for the force and every sensor, each test's
   spectrum against its noise spectrum as estimated
-  (:func:`bayes_update.data.noise.noise_spectrum`);
+  (:func:`bayes_update.data.noise_spectrum.noise_spectrum`);
 * ``modes.png``: each mode's frequency and damping ratio against the
   test's force level, in % of the linear test's (the ``level_dependence``
   entries).
@@ -28,7 +28,8 @@ from matplotlib.figure import Figure
 from scipy.signal import welch
 
 from bayes_update.data.inspect import frf, inspect_dataset
-from bayes_update.data.noise import dataset_noise, noise_spectrum
+from bayes_update.data.noise import dataset_noise
+from bayes_update.data.noise_spectrum import noise_spectrum
 
 
 def _by_level(dataset) -> list:
