@@ -300,10 +300,10 @@ def test_band_limited_noise_pole_over_20_seeds(band):
 
 
 def test_excited_band_ignores_an_input_offset():
-    """The chirp's sweep band as the Hann segments see it (measured (21.61, 64.82) Hz:
-    the window tapers the sweep's first 0.3 s and the abrupt stop spreads above
-    60 Hz) is exactly the same with an offset of twice the rms; white noise
-    excites everything above the two lowest lines."""
+    """The chirp's sweep band (measured (20.20, 64.82) Hz: Welch's Hann segments alone read
+    (21.61, 64.82), tapering the sweep's first 0.3 s, which the whole record's periodogram
+    restores; the abrupt stop spreads above 60 Hz) is exactly the same with an offset of
+    twice the rms; white noise excites everything above the two lowest lines."""
     u = band_chirp(1.0)
     lo, hi = excited_band(u, DU_FS)
     print(f"excited band of the chirp: ({lo:.2f}, {hi:.2f}) Hz")

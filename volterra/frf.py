@@ -20,12 +20,16 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy.ndimage import median_filter
 from scipy.signal import csd, welch
 
 from ._validation import as_record_list, paired_records
 
 __all__ = ["estimate_h1", "excited_band", "default_nperseg", "periodic_h1"]
 
+#: a sweep's power spectrum crosses this share of its level (half its amplitude) at its first and
+#: last frequencies (the Fresnel edge): the level to which :func:`excited_band` widens Welch's band
+SWEEP_EDGE = 0.25
 #: Default number of half-overlapping segments a record is cut into (Welch).
 DEFAULT_SEGMENTS = 7
 
@@ -108,11 +112,12 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
     every segment's linear trend removed, and the two lowest resolved lines
     (below ``2 fs / nperseg``, inside the window's main lobe around DC) are
     left out: an input offset, however large, does not move the band, nor
-    does a slow drift of the input sensor.  For a
-    chirp this is the sweep band as the windowed spectra of
-    :func:`estimate_h1` see it (the window tapers the record's first and last
-    half segment: a chirp 20 -> 60 Hz that starts at full amplitude at t = 0
-    gives (21.6, 64.8) Hz with the default segments); for broadband noise it
+    does a slow drift of the input sensor.  The window tapers the record's
+    first and last half segment, which for a sweep are its first and last
+    frequencies: the band is widened on each side over the lines next to it
+    where the whole record's periodogram stays above :data:`SWEEP_EDGE` of
+    its peak (a chirp 20 -> 60 Hz that starts at full amplitude at t = 0
+    and stops abruptly: (20.2, 64.8) Hz, Welch's alone (21.6, 64.8)); for broadband noise it
     can be the whole 0 .. fs/2 (then the coherence, see
     :func:`volterra.pole_from_frf`, is what restricts an FRF peak search).
 
@@ -139,7 +144,37 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
     if not np.any(total[resolved] > 0):
         raise ValueError("the input has no energy above DC (is u constant?)")
     band = f[resolved & (total >= level * total[resolved].max())]
-    return float(band.min()), float(band.max())
+    lo, hi = float(band.min()), float(band.max())
+    for r, m in zip(records, seg):
+        # Welch's window tapers the record's first and last half segment: a sweep's first and last
+        # frequencies lose their weight (a 5.1 -> 56.6 Hz sweep of 37 s read from 6.67 Hz, its 7 Hz
+        # mode then outside the band). The whole record's periodogram, its median over Welch's main
+        # lobe, weighs every sample alike: the band is widened over the lines next to it where that
+        # stays above SWEEP_EDGE of its peak (only next to it: an input sensor's drift fills the
+        # lowest lines; not down to ``level``: a fast sweep's abrupt start spreads below its first
+        # frequency)
+        lo, hi = _widened(r, fs, m, lo, hi)
+    return lo, hi
+
+
+def _widened(r, fs, nperseg, lo, hi):
+    """(lo, hi) [Hz] widened on each side over the contiguous lines where the whole record's
+    periodogram (linear trend removed), its running median over the lines of a Hann main
+    lobe of ``nperseg`` samples, exceeds :data:`SWEEP_EDGE` x its peak (at 2 fs / nperseg
+    and above)."""
+    x = np.arange(r.size)
+    p = np.abs(np.fft.rfft(r - np.polyval(np.polyfit(x, r, 1), x))) ** 2
+    f = np.fft.rfftfreq(r.size, 1.0 / fs)
+    p = median_filter(p, size=max(1, int(round(4 * r.size / nperseg))) | 1, mode="nearest")
+    resolved = f >= 2.0 * fs / nperseg
+    above = resolved & (p >= SWEEP_EDGE * p[resolved].max())
+    k = int(np.searchsorted(f, lo))
+    while k > 0 and above[k - 1]:
+        k -= 1
+    j = int(np.searchsorted(f, hi, side="right")) - 1
+    while j < f.size - 1 and above[j + 1]:
+        j += 1
+    return min(lo, float(f[k])), max(hi, float(f[j]))
 
 
 def periodic_h1(u, y, fs: float, period_samples: int, skip_periods: int = 1):

@@ -71,7 +71,9 @@ class Lines:
     the lines over which neighbouring estimates share their data (the LPM's
     window; 1 for period-synchronous and whole-record lines); ``whole``: where
     the LPM read a record, the whole record's (H, var, inv_u) on the same lines
-    (:meth:`whole_record`), else None."""
+    (:meth:`whole_record`), else None; ``var_input`` (L, S): the part of ``var``
+    that the force's own noise gives, line by line, where ``var`` leaves it out
+    (a sweep's whole-record lines, :func:`_force_noise_power`), else zeros."""
 
     f: np.ndarray
     H: np.ndarray
@@ -90,6 +92,7 @@ class Lines:
     band_coherence: float = float("nan")
     correlated: int = 1
     whole: tuple | None = None
+    var_input: np.ndarray | None = None
 
     def whole_record(self) -> "Lines":
         """The same lines read from the whole record, ``H = Y / U`` with the record's
@@ -108,6 +111,7 @@ class Lines:
             inv_u=inv_u,
             correlated=1,
             whole=None,
+            var_input=np.zeros(H.shape),
             method=self.method.replace("local polynomial method", "whole record, transient fitted"),
         )
 
@@ -191,19 +195,46 @@ def _whole(r_u, r_y, fs, lo, hi):
             H_whole=H,
             var_whole=var,
             inv_u_whole=1.0 / U,
+            var_input=np.zeros(H.shape),
         )
+    # the local polynomials of a smooth input take G U into the transient: their noise of Y leaves out
+    # the force noise's response G N_u, largest at a strong mode's peak (on a plate swept with 30 dB of
+    # force noise the weighted residual of the true modes was 18x its level there, and "modes" came
+    # out of it); it is added line by line from the force's own noise, read above the band
+    with np.errstate(divide="ignore", invalid="ignore"):
+        var_input = np.abs(H) ** 2 * _force_noise_power(r_u, fs) / np.abs(U[:, None]) ** 2
     return dict(
         f=f_all[k],
         H=H,
-        var=var,
+        var=var + var_input,
         coh=coh,
         upow=lp.u_power,
         inv_u=1.0 / U,
         detect=H,
-        detect_var=var,
+        detect_var=var + var_input,
         spacing=fs / n,
         rough=False,
+        var_input=var_input,
     )
+
+
+#: the force's noise is read on lines from this factor times the top of its excited band to 0.45 fs ...
+QUIET_FROM = 1.5
+#: ... where at least this many lines lie there (else it is taken as zero, as before)
+QUIET_LINES = 64
+
+
+def _force_noise_power(r_u, fs) -> float:
+    """The force's noise power per line (DFT / sqrt(N)) where its spectrum above the excited band
+    (from :data:`QUIET_FROM` times its top to 0.45 fs) holds it: the median of ``|U|^2`` there over
+    ln 2 (a white noise line's power is exponential); 0 where that band holds fewer than
+    :data:`QUIET_LINES` lines."""
+    f = np.fft.rfftfreq(r_u.size, 1.0 / fs)
+    quiet = (f >= QUIET_FROM * excited_band(r_u, fs)[1]) & (f <= 0.45 * fs)
+    if quiet.sum() < QUIET_LINES:
+        return 0.0
+    p = np.abs(np.fft.rfft(r_u)[quiet]) ** 2 / r_u.size
+    return float(np.median(p) / np.log(2.0))
 
 
 def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coherence: float = 0.5) -> Lines:
@@ -252,6 +283,7 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
         for key in ("f", "H", "var", "coh", "upow", "inv_u", "detect", "detect_var")
     }
     cat["record"] = np.concatenate([np.full(p["f"].size, j) for j, p in enumerate(parts)])
+    cat["var_input"] = np.concatenate([p.get("var_input", np.zeros(p["H"].shape)) for p in parts])
     for key in ("H", "var", "inv_u"):
         cat[key + "_whole"] = np.concatenate([p.get(key + "_whole", p[key]) for p in parts])
     spacing = max(p["spacing"] for p in parts)
@@ -295,4 +327,5 @@ def record_lines(us, ys, fs: float, f_range=None, period_samples=None, min_coher
         float(np.nan_to_num(coh[keep]).max()),
         correlated,
         whole,
+        g["var_input"],
     )

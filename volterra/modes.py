@@ -166,7 +166,8 @@ def _records(u, y):
 
 def _fit_data(lines, fs) -> lsfd.FitLines:
     """The lines a modal fit runs on, weighted by their estimates' variance."""
-    return lsfd.FitLines(lines.f, lines.H, weights(lines.var, lines.H, lines.u_power), fs, lines.inv_u, lines.record)
+    W = weights(lines.var, lines.H, lines.u_power, lines.var_input)
+    return lsfd.FitLines(lines.f, lines.H, W, fs, lines.inv_u, lines.record)
 
 
 def _refined(d, modes, pseudo, band, spacing, fixed, min_significance, corr, max_damping):
@@ -262,7 +263,7 @@ def estimate_modes(
         )
     f, H = lines.f, lines.H
     d = _fit_data(lines, fs)
-    Wd = weights(lines.detect_var, lines.detect, lines.u_power)
+    Wd = weights(lines.detect_var, lines.detect, lines.u_power, lines.var_input)
     orders = range(2, int(max_order) + 1, 2)
     clusters, outside, diagram = subband_clusters(f, lines.detect, Wd, band, orders, max_damping)
     strong = [c for c in clusters if c[2] >= c[3]]

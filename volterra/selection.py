@@ -69,19 +69,24 @@ class PoleEstimationError(ValueError):
     what to check (band, coherence, offsets and drifts, level of the record)."""
 
 
-def weights(var, H, u_power):
+def weights(var, H, u_power, var_input=None):
     """1 / sd of each line's H.  The variance is (noise of the output on that line) /
     (input power on that line): the first taken as a running median over
     :data:`WEIGHT_WINDOW` lines (robust to one line's chance value), the second
     line by line (a line the input barely excites is an uncertain one); floored at
-    a relative precision of 1e-6 of the sensor's level."""
+    a relative precision of 1e-6 of the sensor's level.  ``var_input`` (the part of
+    ``var`` the force's noise gives, ``|H|^2`` times its power over the input's) is
+    kept line by line, not smoothed: it peaks at a mode's resonance, which a running
+    median would flatten."""
     W = np.empty(var.shape)
     up = np.maximum(np.asarray(u_power, float), 1e-300)
+    extra = np.zeros(var.shape) if var_input is None else np.nan_to_num(np.asarray(var_input, float))
     for s in range(var.shape[1]):
-        v = var[:, s] * up
+        v = (var[:, s] - extra[:, s]) * up
         ok = np.isfinite(v) & (v > 0)
         fill = float(np.median(v[ok])) if ok.any() else 1.0
         v = median_filter(np.where(ok, v, fill), size=min(WEIGHT_WINDOW, v.size) | 1, mode="nearest") / up
+        v = v + extra[:, s]
         floor = (1e-6 * float(np.median(np.abs(H[:, s])))) ** 2
         W[:, s] = 1.0 / np.sqrt(np.maximum(v, max(floor, 1e-300)))
     return W
