@@ -4,4 +4,5 @@
 * :mod:`.beam`: the preloaded beam of Bussetta, Shiki and da Silva (2017),
   ``fe.BeamModel`` and ``fe.ModalROM``, with its P_eff coordinates, paper
   units, effects catalogue and the paper's grids.
+* :mod:`.modal`: modes in superposition with nonlinear elements (``ModalModel``).
 """
