@@ -70,6 +70,7 @@ def test_the_control_variate_counts_and_agrees_with_model_replicates(linear_prob
             problem, theta, n_replicates=96, seed=3, space=space, model_replicates=k, model_error=False
         )
         assert model.runs == likelihood_runs(problem, 96, space, model_error=False, model_replicates=k)
+        assert lik.n_model_runs == model.runs  # counted where they are made
         got[key] = {st: sc.noise_sd for st, sc in lik.scales.items()}
     for st in got["model"]:
         assert got["control_variate"][st] == pytest.approx(got["model"][st], rel=0.2), (st, got)

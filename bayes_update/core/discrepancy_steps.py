@@ -27,7 +27,7 @@ from bayes_update.core.fits import (
     names_pair,
 )
 from bayes_update.core.held_out import describe, held_out_comparison, held_out_runs
-from bayes_update.core.likelihood import errors_at_mode, estimate_likelihood, likelihood_runs
+from bayes_update.core.likelihood import errors_at_mode, estimate_likelihood
 from bayes_update.core.parameters import ParameterSet
 from bayes_update.core.steps import StepLog
 
@@ -46,7 +46,7 @@ class DiscrepancyWorkflow:
         lik = estimate_likelihood(
             self.problem, theta, n_replicates=self.settings.n_replicates, seed=seed, space=space, executor=self.pool
         )
-        self.steps.add_runs(likelihood_runs(self.problem, self.settings.n_replicates, space))
+        self.steps.add_runs(lik.n_model_runs)
         return lik.unabsorbed() if unabsorbed else lik
 
     def honest(self, fit: Fit, lik, seed, unabsorbed=True):

@@ -84,6 +84,9 @@ class Likelihood:
     #: (n // 2 + 1, n_sensors): what the model-form error is measured beyond
     noise_spectra: dict | None = field(default=None, compare=False, repr=False)
     form_residuals: dict | None = field(default=None, compare=False, repr=False)
+    #: the model runs :func:`~bayes_update.core.likelihood.estimate_likelihood` made for it (counted
+    #: where they are made; :func:`~bayes_update.core.likelihood.likelihood_runs` plans them beforehand)
+    n_model_runs: int = field(default=0, compare=False)
 
     def __getstate__(self):
         return {
@@ -92,6 +95,7 @@ class Likelihood:
             "sensitivities": None,
             "noise_spectra": None,
             "form_residuals": None,
+            "n_model_runs": self.n_model_runs,
         }
 
     def error_rows(self, stage: str):

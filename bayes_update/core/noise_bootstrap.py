@@ -161,7 +161,7 @@ def estimate_likelihood(
             model_error_unabsorbed=e_perp,
             model_error_source=error_source,
         )
-    return Likelihood(scales, residuals, sensitivities, spectra)
+    return Likelihood(scales, residuals, sensitivities, spectra, n_model_runs=len(tasks))
 
 
 def _noise_levels(estimates: dict, sensors) -> dict:
@@ -181,10 +181,10 @@ def likelihood_runs(
     stages=None,
     model_replicates: int | None = None,
 ) -> int:
-    """Model runs :func:`estimate_likelihood` takes: per stage one at the
-    estimate, ``n_replicates`` (or the LTI probe and ``model_replicates``; none
-    without force noise), d for the sensitivity span and one of the refined
-    model (when there is one)."""
+    """Model runs :func:`estimate_likelihood` will take, to plan a budget before running it
+    (what it made is its result's ``n_model_runs``): per stage one at the estimate,
+    ``n_replicates`` (or the LTI probe and ``model_replicates``; none without force
+    noise), d for the sensitivity span and one of the refined model (when there is one)."""
     stages = problem.stages if stages is None else tuple(stages)
     d = len(space if space is not None else problem.default_space())
     refined = model_error and problem.refined_model() is not None

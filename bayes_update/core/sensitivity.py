@@ -19,6 +19,9 @@ import surrogates
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
 
+#: the metrics (one per stage) whose indices are computed
+METRICS = ("e_lin", "e_nlin")
+
 
 @dataclass
 class _EvaluatePublic:
@@ -43,11 +46,13 @@ def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, se
     S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2**31)
     out = {
         "n_design": int(n_design),
+        # a run per design point and stage whose metric it computed
+        "n_model_runs": len(X) * len({key for r in res for key in r if key in METRICS}),
         "n_sobol": int(n_sobol),
         "units": {p.name: p.unit for p in space.parameters},
         "output": "log e",
     }
-    for key in ("e_lin", "e_nlin"):
+    for key in METRICS:
         y = np.array([r.get(key, np.nan) for r in res], float)
         ok = np.isfinite(y) & (y > 0)
         if ok.sum() < 8:

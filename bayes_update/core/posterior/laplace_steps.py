@@ -11,7 +11,7 @@ import numpy as np
 
 from bayes_update.core.adjustment import curvature_adjustment, own_points
 from bayes_update.core.checks import ModelFitError, fit_warnings, output_errors, severe_misfit
-from bayes_update.core.likelihood import Likelihood, errors_at_mode, estimate_likelihood, likelihood_runs
+from bayes_update.core.likelihood import Likelihood, errors_at_mode, estimate_likelihood
 from bayes_update.core.logs import info
 from bayes_update.core.posterior.laplace import find_map, local_box, map_result
 from bayes_update.core.posterior.run import Run, step_seeds
@@ -100,11 +100,7 @@ def likelihood_step(run: Run, start, likelihood) -> Likelihood:
                 model_replicates=s.model_replicates,
                 executor=run.pool,
             )
-            run.steps.add_runs(
-                likelihood_runs(
-                    run.problem, s.n_replicates, run.space, s.model_error, model_replicates=s.model_replicates
-                )
-            )
+            run.steps.add_runs(lik.n_model_runs)
         else:
             if set(likelihood.stages) != set(stages):
                 raise ValueError(f"the likelihood covers stages {likelihood.stages}, the data {stages}")

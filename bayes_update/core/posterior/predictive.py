@@ -78,7 +78,8 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
     run = _Predict(problem, res.space)
     checks = evaluate_many(run, [("stages", x, None) for x in X], pool, progress=progress, desc="posterior predictive")
     ok = [i for i, o in enumerate(checks) if o is not None]
-    pred = {"n_draws": len(X), "n_failed": len(X) - len(ok)}
+    # the model runs, counted as they are asked for: every estimation test at every draw
+    pred = {"n_draws": len(X), "n_failed": len(X) - len(ok), "n_model_runs": len(X) * len(problem.tests)}
     if not ok:
         return pred
     pred.update(_surrogate_check(res, X, [checks[i] for i in ok], ok))
@@ -87,12 +88,9 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
     pred["parameters_by_test"] = None if draws is None else "recentred at each test's level (the tests disagree)"
     own = [] if draws is None else list(problem.tests.values())
     names = [t.name for t in own] + list(problem.validation)
-    runs = evaluate_many(
-        run,
-        [("test", draws[name][i] if draws is not None else X[j], name) for name in names for i, j in enumerate(ok)],
-        pool,
-        progress=False,
-    )
+    tasks = [("test", draws[name][i] if draws is not None else X[j], name) for name in names for i, j in enumerate(ok)]
+    runs = evaluate_many(run, tasks, pool, progress=False)
+    pred["n_model_runs"] += len(tasks)
     responses = {name: runs[k * len(ok) : (k + 1) * len(ok)] for k, name in enumerate(names)}
     if draws is None:
         responses.update({t.name: [checks[j]["time"][t.name] for j in ok] for t in problem.tests.values()})
@@ -111,6 +109,7 @@ def posterior_predictive(res, n: int, pool, seed, progress) -> dict:
         pred["_draws"][name] = (Y + sd * rng.standard_normal(Y.shape)).astype(np.float32).reshape((len(Y),) + y.shape)
         pred["_time"][name] = _window_bands(Y, y2, sd, rng)
     pred["prediction_error"] = prediction_errors(res, pool)
+    pred["n_model_runs"] += len(PREDICTION_POINTS) * len(problem.validation)
     return pred
 
 
@@ -175,6 +174,10 @@ def _window_bands(Y, y2, sd, rng) -> dict:
     return {"start": start, "q05": q[0], "q25": q[1], "median": q[2], "q75": q[3], "q95": q[4], "record": y2[cut]}
 
 
+#: the points :func:`prediction_errors` predicts the validation tests at
+PREDICTION_POINTS = ("map", "posterior_mean", "posterior_median")
+
+
 def prediction_errors(res, pool) -> dict:
     """{validation test: {"map", "posterior_mean", "posterior_median"}}: the relative
     output error of the model at each point (:meth:`Problem.prediction_errors`), the mean
@@ -182,22 +185,9 @@ def prediction_errors(res, pool) -> dict:
     problem = res.problem
     if not problem.validation:
         return {}
-    points = {
-        "map": res.map.x,
-        "posterior_mean": res.draws.mean(axis=0),
-        "posterior_median": np.median(res.draws, axis=0),
-    }
+    points = dict(zip(PREDICTION_POINTS, (res.map.x, res.draws.mean(axis=0), np.median(res.draws, axis=0))))
     errs = evaluate_many(_PredictionErrors(problem, res.space), list(points.values()), pool, progress=False)
     return {name: {k: float(e[name]) for k, e in zip(points, errs)} for name in problem.validation}
-
-
-def prediction_runs(problem, n: int, recentred: bool = False) -> int:
-    """Model runs of :func:`posterior_predictive`: every test at ``n`` draws (the
-    estimation tests twice where they are predicted at their own level,
-    ``recentred``), and every validation test at the three points of
-    :func:`prediction_errors`."""
-    stages = len(problem.stages) * (2 if recentred else 1)
-    return n * (stages + len(problem.validation)) + 3 * len(problem.validation)
 
 
 def _surrogate_check(res, X, outs, ok) -> dict:

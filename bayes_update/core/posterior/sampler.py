@@ -18,7 +18,7 @@ from bayes_update.core.posterior.mcmc import (
     to_inference_data,
 )
 from bayes_update.core.posterior.pointwise import linearisation_check, pointwise_log_likelihood
-from bayes_update.core.posterior.predictive import posterior_predictive, prediction_runs
+from bayes_update.core.posterior.predictive import posterior_predictive
 from bayes_update.core.posterior.result import PosteriorResult
 from bayes_update.core.posterior.run import Run, step_seeds
 from bayes_update.core.posterior.settings import PosteriorSettings
@@ -175,13 +175,11 @@ def _result(run: Run, chain: Chain, lik, mp, box, adj, start_info, direct) -> Po
 def _extras(run: Run, res: PosteriorResult) -> None:
     """Diagnostics beyond the posterior: the predictive check and the global
     sensitivity (each skipped at size 0)."""
-    s, stages = run.settings, run.problem.stages
+    s = run.settings
     if s.n_predictive:
         with run.steps("predictive"):
             res.predictive = posterior_predictive(res, s.n_predictive, run.pool, run.seeds.predictive, run.progress)
-            run.steps.add_runs(
-                prediction_runs(run.problem, s.n_predictive, bool(res.predictive.get("parameters_by_test")))
-            )
+            run.steps.add_runs(res.predictive["n_model_runs"])
         draws = res.predictive.get("_draws", {})
         if draws:
             add_posterior_predictive(res.idata, draws, dict.fromkeys(draws, run.problem.response_unit))
@@ -196,4 +194,4 @@ def _extras(run: Run, res: PosteriorResult) -> None:
             res.sensitivity = sobol_indices(
                 run.problem, run.space, s.n_global, s.sobol_n, run.pool, run.seeds.sobol, run.progress
             )
-            run.steps.add_runs(len(stages) * s.n_global)
+            run.steps.add_runs(res.sensitivity["n_model_runs"])
