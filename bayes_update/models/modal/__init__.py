@@ -22,7 +22,12 @@ flexibility, d_s [m/N]).  Every mode starts from rest at the first sample.
 
 Nonlinear elements, their coefficients parameters with the null value 0:
 ``k2`` x^2 [1/(m s^2)], ``k3`` x^3 [1/(m^2 s^2)] (quadratic and cubic
-stiffness), ``c3`` x'^3 [s/m^2] (cubic damping), per unit modal mass.  An
+stiffness), ``c3`` x'^3 [s/m^2] (cubic damping), ``friction`` F tanh(x'/v0)
+[m/s^2] (a smooth Coulomb friction) and ``clearance`` kc (x - gap) for
+x > gap, kc (x + gap) for x < -gap, 0 between [1/s^2] (a contact spring beyond
+a symmetric gap, a backlash), per unit modal mass; the friction's v0 [m/s] and
+the clearance's gap [m] are constants the user gives
+(``Nonlinearity("friction", at="acc1", v0=1e-3)``), not parameters.  An
 element in a mode (``Nonlinearity("k3", 1)``) acts on that mode's coordinate,
 x = q_m.  An element at a sensor (``Nonlinearity("k3", at="acc1")``) is a
 joint at the point that sensor measures: x_j = sum_m c_mj q_m, the point's
@@ -30,7 +35,7 @@ displacement whatever the sensor's kind, and its force enters every mode's
 equation times c_mj / c_md, d the *driving point* (``driving_point=``: the
 sensor where the force acts, whose coefficients c_md = phi_dm^2 x 1 kg are
 positive, phi_dm the mass-normalised shape there).  Its coefficient is the joint's physical one per kg, numerically
-in N/m^2, N/m^3, N s^3/m^3 (:mod:`.joints` derives it).
+in N/m^2, N/m^3, N s^3/m^3, N, N/m (:mod:`.joints` derives it).
 
 The force between samples is linear (docs/models.md, "What the samples of
 the force mean": a low-pass of sinc^2(f / fs); at about ten samples per

@@ -23,14 +23,18 @@ import numpy as np
 from .dynamics import mode_responses, residual_columns
 from .spec import KINDS
 
-__all__ = ["RecordFit", "fit_outputs", "element_bounds", "ELEMENT_SHARE", "DAMPING_FACTOR"]
+__all__ = ["RecordFit", "fit_outputs", "element_bounds", "ELEMENT_SHARE", "DAMPING_FACTOR", "CONTACT_FACTOR"]
 
 #: default prior of k2 and k3: symmetric, the element's force at the rms amplitude of the mode's
-#: linear response to the strongest force at most this share of the mode's linear stiffness force
+#: linear response to the strongest force at most this share of the mode's linear stiffness force;
+#: of a friction F: [0, top], F at most this share of that stiffness force (it dissipates: F >= 0)
 ELEMENT_SHARE = 0.25
 #: default prior of c3: [0, top], the cubic damping force at the rms modal rate at most this many
 #: times the mode's linear damping force there (cubic damping dissipates: no negative values)
 DAMPING_FACTOR = 4.0
+#: default prior of a clearance's contact stiffness kc: [0, this many times the static stiffness of
+#: its place] (a contact stiffer than the structure it stops: an actuator behind its free play)
+CONTACT_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
@@ -122,7 +126,9 @@ def element_bounds(
     rms of the linear unit response to the strongest of ``forces`` (means removed) of the
     element's coordinate x [m] and rate x' [m/s]: k2, k3 symmetric about 0 (:data:`ELEMENT_SHARE`
     of the stiffness force at the rms x), c3 in [0, top] (:data:`DAMPING_FACTOR` times the
-    damping force at the rms x').  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
+    damping force at the rms x'), a friction's F in [0, :data:`ELEMENT_SHARE` of the stiffness
+    force at the rms x], a clearance's kc in [0, :data:`CONTACT_FACTOR` times the stiffness]
+    (whatever its gap).  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
     sensor's point j (``coefficients`` (M, S), ``sensors``, ``driving`` the driving point's
     index; :mod:`.joints`): x = sum_m c_mj q_m, the point's static stiffness per kg
     1 / sum_m (c_mj^2 / c_md) / w_m^2 (phi_jm^2 = c_mj^2 / c_md), and the damping 2 zeta w
@@ -146,6 +152,10 @@ def element_bounds(
         m = int(np.argmax(rms[:, 1].max(axis=0)))
         if e.kind == "c3":
             out[e.name] = (0.0, DAMPING_FACTOR * 2 * zeta[m] * w[m] * cd[m] / c[m] ** 2 / xd_rms**2)
+        elif e.kind == "friction":
+            out[e.name] = (0.0, ELEMENT_SHARE * stiffness * x_rms)
+        elif e.kind == "clearance":
+            out[e.name] = (0.0, CONTACT_FACTOR * stiffness)
         else:
             power = 2 if e.kind == "k3" else 1
             top = ELEMENT_SHARE * stiffness / x_rms**power

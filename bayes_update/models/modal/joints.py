@@ -2,7 +2,8 @@
 the weights the integrator takes (:mod:`bayes_update.models.modal`).
 
 Derivation.  A proportionally damped structure, the force u [N] at point d and a joint's force
-g_j(x_j, x_j') [N] at point j (k2 x^2, k3 x^3, c3 x'^3: N/m^2, N/m^3, N s^3/m^3)::
+g_j(x_j, x_j') [N] at point j (k2 x^2, k3 x^3, c3 x'^3: N/m^2, N/m^3, N s^3/m^3; F tanh(x'/v0):
+N; kc (x -+ gap) beyond +-gap: N/m)::
 
     M x'' + C x' + K x = e_d u - sum_j e_j g_j(x_j, x_j')
 
@@ -27,10 +28,11 @@ The joint at the driving point itself has the share 1 in every mode.  So::
     r_m'' + 2 zeta_m w_m r_m' + w_m^2 r_m + sum_j (c_mj / c_md) kappa_j(x_j, x_j') = u [N] / m0
 
 Units.  The parameter kappa_j (``k3_at_acc1``) is the joint's physical coefficient per the
-1 kg of the unit input: 1/(m s^2), 1/(m^2 s^2), s/m^2 for k2, k3, c3, numerically the physical
-coefficient in N/m^2, N/m^3, N s^3/m^3.  No mass normalisation beyond the record's is needed:
-the measured force fixes the coefficients' scale (c_md = phi_dm^2 m0 in absolute terms), so
-the fitted value is the joint's physical coefficient.
+1 kg of the unit input: 1/(m s^2), 1/(m^2 s^2), s/m^2, m/s^2, 1/s^2 for k2, k3, c3, friction,
+clearance, numerically the physical coefficient in N/m^2, N/m^3, N s^3/m^3, N, N/m.  No mass
+normalisation beyond the record's is needed: the measured force fixes the coefficients' scale
+(c_md = phi_dm^2 m0 in absolute terms), so the fitted value is the joint's physical coefficient.
+The shape constants v0 [m/s] and gap [m] are of x_j, the point's physical rate and displacement.
 
 The modes outside the band are left out: the joint's force excites them too (as the residual
 terms stand for them in the response to u, not to the joint's force).  A fitted c_md carries the
@@ -42,6 +44,8 @@ share of the mode's largest shape seen): the share c_mj / c_md would then be of 
 from __future__ import annotations
 
 import numpy as np
+
+from .spec import SHAPES
 
 __all__ = ["DRIVING_SHARE", "check_driving_point", "joint_matrices"]
 
@@ -81,16 +85,21 @@ def check_driving_point(driving_point, sensors: tuple, coefficients: np.ndarray,
 
 
 def joint_matrices(elements: tuple, sensors: tuple, coefficients: np.ndarray, driving: int | None) -> tuple:
-    """``(points, weights, shares)`` of the elements at sensors: ``points`` the sensors' names
-    that carry one (P,), ``weights`` (P, M) with x_j = weights[j] @ r (c_mj), ``shares`` (P, M)
-    the share of point j's force in mode m's equation (c_mj / c_md)."""
+    """``(points, weights, shares, shapes)`` of the elements at sensors: ``points`` the sensors'
+    names that carry one (P,), ``weights`` (P, M) with x_j = weights[j] @ r (c_mj), ``shares``
+    (P, M) the share of point j's force in mode m's equation (c_mj / c_md), ``shapes`` (P, 2) the
+    shape constants of its friction and clearance (v0 [m/s], gap [m]; 0 where there is none)."""
     names = [n for n, _ in sensors]
     points = tuple(dict.fromkeys(e.at for e in elements if e.at is not None))
     M = coefficients.shape[0]
     weights, shares = np.zeros((len(points), M)), np.zeros((len(points), M))
+    shapes = np.zeros((len(points), len(SHAPES)))
+    for e in elements:
+        if e.at is not None and e.kind in SHAPES:
+            shapes[points.index(e.at), list(SHAPES).index(e.kind)] = e.shape
     for p, name in enumerate(points):
         weights[p] = coefficients[:, names.index(name)]
         shares[p] = weights[p] / coefficients[:, driving]
         if not np.any(weights[p]):
             raise ValueError(f"nonlinear: sensor {name!r} sees no mode (its coefficients are all 0): no joint there")
-    return points, weights, shares
+    return points, weights, shares, shapes

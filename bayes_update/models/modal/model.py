@@ -9,12 +9,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_substeps
+from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_substeps, step_rate_hz
 from .fit import element_bounds, fit_outputs
 from .joints import check_driving_point, joint_matrices
 from .spec import (
     ELEMENTS,
     KINDS,
+    SHAPES,
     check_coefficients,
     check_modes,
     check_nonlinear,
@@ -46,16 +47,20 @@ class ModalModel:
         e.g. ``[1, 3]``); the others stay at their nominal values.
     nonlinear : elements, as :class:`~bayes_update.models.modal.Nonlinearity` or
         ``(kind, mode)`` and ``(kind, sensor name)`` pairs, kind ``"k2"``, ``"k3"`` or
-        ``"c3"``: each adds its coefficient ``<kind>_<mode>`` or ``<kind>_at_<sensor>``
-        (null 0) to the parameters.  An element in a mode acts on that mode's coordinate;
-        one at a sensor is a joint at the point the sensor measures, acting on every mode
-        through that point's displacement (:mod:`bayes_update.models.modal.joints`).
+        ``"c3"``, or ``Nonlinearity("friction", ..., v0=)`` and ``Nonlinearity("clearance",
+        ..., gap=)`` with their shape constants [m/s, m]: each adds its coefficient
+        ``<kind>_<mode>`` or ``<kind>_at_<sensor>`` (null 0) to the parameters.  An element
+        in a mode acts on that mode's coordinate; one at a sensor is a joint at the point the
+        sensor measures, acting on every mode through that point's displacement
+        (:mod:`bayes_update.models.modal.joints`).
     bounds : ``{name: (low, high)}`` priors overriding the defaults (frequency
         +-5 %, damping ratio x0.5..x2, log-uniform); an element's prior has no
         default here (:meth:`from_modes` sets one from the record).
     substeps : RK4 steps per sample of a nonlinear mode, times what its frequency
         asks (:func:`~bayes_update.models.modal.dynamics.rk4_substeps`); the modes coupled
-        by joints take the steps their highest frequency asks.
+        by joints take the steps their highest frequency asks; a clearance's contact spring
+        and a friction's slope at the top of their priors may ask more
+        (:func:`~bayes_update.models.modal.dynamics.step_rate_hz`).
     driving_point : the name of the sensor at the point where the force acts (the
         driving-point sensor): required by an element at a sensor, whose force enters mode
         m's equation scaled by c_m(sensor) / c_m(driving point).  Its coefficients must be
@@ -87,7 +92,7 @@ class ModalModel:
         self.nonlinear = check_nonlinear(nonlinear, M, [n for n, _ in self.sensors])
         driving = check_driving_point(driving_point, self.sensors, self.coefficients, self.nonlinear)
         self.driving_point = None if driving is None else self.sensors[driving][0]
-        self._points, self._weights, self._shares = joint_matrices(
+        self._points, self._weights, self._shares, self._shapes = joint_matrices(
             self.nonlinear, self.sensors, self.coefficients, driving
         )
         if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
@@ -110,11 +115,12 @@ class ModalModel:
         if not np.all(np.isfinite(u)):
             raise ValueError("force holds non-finite values (NaN or inf)")
         f_hz, zeta, elements, values = self._values(theta)
-        steps = {m: rk4_substeps(self._f_top(m), fs, self.substeps) for m in elements}
+        steps = {m: rk4_substeps(self._rate_hz([m]), fs, self.substeps) for m in elements}
         coupling = None
         if self._points:  # the joints' RK4 steps: as the highest of the modes they couple asks
-            top = max(self._f_top(m) for m in np.flatnonzero(np.any(self._weights != 0, axis=0)))
-            coupling = Coupling(self._weights, self._shares, values, rk4_substeps(top, fs, self.substeps), self._points)
+            rate = self._rate_hz(np.flatnonzero(np.any(self._weights != 0, axis=0)), joints=True)
+            steps_joint = rk4_substeps(rate, fs, self.substeps)
+            coupling = Coupling(self._weights, self._shares, values, self._shapes, steps_joint, self._points)
         R = mode_responses(u, fs, f_hz, zeta, elements, steps, coupling=coupling)
         kinds = tuple(k for _, k in self.sensors)
         columns = residual_columns(u, fs, kinds) if np.any(self.residual) else None
@@ -122,8 +128,9 @@ class ModalModel:
         return y[:, 0] if y.shape[1] == 1 else y
 
     def _values(self, theta) -> tuple:
-        """Frequencies [Hz], damping ratios [-], ``{mode index: (k2, k3, c3)}`` and the joints'
-        (P, 3) (k2, k3, c3) at their points at theta."""
+        """Frequencies [Hz], damping ratios [-], ``{mode index: (coefficients (5,), shapes (2,))}``
+        and the joints' (P, 5) coefficients at their points at theta (the columns: :data:`ELEMENTS`,
+        :data:`SHAPES`)."""
         if not isinstance(theta, Mapping):
             raise ValueError(f"theta must map each parameter name to a value, got {type(theta).__name__}")
         missing = [p.name for p in self.parameters if p.name not in theta]
@@ -137,7 +144,7 @@ class ModalModel:
             if not (0 < z < 1):
                 raise ValueError(f"theta['zeta{k}'] = {z!r}: a damping ratio must lie in (0, 1)")
             f_hz[k - 1], zeta[k - 1] = f, z
-        elements, values = {}, np.zeros((len(self._points), 3))
+        elements, values = {}, np.zeros((len(self._points), len(ELEMENTS)))
         for e in self.nonlinear:
             value = float(theta[e.name])
             if not math.isfinite(value):
@@ -145,21 +152,42 @@ class ModalModel:
             kind = list(ELEMENTS).index(e.kind)
             if e.at is not None:
                 values[self._points.index(e.at), kind] = value
-            else:
-                elements.setdefault(e.index, [0.0, 0.0, 0.0])[kind] = value
-        return f_hz, zeta, {m: tuple(c) for m, c in elements.items()}, values
+                continue
+            c, shapes = elements.setdefault(e.index, (np.zeros(len(ELEMENTS)), np.zeros(len(SHAPES))))
+            c[kind] = value
+            if e.kind in SHAPES:
+                shapes[list(SHAPES).index(e.kind)] = e.shape
+        return f_hz, zeta, elements, values
 
     def _f_top(self, m: int) -> float:
         """The top of mode m's (0-based) frequency prior [Hz]: what its RK4 steps are sized for."""
         name = f"f{m + 1}"
         return next((p.high for p in self.parameters if p.name == name), float(self.modes[m, 0]))
 
+    def _rate_hz(self, modes, joints: bool = False) -> float:
+        """The rate [Hz] the RK4 steps of ``modes`` (0-based; with ``joints``, the modes the joints
+        couple, integrated together) are sized for: their highest frequency, raised by the contact
+        springs and frictions among their elements at the top of their priors (:func:`step_rate_hz`)."""
+        top = {p.name: max(abs(p.low), abs(p.high)) for p in self.parameters}
+        contact = slope = 0.0
+        for e in self.nonlinear:
+            if e.kind not in SHAPES or (e.at is None and e.index not in modes) or (e.at is not None and not joints):
+                continue
+            j = self._points.index(e.at) if e.at is not None else None
+            ws = 1.0 if j is None else float(self._weights[j] @ self._shares[j])
+            if e.kind == "clearance":
+                contact += top[e.name] * ws
+            else:
+                slope += top[e.name] / e.shape * ws
+        return step_rate_hz(max(self._f_top(m) for m in modes), contact, slope)
+
     # -- optional members ----------------------------------------------------
     def refined(self) -> "ModalModel":
         """The same model with twice the RK4 substeps (the framework's model-error term).
         RK4's error falls 16-fold when its steps halve, so the difference from this
         model is some 15/16 of the model's own time-step error; its linear modes are
-        exact at any step and do not change."""
+        exact at any step and do not change.  With a clearance the error falls some 4-fold
+        on average but erratically (:mod:`.dynamics`): the difference is its size, roughly."""
         finer = copy.copy(self)
         finer.substeps = 2 * self.substeps
         return finer
@@ -174,10 +202,17 @@ class ModalModel:
             "residual": self.residual.tolist(),
             "updated": list(self.updated),
             "nonlinear": [e.name for e in self.nonlinear],
+            **self._shape_constants(),
             "driving_point": self.driving_point,
             "substeps": self.substeps,
             "priors": {p.name: [p.low, p.high, p.unit] for p in self.parameters},
         }
+
+    def _shape_constants(self) -> dict:
+        """``{"shapes": {element: {"v0" or "gap": value}}}`` for :meth:`describe`: the shape
+        constants are part of the model's identity; none: ``{}`` (the description as before)."""
+        shapes = {e.name: {SHAPES[e.kind][0]: e.shape} for e in self.nonlinear if e.kind in SHAPES}
+        return {"shapes": shapes} if shapes else {}
 
     def check_dataset(self, dataset) -> None:
         """Refuse a data set whose sensors are not the model's (their number and kinds, in order)."""

@@ -21,6 +21,7 @@ from bayes_update.core.parameters import Parameter
 __all__ = [
     "KINDS",
     "ELEMENTS",
+    "SHAPES",
     "Nonlinearity",
     "check_modes",
     "check_sensors",
@@ -35,11 +36,19 @@ __all__ = [
 KINDS = ("displacement", "velocity", "acceleration")
 #: the nonlinear elements: the force each adds (per unit modal mass, the 1 kg of the unit input) and
 #: the SI unit of its coefficient, x the mode's coordinate or, for an element at a sensor, the
-#: displacement of the sensor's point [m], x' its rate [m/s]
+#: displacement of the sensor's point [m], x' its rate [m/s]; in this order in the integrator's rows
 ELEMENTS = {
     "k2": ("quadratic stiffness k2 x^2", "1/(m s^2)"),
     "k3": ("cubic stiffness k3 x^3", "1/(m^2 s^2)"),
     "c3": ("cubic damping c3 x'^3", "s/m^2"),
+    "friction": ("smooth Coulomb friction F tanh(x'/v0)", "m/s^2"),
+    "clearance": ("contact spring kc (x - gap) for x > gap, kc (x + gap) for x < -gap, 0 between", "1/s^2"),
+}
+#: the elements with a shape constant, fixed by the user (an argument of :class:`Nonlinearity`, not a
+#: parameter): its name, SI unit and meaning; in this order in the integrator's rows of constants
+SHAPES = {
+    "friction": ("v0", "m/s", "its smoothing velocity (the force is 76 % of F at x' = v0)"),
+    "clearance": ("gap", "m", "the half-width of its gap (contact from |x| = gap on)"),
 }
 #: default prior of an updated mode: frequency within +-5 %, damping ratio x0.5..x2 (log-uniform;
 #: below 1 always: its top is at most halfway from the damping ratio to critical damping)
@@ -49,15 +58,20 @@ DAMPING_SPAN = 2.0
 
 @dataclass(frozen=True)
 class Nonlinearity:
-    """A nonlinear element, ``kind`` one of :data:`ELEMENTS` (``"k2"``, ``"k3"``, ``"c3"``), either
-    in the equation of mode ``mode`` (1-based; its modal coordinate's force) or ``at`` a sensor
-    (its name: a joint at the point that sensor measures, acting on every mode through that point's
-    displacement, :mod:`bayes_update.models.modal.joints`).  Its coefficient is the parameter
-    :attr:`name` (``"k3_1"``, ``"k3_at_acc1"``), in the unit :attr:`unit`, null (switched off) at 0."""
+    """A nonlinear element, ``kind`` one of :data:`ELEMENTS` (``"k2"``, ``"k3"``, ``"c3"``,
+    ``"friction"``, ``"clearance"``), either in the equation of mode ``mode`` (1-based; its modal
+    coordinate's force) or ``at`` a sensor (its name: a joint at the point that sensor measures,
+    acting on every mode through that point's displacement, :mod:`bayes_update.models.modal.joints`).
+    Its coefficient is the parameter :attr:`name` (``"k3_1"``, ``"k3_at_acc1"``), in the unit
+    :attr:`unit`, null (switched off) at 0.  A friction takes its smoothing velocity ``v0`` [m/s]
+    (``Nonlinearity("friction", at="acc1", v0=1e-3)``), a clearance the half-width of its gap
+    ``gap`` [m] (``Nonlinearity("clearance", 1, gap=2e-4)``): constants of the model (:data:`SHAPES`)."""
 
     kind: str
     mode: int | None = None
     at: str | None = None
+    v0: float | None = None
+    gap: float | None = None
 
     @property
     def name(self) -> str:
@@ -77,6 +91,11 @@ class Nonlinearity:
     def where(self) -> str:
         """``mode 1`` or ``sensor 'acc1'``: what the messages name."""
         return f"sensor {self.at!r}" if self.at is not None else f"mode {self.mode}"
+
+    @property
+    def shape(self) -> float:
+        """The shape constant, v0 [m/s] or gap [m] (0 for an element without one)."""
+        return {"v0": self.v0, "gap": self.gap}[SHAPES[self.kind][0]] if self.kind in SHAPES else 0.0
 
 
 def _identifier(text: str) -> str:
@@ -170,7 +189,8 @@ def check_updated(updated, n_modes: int) -> tuple:
 
 def check_nonlinear(nonlinear, n_modes: int, sensor_names=()) -> tuple:
     """Nonlinear elements as :class:`Nonlinearity` objects, from those or pairs: ``(kind, mode)``
-    (1-based) or ``(kind, sensor name)`` (an element at that sensor's point)."""
+    (1-based) or ``(kind, sensor name)`` (an element at that sensor's point); a friction or a
+    clearance as a :class:`Nonlinearity`, with its shape constant (``v0=``, ``gap=``)."""
     out = []
     for item in nonlinear or ():
         if isinstance(item, Nonlinearity):
@@ -186,21 +206,52 @@ def check_nonlinear(nonlinear, n_modes: int, sensor_names=()) -> tuple:
                 f"nonlinear: {el.kind} needs one place, a mode (mode=1) or a sensor's point (at='acc1'); "
                 f"got mode={el.mode!r}, at={el.at!r}"
             )
+        shapes = _check_shape(el)
         if el.at is not None:
             if el.at not in sensor_names:
                 raise ValueError(
                     f"nonlinear: {el.kind} at sensor {el.at!r}, which does not exist; the sensors are "
                     f"{list(sensor_names)}"
                 )
-            out.append(Nonlinearity(el.kind, at=str(el.at)))
+            out.append(Nonlinearity(el.kind, at=str(el.at), **shapes))
             continue
         if not (isinstance(el.mode, (int, np.integer)) and 1 <= el.mode <= n_modes):
             raise ValueError(f"nonlinear: {el.kind} on mode {el.mode!r}; the modes are numbered 1 to {n_modes}")
-        out.append(Nonlinearity(el.kind, int(el.mode)))
+        out.append(Nonlinearity(el.kind, int(el.mode), **shapes))
     names = [e.name for e in out]
     if len(set(names)) != len(names):
         raise ValueError(f"nonlinear: an element is given twice: {names}")
     return tuple(out)
+
+
+def _check_shape(el: Nonlinearity) -> dict:
+    """``{"v0": value}``, ``{"gap": value}`` or ``{}``: the element's shape constant, a finite positive
+    float where its kind takes one (:data:`SHAPES`), none where it does not."""
+    own = SHAPES[el.kind][0] if el.kind in SHAPES else None
+    for arg, value in (("v0", el.v0), ("gap", el.gap)):
+        if arg != own and value is not None:
+            kinds = [k for k, (a, _, _) in SHAPES.items() if a == arg]
+            raise ValueError(f"nonlinear: {el.kind} at {el.where} takes no {arg}= (only {kinds[0]} does)")
+    if own is None:
+        return {}
+    _, unit, meaning = SHAPES[el.kind]
+    value = getattr(el, own)
+    place = f"at={el.at!r}" if el.at is not None else repr(el.mode)
+    if value is None:
+        raise ValueError(
+            f"nonlinear: {el.kind} at {el.where} needs {own} [{unit}] > 0, {meaning}: "
+            f"Nonlinearity({el.kind!r}, {place}, {own}=...)"
+        )
+    try:
+        value = float(value)
+    except (TypeError, ValueError):
+        value = None
+    if not (value is not None and math.isfinite(value) and value > 0):
+        raise ValueError(
+            f"nonlinear: {el.kind} at {el.where} has {own} = {getattr(el, own)!r}; {own} [{unit}], {meaning}, "
+            "must be a positive number"
+        )
+    return {own: value}
 
 
 def default_mode_bounds(modes: np.ndarray, updated: tuple) -> dict:
