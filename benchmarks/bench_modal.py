@@ -1,11 +1,13 @@
 """Speed of ``ModalModel.simulate`` (bayes_update.models.modal): 70 000 samples, six modes, three
-sensors (acceleration, velocity, displacement), median of 7 after one warm-up call.
+sensors (acceleration, velocity, displacement), median of 7 after one warm-up call; the
+parameters at the middle of their priors.
 
     python benchmarks/bench_modal.py
 
 writes ``benchmarks/results/bench_modal.md``.  Cases: every mode linear (exact discretisation);
 a cubic spring in mode 1 (RK4 on that mode); a cubic spring and cubic damper in mode 2; a cubic
-spring at the driving point (a joint: RK4 on the six coupled modes).
+spring at the driving point (a joint: RK4 on the six coupled modes); a friction in mode 1 and a
+clearance at the driving point (their RK4 steps sized on the steepest slope their priors allow).
 """
 
 import os
@@ -37,6 +39,18 @@ def main():
         (
             "k3 at the driving point (six coupled modes)",
             dict(nonlinear=[Nonlinearity("k3", at="acc")], driving_point="acc", bounds={"k3_at_acc": (-1e6, 1e6)}),
+        ),
+        (
+            "friction in mode 1 (v0 = 1e-3 m/s)",
+            dict(nonlinear=[Nonlinearity("friction", 1, v0=1e-3)], bounds={"friction_1": (0.0, 0.05)}),
+        ),
+        (
+            "clearance at the driving point (gap 1e-4 m; six coupled modes)",
+            dict(
+                nonlinear=[Nonlinearity("clearance", at="acc", gap=1e-4)],
+                driving_point="acc",
+                bounds={"clearance_at_acc": (0.0, 2e3)},
+            ),
         ),
     ]
     rows = []
