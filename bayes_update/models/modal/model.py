@@ -23,6 +23,7 @@ from .spec import (
     check_sensors,
     check_updated,
     declare,
+    element_parameter,
 )
 
 __all__ = ["ModalModel"]
@@ -65,9 +66,14 @@ class ModalModel:
         driving-point sensor): required by an element at a sensor, whose force enters mode
         m's equation scaled by c_m(sensor) / c_m(driving point).  Its coefficients must be
         positive for every mode (they are phi_dm^2 x 1 kg).
+    candidates : elements, given as ``nonlinear`` is, offered to the discrepancy workflow
+        (:meth:`candidate_effects`, one effect per element, its coefficient's name): each is
+        integrated as an element of ``nonlinear`` is, but its coefficient (null 0, prior from
+        ``bounds``) is not in ``parameters``: :meth:`simulate` takes it from theta when there,
+        else 0.  A candidate's name must not be a parameter's.
 
     Attributes ``modes`` (M, 2), ``sensors``, ``coefficients`` (M, S), ``residual``
-    (S,), ``updated``, ``nonlinear``, ``substeps``, ``driving_point``, ``parameters``;
+    (S,), ``updated``, ``nonlinear``, ``candidates``, ``substeps``, ``driving_point``, ``parameters``;
     ``record_misfit`` {sensor: relative rms misfit of the fit} when built by :meth:`from_modes`.
     """
 
@@ -82,6 +88,7 @@ class ModalModel:
         bounds: Mapping | None = None,
         substeps: int = 4,
         driving_point: str | None = None,
+        candidates=(),
     ):
         self.modes = check_modes(modes)
         self.sensors = check_sensors(sensors)
@@ -90,15 +97,25 @@ class ModalModel:
         self.residual = check_residual(residual, S)
         self.updated = check_updated(updated, M)
         self.nonlinear = check_nonlinear(nonlinear, M, [n for n, _ in self.sensors])
-        driving = check_driving_point(driving_point, self.sensors, self.coefficients, self.nonlinear)
+        self.candidates = _check_candidates(candidates, M, self.sensors, driving_point)
+        every = self.nonlinear + self.candidates
+        driving = check_driving_point(driving_point, self.sensors, self.coefficients, every)
         self.driving_point = None if driving is None else self.sensors[driving][0]
         self._points, self._weights, self._shares, self._shapes = joint_matrices(
-            self.nonlinear, self.sensors, self.coefficients, driving
+            every, self.sensors, self.coefficients, driving
         )
         if not (isinstance(substeps, (int, np.integer)) and substeps >= 1):
             raise ValueError(f"substeps must be a positive integer, got {substeps!r}")
         self.substeps = int(substeps)
-        self.parameters = declare(self.modes, self.updated, self.nonlinear, bounds)
+        bounds, own = dict(bounds or {}), {e.name for e in self.candidates}
+        clash = sorted(own & {e.name for e in self.nonlinear})
+        if clash:
+            raise ValueError(
+                f"candidates: {clash} already a declared parameter (an element of nonlinear=); a candidate "
+                "is an element the model does not have: drop it from one of the two lists"
+            )
+        self.parameters = declare(self.modes, self.updated, self.nonlinear, {k: bounds[k] for k in set(bounds) - own})
+        self._candidate_parameters = [element_parameter(e, bounds) for e in self.candidates]
         self.record_misfit = None
 
     # -- the contract -------------------------------------------------------
@@ -145,8 +162,8 @@ class ModalModel:
                 raise ValueError(f"theta['zeta{k}'] = {z!r}: a damping ratio must lie in (0, 1)")
             f_hz[k - 1], zeta[k - 1] = f, z
         elements, values = {}, np.zeros((len(self._points), len(ELEMENTS)))
-        for e in self.nonlinear:
-            value = float(theta[e.name])
+        for e in self.nonlinear + self.candidates:
+            value = float(theta.get(e.name, 0.0) if e in self.candidates else theta[e.name])
             if not math.isfinite(value):
                 raise ValueError(f"theta['{e.name}'] = {value!r} {e.unit}: must be finite")
             kind = list(ELEMENTS).index(e.kind)
@@ -168,9 +185,9 @@ class ModalModel:
         """The rate [Hz] the RK4 steps of ``modes`` (0-based; with ``joints``, the modes the joints
         couple, integrated together) are sized for: their highest frequency, raised by the contact
         springs and frictions among their elements at the top of their priors (:func:`step_rate_hz`)."""
-        top = {p.name: max(abs(p.low), abs(p.high)) for p in self.parameters}
+        top = {p.name: max(abs(p.low), abs(p.high)) for p in self.parameters + self._candidate_parameters}
         contact = slope = 0.0
-        for e in self.nonlinear:
+        for e in self.nonlinear + self.candidates:
             if e.kind not in SHAPES or (e.at is None and e.index not in modes) or (e.at is not None and not joints):
                 continue
             j = self._points.index(e.at) if e.at is not None else None
@@ -182,6 +199,11 @@ class ModalModel:
         return step_rate_hz(max(self._f_top(m) for m in modes), contact, slope)
 
     # -- optional members ----------------------------------------------------
+    def candidate_effects(self) -> dict:
+        """``{coefficient name: [its Parameter, null 0]}``: one effect per candidate element,
+        ``{}`` when the model has none (the discrepancy workflow then refuses it)."""
+        return {p.name: [p] for p in self._candidate_parameters}
+
     def refined(self) -> "ModalModel":
         """The same model with twice the RK4 substeps (the framework's model-error term).
         RK4's error falls 16-fold when its steps halve, so the difference from this
@@ -206,12 +228,19 @@ class ModalModel:
             "driving_point": self.driving_point,
             "substeps": self.substeps,
             "priors": {p.name: [p.low, p.high, p.unit] for p in self.parameters},
+            **self._candidates_description(),
         }
+
+    def _candidates_description(self) -> dict:
+        """``{"candidates": {name: [low, high, unit]}}`` for :meth:`describe`; none: ``{}``."""
+        priors = {p.name: [p.low, p.high, p.unit] for p in self._candidate_parameters}
+        return {"candidates": priors} if priors else {}
 
     def _shape_constants(self) -> dict:
         """``{"shapes": {element: {"v0" or "gap": value}}}`` for :meth:`describe`: the shape
         constants are part of the model's identity; none: ``{}`` (the description as before)."""
-        shapes = {e.name: {SHAPES[e.kind][0]: e.shape} for e in self.nonlinear if e.kind in SHAPES}
+        every = self.nonlinear + self.candidates
+        shapes = {e.name: {SHAPES[e.kind][0]: e.shape} for e in every if e.kind in SHAPES}
         return {"shapes": shapes} if shapes else {}
 
     def check_dataset(self, dataset) -> None:
@@ -241,6 +270,7 @@ class ModalModel:
         transient: bool = True,
         strongest=(),
         driving_point: str | None = None,
+        candidates=(),
     ) -> "ModalModel":
         """The model of ``modes`` ``[(f_hz, zeta), ...]`` whose output coefficients and
         residual terms fit the record ``force`` (n,) [N], ``response`` (n,) or (n, S)
@@ -250,15 +280,19 @@ class ModalModel:
         elements' default priors scale with the modal amplitude of the strongest of
         ``force`` and the forces in ``strongest`` (a data set's other tests:
         :func:`~bayes_update.models.modal.fit.element_bounds`); ``bounds`` overrides
-        any prior.  Other arguments as for :class:`ModalModel`."""
+        any prior; the candidates' default priors as the elements'.  Other arguments as for
+        :class:`ModalModel`."""
         modes = check_modes(modes)
         sensors = check_sensors(sensors)
         elements = check_nonlinear(nonlinear, modes.shape[0], [n for n, _ in sensors])
+        cands = _check_candidates(candidates, modes.shape[0], sensors, driving_point)
         fit = fit_outputs(modes, force, response, fs, sensors, residual, transient)
-        driving = check_driving_point(driving_point, sensors, fit.coefficients, elements)
-        prior = element_bounds(elements, modes, [force, *strongest], fs, fit.coefficients, sensors, driving)
+        driving = check_driving_point(driving_point, sensors, fit.coefficients, elements + cands)
+        prior = element_bounds(elements + cands, modes, [force, *strongest], fs, fit.coefficients, sensors, driving)
         prior.update(dict(bounds or {}))
-        model = cls(modes, fit.coefficients, sensors, fit.residual, updated, elements, prior, substeps, driving_point)
+        model = cls(
+            modes, fit.coefficients, sensors, fit.residual, updated, elements, prior, substeps, driving_point, cands
+        )
         model.record_misfit = fit.misfit
         return model
 
@@ -271,6 +305,7 @@ class ModalModel:
         bounds: Mapping | None = None,
         substeps: int = 4,
         driving_point: str | None = None,
+        candidates=(),
         **options,
     ) -> "ModalModel":
         """:meth:`from_modes` on the data set's test with role ``linear``: its modes as the
@@ -300,5 +335,18 @@ class ModalModel:
             substeps=substeps,
             strongest=others,
             driving_point=driving_point,
+            candidates=candidates,
             **options,
         )
+
+
+def _check_candidates(candidates, n_modes: int, sensors: tuple, driving_point) -> tuple:
+    """The candidate elements, checked as ``nonlinear`` is; one at a sensor needs a driving point."""
+    out = check_nonlinear(candidates, n_modes, [n for n, _ in sensors], what="candidates")
+    joints = [e.name for e in out if e.at is not None]
+    if joints and driving_point is None:
+        raise ValueError(
+            f"candidates: {joints[0]} sits at a sensor's point, but no driving point is named: give "
+            "driving_point=<the sensor at the point where the force acts> (bayes_update.models.modal.joints)"
+        )
+    return out

@@ -30,6 +30,7 @@ __all__ = [
     "check_updated",
     "check_nonlinear",
     "declare",
+    "element_parameter",
 ]
 
 #: the sensor kinds, in the order of the derivative each takes of the modal coordinate (p = 0, 1, 2)
@@ -187,7 +188,7 @@ def check_updated(updated, n_modes: int) -> tuple:
     return tuple(sorted(nums))
 
 
-def check_nonlinear(nonlinear, n_modes: int, sensor_names=()) -> tuple:
+def check_nonlinear(nonlinear, n_modes: int, sensor_names=(), what: str = "nonlinear") -> tuple:
     """Nonlinear elements as :class:`Nonlinearity` objects, from those or pairs: ``(kind, mode)``
     (1-based) or ``(kind, sensor name)`` (an element at that sensor's point); a friction or a
     clearance as a :class:`Nonlinearity`, with its shape constant (``v0=``, ``gap=``)."""
@@ -200,38 +201,37 @@ def check_nonlinear(nonlinear, n_modes: int, sensor_names=()) -> tuple:
         else:
             el = Nonlinearity(*item)
         if el.kind not in ELEMENTS:
-            raise ValueError(f"nonlinear: unknown element {el.kind!r}; the elements are {sorted(ELEMENTS)}")
+            raise ValueError(f"{what}: unknown element {el.kind!r}; the elements are {sorted(ELEMENTS)}")
         if (el.mode is None) == (el.at is None):
             raise ValueError(
-                f"nonlinear: {el.kind} needs one place, a mode (mode=1) or a sensor's point (at='acc1'); "
+                f"{what}: {el.kind} needs one place, a mode (mode=1) or a sensor's point (at='acc1'); "
                 f"got mode={el.mode!r}, at={el.at!r}"
             )
-        shapes = _check_shape(el)
+        shapes = _check_shape(el, what)
         if el.at is not None:
             if el.at not in sensor_names:
                 raise ValueError(
-                    f"nonlinear: {el.kind} at sensor {el.at!r}, which does not exist; the sensors are "
-                    f"{list(sensor_names)}"
+                    f"{what}: {el.kind} at sensor {el.at!r}, which does not exist; the sensors are {list(sensor_names)}"
                 )
             out.append(Nonlinearity(el.kind, at=str(el.at), **shapes))
             continue
         if not (isinstance(el.mode, (int, np.integer)) and 1 <= el.mode <= n_modes):
-            raise ValueError(f"nonlinear: {el.kind} on mode {el.mode!r}; the modes are numbered 1 to {n_modes}")
+            raise ValueError(f"{what}: {el.kind} on mode {el.mode!r}; the modes are numbered 1 to {n_modes}")
         out.append(Nonlinearity(el.kind, int(el.mode), **shapes))
     names = [e.name for e in out]
     if len(set(names)) != len(names):
-        raise ValueError(f"nonlinear: an element is given twice: {names}")
+        raise ValueError(f"{what}: an element is given twice: {names}")
     return tuple(out)
 
 
-def _check_shape(el: Nonlinearity) -> dict:
+def _check_shape(el: Nonlinearity, what: str = "nonlinear") -> dict:
     """``{"v0": value}``, ``{"gap": value}`` or ``{}``: the element's shape constant, a finite positive
     float where its kind takes one (:data:`SHAPES`), none where it does not."""
     own = SHAPES[el.kind][0] if el.kind in SHAPES else None
     for arg, value in (("v0", el.v0), ("gap", el.gap)):
         if arg != own and value is not None:
             kinds = [k for k, (a, _, _) in SHAPES.items() if a == arg]
-            raise ValueError(f"nonlinear: {el.kind} at {el.where} takes no {arg}= (only {kinds[0]} does)")
+            raise ValueError(f"{what}: {el.kind} at {el.where} takes no {arg}= (only {kinds[0]} does)")
     if own is None:
         return {}
     _, unit, meaning = SHAPES[el.kind]
@@ -239,7 +239,7 @@ def _check_shape(el: Nonlinearity) -> dict:
     place = f"at={el.at!r}" if el.at is not None else repr(el.mode)
     if value is None:
         raise ValueError(
-            f"nonlinear: {el.kind} at {el.where} needs {own} [{unit}] > 0, {meaning}: "
+            f"{what}: {el.kind} at {el.where} needs {own} [{unit}] > 0, {meaning}: "
             f"Nonlinearity({el.kind!r}, {place}, {own}=...)"
         )
     try:
@@ -248,7 +248,7 @@ def _check_shape(el: Nonlinearity) -> dict:
         value = None
     if not (value is not None and math.isfinite(value) and value > 0):
         raise ValueError(
-            f"nonlinear: {el.kind} at {el.where} has {own} = {getattr(el, own)!r}; {own} [{unit}], {meaning}, "
+            f"{what}: {el.kind} at {el.where} has {own} = {getattr(el, own)!r}; {own} [{unit}], {meaning}, "
             "must be a positive number"
         )
     return {own: value}
@@ -285,17 +285,21 @@ def declare(modes: np.ndarray, updated: tuple, elements: tuple, bounds: Mapping)
         if not (0 < lo and hi < 1):
             raise ValueError(f"bounds['zeta{k}'] = ({lo!r}, {hi!r}): a damping ratio's prior must lie in (0, 1)")
         params.append(Parameter(f"zeta{k}", lo, hi, unit="-", log=True))
-    for e in elements:
-        if e.name not in bounds:
-            raise ValueError(
-                f"bounds['{e.name}'] is missing: give the prior of the {ELEMENTS[e.kind][0]} at "
-                f"{e.where} [{e.unit}] (ModalModel.from_modes sets one from the record)"
-            )
-        lo, hi = _pair(bounds[e.name], e.name)
-        params.append(Parameter(e.name, lo, hi, unit=e.unit, null=0.0))
+    params += [element_parameter(e, bounds) for e in elements]
     if not params:
         raise ValueError("nothing to update: name modes in updated= or elements in nonlinear=")
     return params
+
+
+def element_parameter(e: Nonlinearity, bounds: Mapping) -> Parameter:
+    """The coefficient of element ``e`` (null 0) with its prior ``bounds[e.name]``, required."""
+    if e.name not in bounds:
+        raise ValueError(
+            f"bounds['{e.name}'] is missing: give the prior of the {ELEMENTS[e.kind][0]} at "
+            f"{e.where} [{e.unit}] (ModalModel.from_modes sets one from the record)"
+        )
+    lo, hi = _pair(bounds[e.name], e.name)
+    return Parameter(e.name, lo, hi, unit=e.unit, null=0.0)
 
 
 def _pair(value, name: str) -> tuple:
