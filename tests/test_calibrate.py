@@ -105,14 +105,20 @@ def test_problem_rejects_bad_data_sets(data):
     two = dataclasses.replace(
         data, tests=[dataclasses.replace(t, role="linear") for t in data.tests if t.signal == "chirp"]
     )
-    with pytest.raises(DatasetError, match="exactly one"):
-        Problem(two, Beam(fe.BeamModel(rig=rig_of(data))))
+    # two tests of one role: two stages, the second named after its test
+    two_linear = Problem(two, Beam(fe.BeamModel(rig=rig_of(data))))
+    names = [t.name for t in two.tests if t.role == "linear"]
+    assert two_linear.stages == ("linear", *(f"linear:{n}" for n in names[1:])), two_linear.stages
+    assert two_linear.tests[f"linear:{names[1]}"].name == names[1]
+    doubled = dataclasses.replace(data, tests=[*data.tests, data.tests[0]])
+    with pytest.raises(DatasetError, match="more than once"):
+        Problem(doubled, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(ValueError, match="another rig"):
         Problem(data, Beam(fe.BeamModel()))  # factor 1.0 against 1.24
     lin_only = dataclasses.replace(data, tests=[t for t in data.tests if t.role == "linear"])
     prob = Problem(lin_only, Beam(fe.BeamModel(rig=rig_of(data))))
     with pytest.raises(DatasetError, match="e_nlin"):
-        prob.evaluate(Beam(fe.BeamModel(rig=rig_of(data))).theta_of(TRUTH))
+        prob.evaluate(Beam(fe.BeamModel(rig=rig_of(data))).theta_of(TRUTH), "nonlinear")
 
 
 def test_helpers(data):

@@ -230,20 +230,25 @@ def test_a_complex_response_is_refused_not_cast(data, no_long_steps):
 
 
 # -------------------------------------------------------------- the data set's structure
-def test_cli_two_tests_nonlinear_before_any_model_run(data, tmp_path, capsys, no_long_steps):
+def test_cli_two_tests_nonlinear_are_two_stages(data, tmp_path, no_long_steps):
+    """Two tests with role 'nonlinear' are two stages of the estimation (a campaign's levels,
+    tests/test_campaign_levels.py): the command passes the roles' check and reaches its
+    first long step."""
     two = write_dataset(_roles(data, medium_check="nonlinear"), tmp_path / "two")
-    line = _cli(
-        capsys, "sample", "--quick", "--model", f"{HERE}:Counting", "--data", str(two), "--out", str(tmp_path / "o")
-    )
-    assert "2 tests have role 'nonlinear'" in line and "'validation'" in line, line
-    assert Counting.runs == 0
+    argv = ["sample", "--quick", "--model", f"{HERE}:Counting", "--data", str(two), "--out", str(tmp_path / "o")]
+    with pytest.raises(LongStepReached):
+        main(argv + ["--workers", "1"])
+    assert Counting.runs == 1  # the preflight's one run at the middle of the prior, then the first long step
 
 
 @pytest.mark.parametrize("verb", sorted(API))
 def test_api_roles_are_checked_before_any_model_run(verb, data, no_long_steps):
+    import dataclasses
+
     model = Counting() if verb != "discrepancy" else WithEffects()
-    with pytest.raises(DatasetError, match="2 tests have role 'nonlinear'"):
-        API[verb](_roles(data, medium_check="nonlinear"), model)
+    twice = dataclasses.replace(data, tests=[*data.tests, data.tests[-1]])
+    with pytest.raises(DatasetError, match="appear more than once"):
+        API[verb](twice, model)
     with pytest.raises(DatasetError, match="no test has role 'nonlinear'") as info:
         API[verb](_roles(data, loud_high="validation"), model)
     assert "dataset.json" in _one_line(info.value)

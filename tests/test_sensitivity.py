@@ -35,6 +35,8 @@ ST_EXACT = {"eta": (V1 + V13) / V, "c": V2 / V, "F": V13 / V, "k_s": 0.0}
 class IshigamiProblem:
     """e_lin = exp(Ishigami(x)); e_nlin is NaN, so only e_lin is analysed (half the GP fits)."""
 
+    stages = ("linear", "nonlinear")
+
     def __init__(self, space: ParameterSet):
         self.bounds = np.column_stack([space.low, space.high])
 

@@ -87,7 +87,7 @@ class Calibration:
     stage1: dict
     linear_parameters: list
     sensitivity: dict  # name -> move of y1 per prior range (relative to ||y1_ref||)
-    metrics: dict  # e_lin, e_nlin at theta
+    metrics: dict  # each stage's metric at theta (e_lin, e_nlin, ...: metrics.metric_key)
     metric_set: str
     prediction_errors: dict  # validation test -> ||y - y_model|| / ||y||
     unidentified: dict  # stage -> [{"direction": {name: loading}, "sd_over_range": float}]
@@ -318,7 +318,7 @@ def calibrate_model(
         stage1=space.to_parameters(found.x1),
         linear_parameters=lin_names,
         sensitivity=sens,
-        metrics={"e_lin": metrics_at["e_lin"], "e_nlin": metrics_at["e_nlin"]},
+        metrics={k: v for k, v in metrics_at.items() if k != "error"},
         metric_set=problem.metrics,
         prediction_errors=pred,
         unidentified=found.unidentified,

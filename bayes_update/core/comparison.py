@@ -147,9 +147,7 @@ def _coordinate_maps(problem, stage: str) -> list:
     coordinates (those of :func:`~bayes_update.core.posterior.pointwise.observation_basis`),
     over the compared output's norm; several sensors are weighted by their noise, as
     :meth:`~bayes_update.core.problem.Problem.components` weighs them."""
-    from bayes_update.core.metrics import METRIC_SETS
-
-    B = problem.projector(stage).span_map(METRIC_SETS[problem.metrics][stage])
+    B = problem.projector(stage).span_map(problem.compared_orders(stage))
     norm = float(np.linalg.norm(problem.output(stage, problem.reference_components(stage))))
     if len(problem.sensors) == 1:
         return [B / norm]

@@ -215,7 +215,7 @@ def find_discrepancy(
             start = {n: float(start[n]) for n in base.names}
         with steps("baseline"):
             baseline, lik = flow.baseline(start)
-        log(f"baseline: e_lin {100 * baseline.metrics['e_lin']:.3f} %, e_nlin {100 * baseline.metrics['e_nlin']:.3f} %")
+        log("baseline: " + ", ".join(f"{k} {100 * v:.3f} %" for k, v in baseline.metrics.items()))
         detectable = {}
         if settings.detectability:
             with steps("detectability"):

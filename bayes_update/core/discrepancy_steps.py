@@ -162,8 +162,7 @@ class DiscrepancyWorkflow:
                     "excludes_null": effect_excludes_null(f, k),
                     "at_null": effect_at_null(f, k),
                     "at_bound": effect_at_bound(f, k),
-                    "e_lin": f.metrics["e_lin"],
-                    "e_nlin": f.metrics["e_nlin"],
+                    **f.metrics,
                     "held_out": held_out_comparison(self.problem, held[0], h),
                 }
             )
@@ -245,8 +244,7 @@ class DiscrepancyWorkflow:
                     "two_ln_B": 2.0 * (f.log_evidence - best_base.log_evidence),
                     "partner_alone": row["two_ln_B"],
                     "members": members,
-                    "e_lin": f.metrics["e_lin"],
-                    "e_nlin": f.metrics["e_nlin"],
+                    **f.metrics,
                     "held_out": held_out_comparison(self.problem, before, after),
                 }
             )

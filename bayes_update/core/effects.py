@@ -22,6 +22,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from bayes_update.core.held_out import describe
+from bayes_update.core.metrics import metric_key
 from bayes_update.core.model import ModelSpecError
 from bayes_update.core.parameters import Parameter, ParameterSet
 
@@ -46,10 +47,6 @@ DECISIVE = 6.0
 EXPLAINED_FACTOR = 3.0
 
 
-def _key(stage: str) -> str:
-    return "e_lin" if stage == "linear" else "e_nlin"
-
-
 def misfit_allowance(lik) -> dict:
     """{e_lin, e_nlin: the misfit noise and model error leave at a model's mode}:
     sqrt(mean e^2 over the noise replicates + e_model_unabsorbed^2).  The
@@ -60,7 +57,7 @@ def misfit_allowance(lik) -> dict:
     out = {}
     for st, sc in lik.scales.items():
         me = sc.model_error_unabsorbed if sc.model_error_unabsorbed is not None else sc.model_error
-        out[_key(st)] = math.sqrt(sc.noise_mean_square + me**2)
+        out[metric_key(st)] = math.sqrt(sc.noise_mean_square + me**2)
     return out
 
 

@@ -12,6 +12,7 @@ import numpy as np
 
 from bayes_update.core.comparison import score_model
 from bayes_update.core.effects import DECISIVE, ExtendedSpace
+from bayes_update.core.metrics import metric_key
 from bayes_update.core.mode import ModeResult, ResidualFunction, SpacePoint, find_mode
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
@@ -54,8 +55,7 @@ class Fit:
                 for n, s, c in zip(self.space.base.names, sd, self.space.base.coordinate_names)
             },
             "effects": {e: {p.name: values[p.name] for p in effects[e]} for e in self.names},
-            "e_lin": self.metrics["e_lin"],
-            "e_nlin": self.metrics["e_nlin"],
+            **self.metrics,
             "log_evidence": self.log_evidence,
         }
 
@@ -88,10 +88,9 @@ def fit_model(
         problem, lik, mode, space.to_parameters(mode.x), space.log_prior_density(mode.x), hi - lo, executor
     )
     cov, logz = scored.covariance, scored.log_evidence
-    r, n = mode.residual, len(mode.residual) // len(stages)
     metrics = {
-        ("e_lin" if st == "linear" else "e_nlin"): float(np.linalg.norm(r[i * n : (i + 1) * n]) * lik.scales[st].sd)
-        for i, st in enumerate(stages)
+        metric_key(st): float(np.linalg.norm(mode.residual[rows]) * lik.scales[st].sd)
+        for st, rows in problem.stage_rows(stages).items()
     }
     return Fit(list(names), space, mode, logz, cov, metrics)
 
@@ -235,11 +234,7 @@ def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
     (:data:`GAP_LABELS`): ``held_out_error_beyond_noise`` is sqrt(rel^2 - floor^2)
     averaged over the tests (the noise alone gives rel = floor, which no model
     removes), ``held_out_relative_error`` the raw mean, ``held_out_tests`` per test."""
-    out = {
-        "e_lin": fit.metrics["e_lin"],
-        "e_nlin": fit.metrics["e_nlin"],
-        "e_sum": fit.metrics["e_lin"] + fit.metrics["e_nlin"],
-    }
+    out = {**fit.metrics, "e_sum": float(sum(fit.metrics.values()))}
     val = problem.prediction_errors(fit.theta)
     if val:
         excess = [math.sqrt(max(v**2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]

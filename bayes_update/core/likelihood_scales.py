@@ -16,7 +16,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from bayes_update.core.metrics import STAGE_ORDERS
+from bayes_update.core.metrics import STAGES, metric_key, stage_role
 
 
 @dataclass(frozen=True)
@@ -113,18 +113,17 @@ class Likelihood:
 
     def __post_init__(self):
         for st, sc in self.scales.items():
-            if st not in STAGE_ORDERS:
-                raise ValueError(f"unknown stage {st!r}")
+            stage_role(st)  # raises on an unknown stage
             if not (sc.sd > 0 and math.isfinite(sc.sd)):
                 raise ValueError(f"stage {st}: the likelihood scale must be positive and finite, got {sc.sd}")
 
     @property
     def stages(self) -> tuple:
-        return tuple(s for s in STAGE_ORDERS if s in self.scales)
+        return tuple(sorted(self.scales, key=lambda s: STAGES.index(stage_role(s))))
 
     @staticmethod
     def key(stage: str) -> str:
-        return "e_lin" if stage == "linear" else "e_nlin"
+        return metric_key(stage)
 
     def restricted(self, stages) -> "Likelihood":
         def part(d):
@@ -156,7 +155,7 @@ class Likelihood:
         )
 
     def log_likelihood(self, metrics: dict) -> float:
-        """From a dict with e_lin / e_nlin; a failed run (NaN) gives -inf."""
+        """From a dict with each stage's metric (e_lin, e_nlin, ...); a failed run (NaN) gives -inf."""
         total = 0.0
         for st, sc in self.scales.items():
             e = metrics[self.key(st)]

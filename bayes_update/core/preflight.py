@@ -11,8 +11,8 @@ cheapest first:
    (:func:`bayes_update.core.model.check_contract`: parameters, the types of
    the optional members, hooks' names misspelt, pickling), and for the
    discrepancy workflow its ``candidate_effects()`` and the candidates asked for;
-2. the data set's structure: one test with role ``linear`` and one with role
-   ``nonlinear``, no more of either (:func:`bayes_update.core.problem.require_roles`;
+2. the data set's structure: a test with role ``linear`` and one with role
+   ``nonlinear``, each name once (:func:`bayes_update.core.problem.require_roles`;
    each test's channels, lengths and sensors were checked when it was read),
    and the model's own ``check_dataset`` (the beam: its rig);
 3. one model run at the middle of the prior (every candidate effect at its

@@ -25,9 +25,12 @@ from bayes_update.core.metrics import (
     METRIC_SETS,
     STAGE_ORDERS,
     STAGES,
+    metric_key,
     n_compared_regressors,
     relative_error,
+    stage_name,
     stage_output,
+    stage_role,
 )
 from bayes_update.core.problem_model import ProblemModel
 from bayes_update.core.roles import require_roles
@@ -61,8 +64,12 @@ class Problem(ProblemModel):
     Parameters
     ----------
     dataset : the measured (or synthetic) data set (``tests`` with roles,
-        ``sampling_rate_hz``); it must hold exactly one test with role
-        ``linear`` and, for e_nlin, one with role ``nonlinear``.
+        ``sampling_rate_hz``); it must hold a test with role ``linear`` and,
+        for e_nlin, one with role ``nonlinear``.  Every test of these roles is
+        a stage of the estimation (:data:`~bayes_update.core.metrics.STAGES`):
+        the first of each role the stage of its name, each further one
+        ``role:test name`` (:func:`~bayes_update.core.metrics.stage_name`),
+        in the data set's order.
     model : a model of the contract (:mod:`bayes_update.core.model`):
         ``simulate(theta, force, fs) -> response``.
     n_functions : J per kernel order, used when ``basis`` is not given.
@@ -113,7 +120,11 @@ class Problem(ProblemModel):
             raise ValueError(f"metrics must be one of {sorted(METRIC_SETS)}, got {metrics!r}")
         self.metrics = metrics
         require_roles(dataset)
-        self.tests = {role: self._test(dataset.by_role(role)[0]) for role in STAGES if dataset.by_role(role)}
+        self.tests = {
+            stage_name(role, t.name, i == 0): self._test(t)
+            for role in STAGES
+            for i, t in enumerate(dataset.by_role(role))
+        }
         self.validation = {t.name: self._test(t) for t in dataset.by_role("validation")}
         found_linear = dataset.by_role("linear")
         lin = self.tests["linear"]
@@ -173,12 +184,30 @@ class Problem(ProblemModel):
     # ---------------------------------------------------------- components
     @property
     def stages(self) -> tuple:
-        """Stages the data support: ('linear',) or ('linear', 'nonlinear')."""
-        return tuple(s for s in STAGES if s in self.tests)
+        """Stages the data support: ('linear',), ('linear', 'nonlinear'), and a stage
+        ``role:test name`` per further test of a role, the linear ones first."""
+        return tuple(sorted(self.tests, key=lambda s: STAGES.index(stage_role(s))))
+
+    def stages_of(self, role: str) -> tuple:
+        """The stages of one role (``"linear"``: the low-level tests)."""
+        return tuple(s for s in self.stages if stage_role(s) == role)
+
+    def stage_rows(self, stages=None) -> dict:
+        """``{stage: slice}``: each stage's rows in a residual of ``stages`` (default all)
+        concatenated in their order (the stages' compared outputs differ in length when
+        their records do)."""
+        out, start = {}, 0
+        for st in self.stages if stages is None else stages:
+            n = self.output(st, self.reference_components(st)).size
+            out[st], start = slice(start, start + n), start + n
+        return out
+
+    def compared_orders(self, stage: str) -> tuple:
+        """The kernel orders the stage's metric compares (:data:`METRIC_SETS`)."""
+        return METRIC_SETS[self.metrics][stage_role(stage)]
 
     def _check_stage(self, stage):
-        if stage not in STAGES:
-            raise ValueError(f"stage must be one of {STAGES}, got {stage!r}")
+        stage_role(stage)
         if stage not in self.tests:
             raise DatasetError(
                 f"{self.source}: no test has role {stage!r}, so e_nlin cannot be "
@@ -188,7 +217,7 @@ class Problem(ProblemModel):
     def projector(self, stage: str) -> volterra.VolterraProjector:
         self._check_stage(stage)
         if stage not in self._projectors:
-            basis = self.basis.subset(STAGE_ORDERS[stage])
+            basis = self.basis.subset(STAGE_ORDERS[stage_role(stage)])
             self._projectors[stage] = volterra.VolterraProjector(self.tests[stage].force, basis)
         return self._projectors[stage]
 
@@ -283,7 +312,8 @@ class Problem(ProblemModel):
         return n_compared_regressors(self.projector(stage).basis, stage, self.metrics)
 
     def metric(self, stage: str, response) -> float:
-        """e_lin (stage 'linear') or e_nlin (stage 'nonlinear') of a model response."""
+        """The stage's metric (:func:`~bayes_update.core.metrics.metric_key`: e_lin on
+        stage 'linear', e_nlin on 'nonlinear') of a model response."""
         return relative_error(
             self.output(stage, self.reference_components(stage)), self.output(stage, self.components(stage, response))
         )
@@ -328,26 +358,26 @@ class Problem(ProblemModel):
                 )
         return out
 
-    def evaluate(self, params, stages=STAGES) -> dict:
-        """Metrics at one parameter point.
+    def evaluate(self, params, stages=None) -> dict:
+        """Metrics at one parameter point (``stages``: default all of :attr:`stages`).
 
         Returns ``{"e_lin": float, "e_nlin": float, "error": None}`` (only the
-        requested stages); a model failure (buckling, Newton divergence) gives
+        requested stages; a further test's metric under its
+        :func:`~bayes_update.core.metrics.metric_key`); a model failure (buckling, Newton divergence) gives
         NaN metrics and the message in ``"error"`` instead of raising, so that
         one bad point does not stop a grid.
         """
-        if isinstance(stages, str):
-            stages = (stages,)
+        stages = self.stages if stages is None else (stages,) if isinstance(stages, str) else stages
         for s in stages:
             self._check_stage(s)
         out = {}
         try:
             for s in stages:
-                out["e_lin" if s == "linear" else "e_nlin"] = self.metric(s, self.simulate(params, s))
+                out[metric_key(s)] = self.metric(s, self.simulate(params, s))
             out["error"] = None
         except self.failures as exc:
             for s in stages:
-                out["e_lin" if s == "linear" else "e_nlin"] = math.nan
+                out[metric_key(s)] = math.nan
             out["error"] = f"{type(exc).__name__}: {exc}"
         return out
 
@@ -356,8 +386,8 @@ class Problem(ProblemModel):
         return {
             "basis": describe_basis(self.basis),
             "metric_set": self.metrics,
-            "orders_fitted": {s: list(STAGE_ORDERS[s]) for s in self.tests},
-            "orders_compared": {s: list(METRIC_SETS[self.metrics][s]) for s in self.tests},
+            "orders_fitted": {s: list(STAGE_ORDERS[stage_role(s)]) for s in self.tests},
+            "orders_compared": {s: list(self.compared_orders(s)) for s in self.tests},
             "tests": {s: t.name for s, t in self.tests.items()},
             "model": self.describe_model(),
         }

@@ -16,11 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 import surrogates
+from bayes_update.core.metrics import metric_key
 from bayes_update.core.problem import Problem
 from surrogates.evaluation import evaluate_many
-
-#: the metrics (one per stage) whose indices are computed
-METRICS = ("e_lin", "e_nlin")
 
 
 @dataclass
@@ -41,18 +39,19 @@ def sobol_indices(problem: Problem, space, n_design: int, n_sobol: int, pool, se
     PUBLIC = tuple(space.names)
     bounds = np.column_stack([space.low, space.high])
     X = surrogates.design(bounds, n_design, "sobol", seed=seed)
+    metrics = tuple(metric_key(st) for st in problem.stages)
     res = evaluate_many(_EvaluatePublic(problem, space), list(X), pool, progress=progress, desc="global design")
     salib_problem = {"num_vars": len(PUBLIC), "names": list(PUBLIC), "bounds": bounds.tolist()}
     S = sobol_sample.sample(salib_problem, int(n_sobol), calc_second_order=False, seed=int(seed) % 2**31)
     out = {
         "n_design": int(n_design),
         # a run per design point and stage whose metric it computed
-        "n_model_runs": len(X) * len({key for r in res for key in r if key in METRICS}),
+        "n_model_runs": len(X) * len({key for r in res for key in r if key in metrics}),
         "n_sobol": int(n_sobol),
         "units": {p.name: p.unit for p in space.parameters},
         "output": "log e",
     }
-    for key in METRICS:
+    for key in metrics:
         y = np.array([r.get(key, np.nan) for r in res], float)
         ok = np.isfinite(y) & (y > 0)
         if ok.sum() < 8:

@@ -78,7 +78,7 @@ def screen_linear(problem: Problem, space, executor=None) -> tuple[list, dict, i
     box = space.box()
     width = box[:, 1] - box[:, 0]
     x0 = space.to_internal(space.center())
-    fun = _residual(problem, ("linear",), _PointMap(space, x0, tuple(range(len(x0)))), weighted=False)
+    fun = _residual(problem, problem.stages_of("linear"), _PointMap(space, x0, tuple(range(len(x0)))), weighted=False)
     points = [x0] + [x0 + SCREEN_STEP * width[i] * np.eye(len(x0))[i] for i in range(len(x0))]
     r = evaluate_many(fun, points, executor, progress=False)
     move = np.array([np.linalg.norm(ri - r[0]) / SCREEN_STEP for ri in r[1:]])
@@ -158,10 +158,10 @@ def two_stage(
     steps = 1e-3 * (upper - lower)
     weighted = problem.metrics == "full"
     runs = 0
-    # stage 1: the linear parameters on e_lin (the others at the prior's centre)
+    # stage 1: the linear parameters on e_lin (every linear test; the others at the prior's centre)
     free1 = tuple(space.names.index(n) for n in linear_names)
     map1 = _PointMap(space, space.to_internal(space.center()), free1)
-    fun1 = _residual(problem, ("linear",), map1, weighted)
+    fun1 = _residual(problem, problem.stages_of("linear"), map1, weighted)
     starts, n = _starts(fun1, space, free1, n_start, n_best, seed, executor, progress, "stage 1 design")
     # without polish (a start for the posterior's search) stage 1 stops when an iteration gains
     # less than COARSE_TOLERANCE in log L, forward differences, and searches from the next best
@@ -188,12 +188,12 @@ def two_stage(
     # a narrow valley in them, which a design over all parameters would miss)
     free2 = tuple(range(len(space)))
     map2 = _PointMap(space, x1, free2)
-    fun2 = _residual(problem, ("linear", "nonlinear"), map2, weighted)
+    fun2 = _residual(problem, problem.stages, map2, weighted)
     rest = tuple(i for i in free2 if i not in free1) or free2
     map_rest = _PointMap(space, x1, rest)
     # without polish half the design (over the parameters the linear test leaves free)
     starts, n, start_costs = _starts(
-        _residual(problem, ("linear", "nonlinear"), map_rest, weighted),
+        _residual(problem, problem.stages, map_rest, weighted),
         space,
         rest,
         n_start if polish else max(4, n_start // 2),
@@ -214,11 +214,10 @@ def two_stage(
     runs += n + mode2.n_evaluations
     rows = _noise_rows(problem, fun2)
     unident["nonlinear"] = unidentified_directions(mode2.jacobian, upper - lower, space.names, rows)
-    n_lin = problem.output("linear", problem.reference_components("linear")).size
-    blocks = {problem.tests["linear"].name: slice(0, n_lin), problem.tests["nonlinear"].name: slice(n_lin, None)}
+    blocks = {problem.tests[st].name: rows_of for st, rows_of in problem.stage_rows().items()}
     # each test's independent directions (its compared regressors per sensor): its own misfit beyond
     # the noise widens its sd (bayes_update.core.checks.test_disagreement)
-    dof = {problem.tests[st].name: problem.n_regressors(st) * len(problem.sensors) for st in ("linear", "nonlinear")}
+    dof = {problem.tests[st].name: problem.n_regressors(st) * len(problem.sensors) for st in problem.stages}
     disagree = test_disagreement(
         mode2.jacobian * rows[:, None], mode2.residual * rows, blocks, space.names, upper - lower, dof
     )

@@ -44,7 +44,7 @@ def format_calibration(cal: Calibration) -> str:
             "GN sd*: the fit's Gauss-Newton sd under white noise of the measured level and no model "
             "error: the digits' scale, not an interval (it can be 10-100x too small)"
         )
-    lines.append(f"e_lin {100 * cal.metrics['e_lin']:.3f} %, e_nlin {100 * cal.metrics['e_nlin']:.3f} %")
+    lines.append(", ".join(f"{k} {100 * v:.3f} %" for k, v in cal.metrics.items()))
     for test, err in cal.prediction_errors.items():
         lines.append(f"prediction error on validation test {test}: {100 * err:.3f} %")
     if not cal.prediction_errors:

@@ -18,9 +18,9 @@ def _label(space, name: str) -> str:
 
 def _compared(stage: str, metrics: str | None) -> str:
     """What a stage's metric compares: y1, y2 + y3 or y1 + y2 + y3."""
-    from bayes_update.core.metrics import METRIC_SETS
+    from bayes_update.core.metrics import METRIC_SETS, stage_role
 
-    orders = METRIC_SETS.get(metrics or "paper", METRIC_SETS["paper"])[stage]
+    orders = METRIC_SETS.get(metrics or "paper", METRIC_SETS["paper"])[stage_role(stage)]
     return " + ".join(f"y{n}" for n in orders)
 
 

@@ -24,15 +24,13 @@ import math
 
 import numpy as np
 
-from bayes_update.core.metrics import METRIC_SETS
-
 __all__ = ["observation_basis", "pointwise_log_likelihood"]
 
 
 def observation_basis(problem, stage: str) -> np.ndarray:
     """Q (n_output, p * n_sensors): an orthonormal basis of the stage's compared
     output (block diagonal over the sensors, whose outputs are stacked)."""
-    q = problem.projector(stage).span(METRIC_SETS[problem.metrics][stage])
+    q = problem.projector(stage).span(problem.compared_orders(stage))
     k = len(problem.sensors)
     if k == 1:
         return q
