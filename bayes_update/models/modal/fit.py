@@ -41,11 +41,13 @@ CONTACT_FACTOR = 10.0
 class RecordFit:
     """The result of :func:`fit_outputs`: ``coefficients`` (M, S) [-], ``residual`` (S,)
     (in each sensor's residual unit), ``misfit`` {sensor: rms of the fit's residual /
-    rms of the measured response (offset removed)}."""
+    rms of the measured response (offset removed)}, ``errors`` (n, S) the fit's residual
+    over each sensor's rms."""
 
     coefficients: np.ndarray
     residual: np.ndarray
     misfit: dict
+    errors: np.ndarray | None = None
 
 
 def check_record(force, response, fs, n_sensors: int) -> tuple:
@@ -101,7 +103,7 @@ def fit_outputs(
             free.append(mode_responses(zero, fs, modes[:, 0], modes[:, 1], state0=np.tile(state, (M, 1))))
     kinds = tuple(k for _, k in sensors)
     cols = residual_columns(u, fs, kinds)
-    coefficients, res, misfit = np.zeros((M, S)), np.zeros(S), {}
+    coefficients, res, misfit, errors = np.zeros((M, S)), np.zeros(S), {}, np.zeros((u.size, S))
     for s, (name, kind) in enumerate(sensors):
         p = KINDS.index(kind)
         parts = [R[:, :, p]] + ([cols[:, s : s + 1]] if residual else []) + [np.ones((u.size, 1))]
@@ -116,7 +118,8 @@ def fit_outputs(
         fit_err = y[:, s] - X @ beta
         spread = np.std(y[:, s])
         misfit[name] = float(np.sqrt(np.mean(fit_err**2)) / spread) if spread > 0 else 0.0
-    return RecordFit(coefficients, res, misfit)
+        errors[:, s] = fit_err / spread if spread > 0 else 0.0
+    return RecordFit(coefficients, res, misfit, errors)
 
 
 def element_bounds(

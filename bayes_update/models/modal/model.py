@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import copy
 import math
+import warnings
 from collections.abc import Mapping
 
 import numpy as np
@@ -12,6 +13,7 @@ import numpy as np
 from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_substeps, step_rate_hz
 from .fit import element_bounds, fit_outputs
 from .joints import check_driving_point, joint_matrices
+from .residual_modes import excited_top, fit_residual_modes
 from .spec import (
     ELEMENTS,
     KINDS,
@@ -26,7 +28,11 @@ from .spec import (
     element_parameter,
 )
 
-__all__ = ["ModalModel"]
+__all__ = ["MISFIT_HINT", "ModalModel"]
+
+#: a record's fit that leaves more than this share of a sensor's rms unexplained is told
+#: (:meth:`ModalModel.from_modes`)
+MISFIT_HINT = 0.1
 
 
 class ModalModel:
@@ -117,6 +123,7 @@ class ModalModel:
         self.parameters = declare(self.modes, self.updated, self.nonlinear, {k: bounds[k] for k in set(bounds) - own})
         self._candidate_parameters = [element_parameter(e, bounds) for e in self.candidates]
         self.record_misfit = None
+        self.n_residual_modes = 0  # the last of ``modes`` fitted above the band (from_modes)
 
     # -- the contract -------------------------------------------------------
     def simulate(self, theta: Mapping[str, float], force, fs: float) -> np.ndarray:
@@ -271,12 +278,17 @@ class ModalModel:
         strongest=(),
         driving_point: str | None = None,
         candidates=(),
+        residual_modes: int = 0,
     ) -> "ModalModel":
         """The model of ``modes`` ``[(f_hz, zeta), ...]`` whose output coefficients and
         residual terms fit the record ``force`` (n,) [N], ``response`` (n,) or (n, S)
         at ``fs`` [Hz] (:func:`~bayes_update.models.modal.fit.fit_outputs`: linear least
         squares in the time domain, the modes held).  ``residual=False``: no residual
-        term; ``transient=False``: the record starts from rest.  The nonlinear
+        term; ``transient=False``: the record starts from rest.  ``residual_modes``: that
+        many modes above the record's excited band, their frequency and damping fitted to
+        it (:mod:`~bayes_update.models.modal.residual_modes`; never updated, numbered after
+        ``modes``: ``updated="all"`` means ``modes``); where a sensor's fit leaves more than
+        :data:`MISFIT_HINT` of its rms without them, a warning says so.  The nonlinear
         elements' default priors scale with the modal amplitude of the strongest of
         ``force`` and the forces in ``strongest`` (a data set's other tests:
         :func:`~bayes_update.models.modal.fit.element_bounds`); ``bounds`` overrides
@@ -284,6 +296,13 @@ class ModalModel:
         :class:`ModalModel`."""
         modes = check_modes(modes)
         sensors = check_sensors(sensors)
+        n_band = modes.shape[0]
+        if residual_modes:
+            top = excited_top(force, fs)
+            extra = fit_residual_modes(modes, force, response, fs, sensors, residual_modes, top, residual, transient)
+            modes = np.vstack([modes, extra])
+        if isinstance(updated, str) and updated == "all":
+            updated = range(1, n_band + 1)
         elements = check_nonlinear(nonlinear, modes.shape[0], [n for n, _ in sensors])
         cands = _check_candidates(candidates, modes.shape[0], sensors, driving_point)
         fit = fit_outputs(modes, force, response, fs, sensors, residual, transient)
@@ -294,6 +313,14 @@ class ModalModel:
             modes, fit.coefficients, sensors, fit.residual, updated, elements, prior, substeps, driving_point, cands
         )
         model.record_misfit = fit.misfit
+        model.n_residual_modes = int(residual_modes)
+        worst = max(fit.misfit, key=fit.misfit.get)
+        if not residual_modes and fit.misfit[worst] > MISFIT_HINT:
+            warnings.warn(
+                f"the modes leave {100 * fit.misfit[worst]:.1f} % of sensor {worst}'s rms unexplained: modes "
+                "above the band may respond to it (most at a driving point); try residual_modes=1 or 2",
+                stacklevel=2,
+            )
         return model
 
     @classmethod
@@ -306,6 +333,7 @@ class ModalModel:
         substeps: int = 4,
         driving_point: str | None = None,
         candidates=(),
+        residual_modes: int = 0,
         **options,
     ) -> "ModalModel":
         """:meth:`from_modes` on the data set's test with role ``linear``: its modes as the
@@ -336,6 +364,7 @@ class ModalModel:
             strongest=others,
             driving_point=driving_point,
             candidates=candidates,
+            residual_modes=residual_modes,
             **options,
         )
 
