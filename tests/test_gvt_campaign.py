@@ -1,0 +1,128 @@
+"""A GVT-like campaign through the modal model: calibrate on the low and high multisines,
+predict the held-out middle level and both sweeps; the posterior honest about a model that
+is wrong.
+
+The records come from ``tests/gvt_rig.py`` (a wing in physical coordinates with a store on a
+joint of friction and clearance, six modes in 2-12 Hz, two above; every mode softens with
+level, the store's heave mode by 3-4.5 % with its damping rising 0.9 -> 4-5 %).  The model is
+the one a user builds from the first look: ``ModalModel.from_dataset`` with one residual mode
+above the band, the joint mode's frequency and damping updated and a friction in its
+coordinate.  It is wrong in form (the other five modes are fixed at their low-level values
+while the structure softens them; the joint is friction and clearance between two bodies,
+not a friction in one mode): it misses the high level by a third of its rms.  The reference
+is a direct output-error fit of the same model (``scipy.optimize.least_squares`` on the two
+estimation records' time histories, each sensor over its declared noise).
+
+Measured (seed 5): held-out error calibrate / direct fit 1.065 (the middle level), 1.049 and
+1.000 (the sweeps); ``sample`` 304 runs, R-hat 1.006, the direct fit's values 0.9, 1.2 and
+0.9 posterior sd from its means: the model-form error measured at the MAP (2.9 % and 0.6 %
+of the two tests' outputs) widens the likelihood, where the model's own discretisation error
+is nil.
+"""
+
+from __future__ import annotations
+
+import gvt_rig
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+import bayes_update as bu
+from bayes_update.models.modal import ModalModel, Nonlinearity
+
+SEED = 5
+ROLES = {
+    "ms_low": "linear",
+    "ms_mid": "validation",
+    "ms_high": "nonlinear",
+    "sweep_low": "validation",
+    "sweep_high": "validation",
+}
+FRICTION_V0 = 0.01  # the friction's smoothing velocity in the mode's coordinate
+BOUNDS = {"zeta2": (0.003, 0.08), "f2": (3.6, 4.1)}  # the joint mode's: 0.9 % at low level, 4.4 % at high
+# the issue's bar: calibrate's held-out error at most 1.25x the direct fit's (measured 1.000-1.065)
+RATIO = 1.25
+
+
+def _centred(a):
+    return a - a.mean(axis=0)
+
+
+def _model(data):
+    return ModalModel.from_dataset(
+        data,
+        updated=[2],
+        nonlinear=[Nonlinearity("friction", 2, v0=FRICTION_V0)],
+        residual_modes=1,
+        bounds=BOUNDS,
+    )
+
+
+def _error(model, theta, test, fs) -> float:
+    """rms over the sensors of ||y - y_model|| / ||y|| (means removed)."""
+    y = _centred(model.simulate(theta, _centred(test.force), fs))
+    ref = _centred(test.response)
+    return float(
+        np.sqrt(np.mean([(np.linalg.norm(ref[:, j] - y[:, j]) / np.linalg.norm(ref[:, j])) ** 2 for j in range(3)]))
+    )
+
+
+def _direct_fit(data, model, starts) -> dict:
+    fs = data.sampling_rate_hz
+    noise = data.extra["truth"]["noise_sd"]
+    sd = np.array([noise[s] for s, _ in data.sensors])
+    tests = [t for t in data.tests if t.role in ("linear", "nonlinear")]
+    names = [p.name for p in model.parameters]
+    lo = np.array([p.low for p in model.parameters])
+    hi = np.array([p.high for p in model.parameters])
+
+    def residual(x):
+        theta = dict(zip(names, x))
+        return np.concatenate(
+            [
+                ((_centred(t.response) - _centred(model.simulate(theta, _centred(t.force), fs))) / sd).ravel()
+                for t in tests
+            ]
+        )
+
+    best = min((least_squares(residual, x0, bounds=(lo, hi), x_scale=hi - lo) for x0 in starts), key=lambda r: r.cost)
+    return dict(zip(names, map(float, best.x)))
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    data = gvt_rig.make_campaign(seed=SEED, roles=ROLES)
+    model = _model(data)
+    cal = bu.calibrate(data, model, workers=2, progress=False, log=lambda *a: None)
+    names = [p.name for p in model.parameters]
+    box = np.array([[p.low, p.high] for p in model.parameters])
+    direct = _direct_fit(data, model, [np.array([cal.theta[n] for n in names]), box.mean(axis=1)])
+    return data, model, cal, direct
+
+
+def test_calibrate_predicts_the_held_out_level_and_the_sweeps_like_a_direct_fit(campaign):
+    data, model, cal, direct = campaign
+    fs = data.sampling_rate_hz
+    # the model is wrong in form, and calibrate says so
+    assert any("test ms_high by" in w for w in cal.fit_warnings), cal.fit_warnings
+    for name in ("ms_mid", "sweep_low", "sweep_high"):
+        test = data.test(name)
+        e_cal, e_direct = _error(model, cal.theta, test, fs), _error(model, direct, test, fs)
+        print(f"\n{name}: calibrate {e_cal:.4f}, direct fit {e_direct:.4f} (ratio {e_cal / e_direct:.3f})")
+        assert e_cal <= RATIO * e_direct, (name, e_cal, e_direct)
+
+
+def test_the_posterior_of_a_wrong_model_covers_the_direct_fit(campaign):
+    data, model, _, direct = campaign
+    post = bu.sample(data, model, bu.PosteriorSettings(seed=0), workers=2, progress=False, log=lambda *a: None)
+    d = post.diagnostics
+    print(f"\nsample: {post.n_model_runs['total']} runs, R-hat {d['max_r_hat']:.4f}")
+    assert d["max_r_hat"] < 1.01 and min(d["min_ess_bulk"], d["min_ess_tail"]) >= 400, d
+    for p in model.parameters:
+        x = post.idata.posterior[p.name].values.ravel()
+        shift = (direct[p.name] - x.mean()) / x.std()
+        print(f"{p.name}: {x.mean():.5g} +- {x.std():.2g}; the direct fit {direct[p.name]:.5g} ({shift:+.2f} sd)")
+        assert abs(shift) < 3.0, (p.name, shift)
+    # the width comes from the model-form error measured at the MAP, not from the noise
+    scales = post.likelihood.scales
+    assert all(sc.model_form_sd > 10 * sc.noise_sd for sc in scales.values()), scales
