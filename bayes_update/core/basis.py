@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import volterra
+from bayes_update.data.quiet import excited_band
 
 __all__ = [
     "DEFAULT_N_FUNCTIONS",
@@ -34,14 +35,6 @@ def linear_n_functions(n_linear: int, base=DEFAULT_N_FUNCTIONS, n_modes: int = 1
     while j1 * n_modes + int(feedthrough) <= n_linear:
         j1 += 2
     return (j1,) + tuple(base[1:])
-
-
-def excited_band(force, fs: float, level: float = 0.01) -> tuple[float, float]:
-    """(f_min, f_max) [Hz] where the force PSD exceeds ``level`` x its peak:
-    the band in which an FRF estimate of the record is meaningful
-    (:func:`volterra.excited_band` on 4 s Hann segments, the force's mean
-    removed)."""
-    return volterra.excited_band(np.asarray(force, float), fs, level=level, nperseg=min(len(force), int(4 * fs)))
 
 
 #: Orders whose functions include the input itself (the feed-through), per metric set.

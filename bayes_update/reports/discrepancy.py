@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bayes_update.core.basis import excited_band
 from bayes_update.core.effects import evidence_table
+from bayes_update.data.quiet import excited_band
 
 __all__ = ["format_result", "gap_figure", "write_discrepancy"]
 
