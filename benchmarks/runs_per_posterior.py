@@ -268,6 +268,7 @@ def _reference(name, data, model, now, lik, start, seed) -> dict:
     t = time.perf_counter()
     # the d = 6 chain's runs cost 5 ms: a shorter reference (its halves' distances say what that costs)
     sizes = {**REFERENCE, **({"direct_steps": 4000, "direct_burn": 1000} if name == "chain6" else {})}
+    sizes["direct_max_steps"] = sizes["direct_steps"]  # a fixed length: the reference is not extended
     ref = sample(
         data,
         model,

@@ -217,6 +217,7 @@ def find_start(
         seed=seed,
         executor=executor,
         progress=progress,
+        log=log,
         **({"n_best": 2, "polish": False} if coarse else {}),
     )
     return space.to_parameters(found.x), runs + found.n_model_runs
@@ -295,6 +296,7 @@ def calibrate_model(
             seed=seed,
             executor=pool,
             progress=progress,
+            log=log,
         )
         theta = space.to_parameters(found.x)
         metrics_at = problem.evaluate(theta)

@@ -23,6 +23,7 @@ from bayes_update.core.identifiability import gauss_newton_covariance, unidentif
 from bayes_update.core.mode import FAILED_RESIDUAL, ResidualFunction, find_mode
 from bayes_update.core.model import ModelSpecError, model_label
 from bayes_update.core.problem import Problem
+from bayes_update.core.spectral_start import GATE_HALF_WIDTHS, SpectralCost, measured_quantiles, spectral_start
 from surrogates.evaluation import evaluate_many
 
 __all__ = ["COARSE_TOLERANCE", "SCREEN_STEP", "SCREEN_THRESHOLD", "TwoStage", "screen_linear", "two_stage"]
@@ -102,22 +103,72 @@ def _noise_rows(problem: Problem, fun: ResidualFunction) -> np.ndarray:
     return np.concatenate(rows)
 
 
-def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, costs: bool = False):
-    """The ``n_best`` best points of a scrambled Sobol' design over the prior (free
-    coordinates) and the design's size; ``costs``: their costs as well."""
+def _design(worker, fun, space, free, n_start, seed, executor, progress, desc):
+    """A scrambled Sobol' design over the prior (free coordinates) and ``worker``'s values at its
+    points; raises where every run failed (``worker``'s value, or its first entry, inf)."""
     U = qmc.Sobol(len(space), scramble=True, seed=seed).random(n_start)
     X = np.array([space.to_internal(space.theta(space.from_unit(u))) for u in U])[:, list(free)]
-    cost = np.array(evaluate_many(_Cost(fun), list(X), executor, progress=progress, desc=desc), float)
+    values = evaluate_many(worker, list(X), executor, progress=progress, desc=desc)
+    cost = np.array([v[0] if isinstance(v, tuple) else v for v in values], float)
     if not np.any(np.isfinite(cost)):
         raise ModelSpecError(
             f"{model_label(fun.problem.model)} raised ModelError at all {n_start} points of the {desc} over the "
             "prior: it cannot run over (nearly) all of its prior; narrow the prior (the Parameter bounds, or "
             "--prior NAME=LO:HI) to where the model runs, or check when simulate raises ModelError"
         )
+    return X, cost, values
+
+
+def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, costs: bool = False):
+    """The ``n_best`` best points of a scrambled Sobol' design over the prior (free
+    coordinates) and the design's size; ``costs``: their costs as well."""
+    X, cost, _ = _design(_Cost(fun), fun, space, free, n_start, seed, executor, progress, desc)
     order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
     if costs:
         return [X[i] for i in order], len(X), [float(cost[i]) for i in order]
     return [X[i] for i in order], len(X)
+
+
+def _stage1_starts(fun, space, free, n_start, n_best, seed, executor, progress, log, spectral=True):
+    """Stage 1's starts: the ``n_best`` best points of its design, led (``spectral``) by the
+    spectral start (:mod:`bayes_update.core.spectral_start`) where the best of them misses the
+    measured energy quantiles by more than its gate; and the runs taken."""
+    X, cost, values = _design(SpectralCost(fun), fun, space, free, n_start, seed, executor, progress, "stage 1 design")
+    order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
+    starts, n_design = [X[i] for i in order], len(X)
+    if not spectral:
+        return starts, n_design
+    problem, stage = fun.problem, fun.stages[0]
+    zeta = [m.damping_ratio for m in problem.basis.modes(1)]
+    half_width = float(np.median(zeta)) if zeta else 0.0
+    box = space.box()[list(free)]
+    measured = measured_quantiles(problem, stage)
+    gate = GATE_HALF_WIDTHS * half_width
+    quantiles, found, n, first_miss = [v[1] for v in values], None, 0, None
+    # each spectral start is run (its cost and quantiles) and joins the regression: at most
+    # SPECTRAL_RUNS, until one lies within the gate
+    for _ in range(SPECTRAL_RUNS):
+        x, report = spectral_start(X, cost, quantiles, measured, box[:, 0], box[:, 1], half_width)
+        if x is None:
+            break
+        c, q = SpectralCost(fun)(x)
+        n += 1
+        miss = float(np.sqrt(np.mean((q[report["keep"]] - measured[report["keep"]]) ** 2)))
+        first_miss = report["best_miss"] if first_miss is None else first_miss
+        if math.isfinite(c) and miss < (found[1] if found else first_miss):  # NaN (a failed run) compares False
+            found = (x, miss)
+        X, cost, quantiles = np.vstack([X, x]), np.append(cost, c), [*quantiles, q]
+        if miss <= gate:
+            break
+    if n:
+        log(
+            f"stage 1: the design's best point misses the response's energy quantiles by {first_miss:.3f} in log f "
+            f"(gate {gate:.3f}); "
+            + (f"the spectral start by {found[1]:.3f} ({n} runs): the search starts there" if found else "not used")
+        )
+    if found is not None:
+        starts = [found[0]] + starts[:-1]
+    return starts, n_design + n
 
 
 @dataclass
@@ -131,6 +182,9 @@ class TwoStage:
     disagreement: list = field(default_factory=list)  # :func:`bayes_update.core.checks.test_disagreement`
     covariance: np.ndarray | None = None  # Gauss-Newton covariance of x at the end of stage 2 (noise units)
 
+
+#: spectral starts run at most (:func:`_stage1_starts`)
+SPECTRAL_RUNS = 3
 
 #: the coarse start's linear stage stops when an iteration gains less than this in log L: its
 #: point only places the nonlinear stage's design and the MAP's search, which goes on from it
@@ -150,6 +204,7 @@ def two_stage(
     executor=None,
     progress: bool = True,
     polish: bool = True,
+    log=lambda *a: None,
 ) -> TwoStage:
     """Stages 2-4 of :mod:`bayes_update.core.calibrate`'s docstring on a built problem; without ``polish`` (a start
     for the posterior's MAP) stage 2 ends at the best of its starts."""
@@ -162,7 +217,9 @@ def two_stage(
     free1 = tuple(space.names.index(n) for n in linear_names)
     map1 = _PointMap(space, space.to_internal(space.center()), free1)
     fun1 = _residual(problem, problem.stages_of("linear"), map1, weighted)
-    starts, n = _starts(fun1, space, free1, n_start, n_best, seed, executor, progress, "stage 1 design")
+    # the spectral start where the design is a coarse start's (16 points over the prior: its best point
+    # can miss a lightly damped mode's valley); calibrate's 64-point design searches from its 3 best
+    starts, n = _stage1_starts(fun1, space, free1, n_start, n_best, seed, executor, progress, log, spectral=not polish)
     # without polish (a start for the posterior's search) stage 1 stops when an iteration gains
     # less than COARSE_TOLERANCE in log L, forward differences, and searches from the next best
     # start only while a search ends on a bound
