@@ -18,12 +18,16 @@ modes; this model then fits their real approximation.  The residual term
 stands for the modes outside the band: r_s = u for a displacement (residual
 flexibility of the modes above, d_s [m/N]) and for an acceleration (the mass
 line of the modes below, d_s [1/kg]); r_s = u' for a velocity (residual
-flexibility, d_s [m/N]).  Every mode starts from rest at the first sample.
+flexibility, d_s [m/N]).  Modes just above the band are not quasi-static:
+``residual_modes=k`` in :meth:`ModalModel.from_modes` adds k modes above the
+record's band, fitted to it and never updated (:mod:`.residual_modes`).  Every
+mode starts from rest at the first sample.
 
 Nonlinear elements, their coefficients parameters with the null value 0:
 ``k2`` x^2 [1/(m s^2)], ``k3`` x^3 [1/(m^2 s^2)] (quadratic and cubic
 stiffness), ``c3`` x'^3 [s/m^2] (cubic damping), ``friction`` F tanh(x'/v0)
-[m/s^2] (a smooth Coulomb friction) and ``clearance`` kc (x - gap) for
+[m/s^2] (a smooth Coulomb friction: no stick stiffness, so its equivalent
+damping falls with amplitude, unlike a joint's micro-slip) and ``clearance`` kc (x - gap) for
 x > gap, kc (x + gap) for x < -gap, 0 between [1/s^2] (a contact spring beyond
 a symmetric gap, a backlash), per unit modal mass; the friction's v0 [m/s] and
 the clearance's gap [m] are constants the user gives
@@ -51,7 +55,7 @@ constants (:class:`ModalModel`), from modes and a record
 (:meth:`ModalModel.from_modes`: the output coefficients and residual terms by
 least squares, :mod:`.fit`) or from a data set (:meth:`ModalModel.from_dataset`:
 the modes the first look at its linear test finds).  Modules: :mod:`.spec`
-(the checks and the declared parameters), :mod:`.dynamics`, :mod:`.fit`,
+(the checks and the declared parameters), :mod:`.dynamics`, :mod:`.fit`, :mod:`.residual_modes`,
 :mod:`.joints` (elements at a point), :mod:`.model`, and the compiled loops in ``_kernels``.
 """
 
