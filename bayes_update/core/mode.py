@@ -63,19 +63,24 @@ class ResidualFunction:
     point_map: object
 
     def __call__(self, x) -> np.ndarray:
+        return self.with_responses(x)[0]
+
+    def with_responses(self, x) -> tuple[np.ndarray, list]:
+        """``(r(x), [each stage's model response, None where the run failed]``)."""
         model, params = self.point_map(np.asarray(x, float))
-        out = []
+        out, responses = [], []
         for stage, s in zip(self.stages, self.scales):
             test = self.problem.tests[stage]
-            ref = self.problem.output(stage, self.problem.reference_components(stage))
-            n = ref.size
             try:
                 v = self.problem.run(params, test.force, model=model)
             except self.problem.failures:
+                n = self.problem.output(stage, self.problem.reference_components(stage)).size
                 out.append(np.full(n, FAILED_RESIDUAL))
+                responses.append(None)
                 continue
             out.append(self.scaled(stage, s, self.problem.output(stage, self.problem.components(stage, v)))[0])
-        return np.concatenate(out)
+            responses.append(v)
+        return np.concatenate(out), responses
 
     def scaled(self, stage: str, s: float, output) -> tuple[np.ndarray, float]:
         """``(r, ||ref|| s)``: the stage's residual ``(ref - output) / (||ref|| s)`` for a compared

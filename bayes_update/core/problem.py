@@ -186,7 +186,7 @@ class Problem(ProblemModel):
     def stages(self) -> tuple:
         """Stages the data support: ('linear',), ('linear', 'nonlinear'), and a stage
         ``role:test name`` per further test of a role, the linear ones first."""
-        return tuple(sorted(self.tests, key=lambda s: STAGES.index(stage_role(s))))
+        return tuple(self.tests)  # built role by role, in the order of STAGES
 
     def stages_of(self, role: str) -> tuple:
         """The stages of one role (``"linear"``: the low-level tests)."""

@@ -1,9 +1,10 @@
 """A start for stage 1 of the two-stage search in the right valley of a lightly damped
-structure: :func:`spectral_start`.
+structure: :func:`spectral_start` (used by the coarse start of ``sample`` and
+``discrepancy``, :mod:`bayes_update.core.two_stage`).
 
 Stage 1 fits the linear parameters on e_lin from the best point of a small Sobol'
 design over the prior.  The output error of a lightly damped mode has a valley only
-about one half-power bandwidth (2 zeta f) wide in frequency: where no design point
+about one half-power half-width (zeta f) wide on each side in frequency: where no design point
 falls inside it, the best point by e_lin is a wrong valley, and least squares from it
 ends there (the portal frame's full rig: the sway mode at 11 Hz, zeta 3 %, 16 points
 whose frequencies span 9-13 Hz; stage 1 ended at a cost of 2.0e5 where the right valley
@@ -14,11 +15,12 @@ frequency.  The quantiles of the response's energy over the excited lines (the
 frequency below which 5 %, 10 %, ..., 95 % of it lies) move smoothly with the
 parameters, far beyond the valley: their logarithms are regressed linearly on the
 design's internal coordinates, and the point whose predicted quantiles match the
-measured ones (bounded least squares over the quantiles the regression explains) is a
-start at the right frequencies.  Used only where the design's best point is more than
-:data:`GATE_HALF_WIDTHS` half-power half-widths from the measured quantiles (so the
-search is unchanged wherever the design already found the valley) and when the point
-itself, one run, is closer to them than that best point.  No run beyond that one.
+measured ones (bounded least squares over the quantiles the regression explains, inside
+the span of the nearest design points) is a start at the right frequencies.  Used only
+where the design's best point is more than :data:`GATE_HALF_WIDTHS` half-power
+half-widths from the measured quantiles (so the search is unchanged wherever the design
+already found the valley) and when the point itself, run, is closer to them than that
+best point; each such run joins the regression, at most three.
 """
 
 from __future__ import annotations
@@ -75,20 +77,12 @@ class SpectralCost:
 
     def __call__(self, x):
         fun = self.fun
-        problem = fun.problem
-        model, params = fun.point_map(np.asarray(x, float))
-        r, q = [], None
-        for stage, s in zip(fun.stages, fun.scales):
-            test = problem.tests[stage]
-            try:
-                y = problem.run(params, test.force, model=model)
-            except problem.failures:
-                return math.inf, np.full(QUANTILES.size, np.nan)
-            r.append(fun.scaled(stage, s, problem.output(stage, problem.components(stage, y)))[0])
-            if q is None:
-                weights = 1.0 / np.asarray(problem.sensor_noise(stage), float)
-                q = energy_quantiles(test.force, problem.compared_response(y), problem.fs, weights)
-        r = np.concatenate(r)
+        r, responses = fun.with_responses(x)
+        if any(y is None for y in responses):
+            return math.inf, np.full(QUANTILES.size, np.nan)
+        problem, stage = fun.problem, fun.stages[0]
+        weights = 1.0 / np.asarray(problem.sensor_noise(stage), float)
+        q = energy_quantiles(problem.tests[stage].force, problem.compared_response(responses[0]), problem.fs, weights)
         return 0.5 * float(r @ r), q
 
 
@@ -107,7 +101,7 @@ def spectral_start(X, costs, quantiles, measured, lower, upper, half_width: floa
     None where it does not, or where the regression explains too few quantiles."""
     X, Q = np.asarray(X, float), np.asarray(quantiles, float)
     ok = np.isfinite(np.asarray(costs, float)) & np.all(np.isfinite(Q), axis=1)
-    report = {"used": False}
+    report = {}
     if ok.sum() < X.shape[1] + 3:
         return None, report
     X, Q, costs = X[ok], Q[ok], np.asarray(costs, float)[ok]
@@ -137,6 +131,4 @@ def spectral_start(X, costs, quantiles, measured, lower, upper, half_width: floa
     near = X[np.argsort(misses)[: 2 * X.shape[1] + 1]]
     lo = np.maximum(lower, near.min(axis=0))
     hi = np.minimum(upper, near.max(axis=0))
-    sol = lsq_linear(A_fit, b_fit, bounds=(lo, hi))
-    report["predicted_miss"] = float(np.sqrt(np.mean((B[0, keep] + sol.x @ B[1:, keep] - measured[keep]) ** 2)))
-    return sol.x, report
+    return lsq_linear(A_fit, b_fit, bounds=(lo, hi)).x, report

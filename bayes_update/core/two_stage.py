@@ -129,15 +129,13 @@ def _starts(fun, space, free, n_start, n_best, seed, executor, progress, desc, c
     return [X[i] for i in order], len(X)
 
 
-def _stage1_starts(fun, space, free, n_start, n_best, seed, executor, progress, log, spectral=True):
-    """Stage 1's starts: the ``n_best`` best points of its design, led (``spectral``) by the
-    spectral start (:mod:`bayes_update.core.spectral_start`) where the best of them misses the
-    measured energy quantiles by more than its gate; and the runs taken."""
+def _spectral_starts(fun, space, free, n_start, n_best, seed, executor, progress, log):
+    """Stage 1's starts: the ``n_best`` best points of its design, led by the spectral start
+    (:mod:`bayes_update.core.spectral_start`) where the best of them misses the measured
+    energy quantiles by more than its gate; and the runs taken."""
     X, cost, values = _design(SpectralCost(fun), fun, space, free, n_start, seed, executor, progress, "stage 1 design")
     order = np.argsort(np.where(np.isfinite(cost), cost, np.inf))[:n_best]
     starts, n_design = [X[i] for i in order], len(X)
-    if not spectral:
-        return starts, n_design
     problem, stage = fun.problem, fun.stages[0]
     zeta = [m.damping_ratio for m in problem.basis.modes(1)]
     half_width = float(np.median(zeta)) if zeta else 0.0
@@ -183,7 +181,7 @@ class TwoStage:
     covariance: np.ndarray | None = None  # Gauss-Newton covariance of x at the end of stage 2 (noise units)
 
 
-#: spectral starts run at most (:func:`_stage1_starts`)
+#: spectral starts run at most (:func:`_spectral_starts`)
 SPECTRAL_RUNS = 3
 
 #: the coarse start's linear stage stops when an iteration gains less than this in log L: its
@@ -219,7 +217,10 @@ def two_stage(
     fun1 = _residual(problem, problem.stages_of("linear"), map1, weighted)
     # the spectral start where the design is a coarse start's (16 points over the prior: its best point
     # can miss a lightly damped mode's valley); calibrate's 64-point design searches from its 3 best
-    starts, n = _stage1_starts(fun1, space, free1, n_start, n_best, seed, executor, progress, log, spectral=not polish)
+    if polish:
+        starts, n = _starts(fun1, space, free1, n_start, n_best, seed, executor, progress, "stage 1 design")
+    else:
+        starts, n = _spectral_starts(fun1, space, free1, n_start, n_best, seed, executor, progress, log)
     # without polish (a start for the posterior's search) stage 1 stops when an iteration gains
     # less than COARSE_TOLERANCE in log L, forward differences, and searches from the next best
     # start only while a search ends on a bound
