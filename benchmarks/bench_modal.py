@@ -7,7 +7,8 @@ parameters at the middle of their priors.
 writes ``benchmarks/results/bench_modal.md``.  Cases: every mode linear (exact discretisation);
 a cubic spring in mode 1 (RK4 on that mode); a cubic spring and cubic damper in mode 2; a cubic
 spring at the driving point (a joint: RK4 on the six coupled modes); a friction in mode 1 and a
-clearance at the driving point (their RK4 steps sized on the steepest slope their priors allow).
+clearance at the driving point (their RK4 steps sized on the steepest slope their priors allow); a
+Jenkins element in mode 1 and at the driving point.
 """
 
 import os
@@ -50,6 +51,18 @@ def main():
                 nonlinear=[Nonlinearity("clearance", at="acc", gap=1e-4)],
                 driving_point="acc",
                 bounds={"clearance_at_acc": (0.0, 2e3)},
+            ),
+        ),
+        (
+            "Jenkins in mode 1 (slip 1e-5 m)",
+            dict(nonlinear=[Nonlinearity("jenkins", 1, slip=1e-5)], bounds={"jenkins_1": (0.0, 1e3)}),
+        ),
+        (
+            "Jenkins at the driving point (slip 1e-5 m; six coupled modes)",
+            dict(
+                nonlinear=[Nonlinearity("jenkins", at="acc", slip=1e-5)],
+                driving_point="acc",
+                bounds={"jenkins_at_acc": (0.0, 1e3)},
             ),
         ),
     ]

@@ -59,7 +59,7 @@ def test_a_tip_spring_is_decisive_and_named_only_if_it_predicts_the_held_out_tes
     assert tests["sweep_mid"]["after"] > tests["sweep_mid"]["before"], tests
     # the evidence table shows the user both tests, not only the summed gain that hides the sweep's rise
     sweep = tests["sweep_mid"]
-    assert f"sweep_mid {100 * sweep['before']:.3g} -> {100 * sweep['after']:.3g} %" in evidence_table(res)
+    assert f"sweep_mid {100 * sweep['before']:.3g} % -> {100 * sweep['after']:.3g} %" in evidence_table(res)
     assert list(res.named) == [], res.gap_sentence()
     # whatever the summed gain (with the front end's whole-record lines it was +559 sd), the
     # sweep predicted worse keeps it unnamed, and the table says why

@@ -109,6 +109,29 @@ def test_one_test_predicted_worse_is_not_hidden_by_another_predicted_better():
     assert held_out_comparison(_Problem(y, sigma), before, after)["improves"]
 
 
+def test_a_model_that_cannot_run_a_held_out_test_does_not_predict_it_better():
+    """A softening spring past its barrier on the strongest held-out test: the new model cannot
+    run it (its response None) while it predicts the other far better; the held-out tests are not
+    predicted better, and the line says which test it cannot run.  The other way round (the new
+    model runs where the old one could not) is an improvement."""
+    rng = np.random.default_rng(4)
+    n, sigma = 2000, 0.05
+    truth = np.sin(np.linspace(0, 40, n))
+    off = np.cos(np.linspace(0, 11, n))
+    y = {t: truth + sigma * rng.standard_normal(n) for t in ("mid", "sweep")}
+    before = {"mid": truth + 0.3 * off, "sweep": truth + 0.3 * off}
+    after = {"mid": truth + 0.01 * off, "sweep": None}
+    c = held_out_comparison(_Problem(y, sigma), before, after)
+    assert c["tests"]["mid"]["z"] > 3 and c["worse"] == ["sweep"] and not c["improves"], c
+    assert c["tests"]["sweep"]["after"] == np.inf
+    assert "sweep 30.7 % -> cannot run (+97.5 sd on the tests both run)" in describe(c), describe(c)
+    back = held_out_comparison(_Problem(y, sigma), {"mid": before["mid"], "sweep": None}, before)
+    assert back["improves"] and back["worse"] == [] and back["tests"]["sweep"]["z"] == np.inf, back
+    # a test neither model runs is left out of the comparison
+    neither = held_out_comparison(_Problem(y, sigma), {**before, "sweep": None}, after)
+    assert list(neither["tests"]) == ["mid"] and neither["improves"], neither
+
+
 def test_tests_disagree_only_where_a_prediction_would_show_it():
     """Two tests of n rows each (noise units), one parameter, their own estimates 10 combined sd
     apart: the difference moves a test's output by 10 sqrt(2 / n) noise sd (rms over its rows), so

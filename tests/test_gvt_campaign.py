@@ -126,3 +126,47 @@ def test_the_posterior_of_a_wrong_model_covers_the_direct_fit(campaign):
     # the width comes from the model-form error measured at the MAP, not from the noise
     scales = post.likelihood.scales
     assert all(sc.model_form_sd > 10 * sc.noise_sd for sc in scales.values()), scales
+
+
+def _joint_scale(data) -> float:
+    """The joint mode's coordinate [m]: the geometric mean of its rms in the linear response to
+    the lowest and the highest estimation level (``ModalModel.coordinate_rms``), where its
+    frequency and damping move: the slip of a Jenkins element and the gap of a clearance."""
+    rms = ModalModel.from_dataset(data, updated=[2], residual_modes=1, bounds=BOUNDS).coordinate_rms(data)
+    return float(np.sqrt(rms["ms_low"][2] * rms["ms_high"][2]))
+
+
+def test_discrepancy_names_the_joints_micro_slip_and_the_held_out_error_drops():
+    """The linear model (the joint mode's frequency and damping updated) and five candidates in
+    that mode's coordinate: a cubic spring, a cubic damper, a smooth Coulomb friction, a clearance
+    and a Jenkins element (stick, then slip).  The rig's joint is four smoothed Jenkins elements
+    and a preloaded clearance between the wing and the store: a micro-slip, whose damping rises
+    and frequency falls with level.  Measured (seed 5; the slip and gap 8.2e-3 m): Jenkins 2 ln B
+    112 (the others -10 to 0), kt 87 +- 37 1/s^2, named alone; re-updated with it, the held-out
+    middle level 14.5 -> 8.9 %, the low sweep 17.6 -> 10.1 %, the high sweep 42.1 -> 42.5 %; 3162
+    runs, 45 s.  Seeds 7 and 9: named alone, the naming round's fit 16.7 -> 12.0 % and 12.2 -> 7.3 %
+    (middle), 18.2 -> 10.2 % and 16.4 -> 9.9 % (low sweep)."""
+    data = gvt_rig.make_campaign(seed=SEED, roles=ROLES)
+    scale = _joint_scale(data)
+    candidates = [
+        Nonlinearity("k3", 2),
+        Nonlinearity("c3", 2),
+        Nonlinearity("friction", 2, v0=FRICTION_V0),
+        Nonlinearity("clearance", 2, gap=scale),
+        Nonlinearity("jenkins", 2, slip=scale),
+    ]
+    linear = ModalModel.from_dataset(data, updated=[2], candidates=candidates, residual_modes=1, bounds=BOUNDS)
+    res = bu.find_discrepancy(data, linear, workers=2, progress=False, log=lambda *a: None)
+    print(f"\nnamed {res.named}; {res.n_model_runs['total']} runs; {res.gap_sentence()}")
+    for row in res.rounds[0]["candidates"]:
+        print(f"  {row['name']}: 2 ln B = {row['two_ln_B']:.1f}")
+    assert res.named == ["jenkins_2"], res.named
+    before, after = res.gap_before["held_out_tests"], res.gap_after["held_out_tests"]
+    for name in ("ms_mid", "sweep_low", "sweep_high"):
+        print(f"  {name}: {before[name]['relative_error']:.4f} -> {after[name]['relative_error']:.4f}")
+    # measured 0.61 and 0.57 of the error before (seeds 7 and 9, the naming round's fit: 0.72, 0.56;
+    # 0.59, 0.60)
+    assert after["ms_mid"]["relative_error"] < 0.8 * before["ms_mid"]["relative_error"]
+    assert after["sweep_low"]["relative_error"] < 0.8 * before["sweep_low"]["relative_error"]
+    # the high sweep drives the other modes too, whose softening no element in mode 2 gives: a gap remains
+    assert not res.explains_gap and "A gap remains with jenkins_2" in res.gap_sentence()

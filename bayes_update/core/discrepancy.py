@@ -33,13 +33,15 @@ switches the effect off).  :func:`find_discrepancy` runs these steps:
    :data:`~bayes_update.core.effects.DECISIVE`, the Laplace interval (mode +- 2
    sd) of one of its parameters excludes the null, the fit is neither at its
    null nor on a bound of its prior (both reported as such), and the
-   held-out tests are predicted better beyond their noise, none of them worse; then a next round
-   looks for a second effect (``max_effects``).  When the strongest candidate
-   is decisive but not named (on a bound of its prior, or predicting the
-   held-out tests worse), it may be taking another effect's share as well:
+   held-out tests are predicted better beyond their noise, none of them worse (a test the
+   model cannot run, a softening spring past its barrier, is worse); the strongest candidate
+   so accepted is named, then a next round looks for a second effect (``max_effects``).
+   When the strongest candidate is decisive but not named (on a bound of its prior, or
+   predicting the held-out tests worse), it may be taking another effect's share as well:
    it is fitted together with each other candidate, and a pair is named when
    it is decisive against each member alone and both members sit inside their
-   priors, away from their nulls (:func:`~bayes_update.core.fits.names_pair`);
+   priors, away from their nulls (:func:`~bayes_update.core.fits.names_pair`), and its
+   evidence beats the accepted single candidate's, if any;
 3. **re-update**: the likelihood scales re-measured with the named effects in
    the model (its model-form error too), the extended mode and its Laplace posterior;
 4. **the gap that remains**: e_lin and e_nlin over

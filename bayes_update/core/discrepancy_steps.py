@@ -268,23 +268,25 @@ class DiscrepancyWorkflow:
             current = best_base
             rounds.append({"base": list(current.names), "candidates": rows})
             best = rows[0] if rows else None
-            pick, picked = [], None
-            if best is not None and names_effect(best):
-                pick, picked = [best["name"]], fits[best["name"]]
-            elif (
+            # the strongest candidate the naming rule accepts (rows are sorted by 2 ln B)
+            single = next((r for r in rows if names_effect(r)), None)
+            pick, picked = ([single["name"]], fits[single["name"]]) if single is not None else ([], None)
+            if (
                 best is not None
+                and best is not single
                 and best["two_ln_B"] is not None
                 and best["two_ln_B"] > DECISIVE
                 and not best["at_null"]
                 and len(named) + 2 <= self.settings.max_effects
             ):
-                # decisive but not named (on a bound, its interval reaching its null under the form error
-                # the other effect's missing share leaves, or the held-out tests predicted worse): it may be
-                # taking another effect's share as well
+                # the strongest decisive but not named (on a bound, its interval reaching its null under
+                # the form error the other effect's missing share leaves, or the held-out tests predicted
+                # worse): it may be taking another effect's share as well; a named pair stands against a
+                # weaker single candidate the rule accepts on its evidence
                 pair_rows, pair_fits = self.pairs(current, best_base, best, rows, fits, lik)
                 rounds[-1]["pairs"] = pair_rows
                 good = [r for r in pair_rows if r["named"]]
-                if good:
+                if good and (single is None or good[0]["two_ln_B"] > single["two_ln_B"]):
                     pick, picked = good[0]["names"], pair_fits[tuple(good[0]["names"])]
             if not pick:
                 break

@@ -277,8 +277,10 @@ NAMING_RULE = (
     f"2 ln B > {DECISIVE:g} against the model without it, each at its own optimum and under the noise "
     "and the model-form error its own mode leaves; the effect's mode more than 2 Laplace sd from its null "
     "value, neither at its null nor on a bound of its prior, the fit not failed; and the held-out "
-    "(validation) tests predicted better, by more than 3 sd of what their noise could give, and none of them "
-    "worse by more than 3 sd of its own"
+    "(validation) tests predicted better, by more than 3 sd of what their noise could give, and none of "
+    "them worse by more than 3 sd of its own and 3 % of its error (nor one it cannot run); the strongest "
+    "candidate the rule accepts is named, or a pair with the strongest candidate when that one is decisive "
+    "but not accepted and the pair is decisive against each member alone and stronger"
 )
 
 
@@ -335,6 +337,8 @@ class NamingVerdict:
                 held_out_relative_error=g["held_out_relative_error"],
                 held_out_times_noise=g["held_out_relative_error"] / floor if floor > 0 else None,
             )
+        if g.get("held_out_cannot_run"):
+            out["held_out_cannot_run"] = list(g["held_out_cannot_run"])
         return out
 
     def gap_sentence(self) -> str:
@@ -349,6 +353,8 @@ class NamingVerdict:
                 f"{100 * r['held_out_error_beyond_noise']:.3g} % beyond their noise"
                 + (f" ({times:.2g} times the noise's)" if times is not None else "")
             )
+        if r.get("held_out_cannot_run"):
+            held += f"; it cannot run {', '.join(r['held_out_cannot_run'])} (diverges; not in these numbers)"
         what = "with " + (" + ".join(self.named) if self.named else "the baseline alone")
         if r["closed"]:
             return f"The gap is closed {what}: misfit {ratios} what noise and model error allow{held}."

@@ -233,9 +233,13 @@ def gap(fit: Fit, problem: Problem, floors: dict) -> dict:
     """e_lin, e_nlin and the held-out (validation) tests' output error at ``fit``'s mode
     (:data:`GAP_LABELS`): ``held_out_error_beyond_noise`` is sqrt(rel^2 - floor^2)
     averaged over the tests (the noise alone gives rel = floor, which no model
-    removes), ``held_out_relative_error`` the raw mean, ``held_out_tests`` per test."""
+    removes), ``held_out_relative_error`` the raw mean, ``held_out_tests`` per test; the means
+    over the tests the model runs, those it cannot (it diverged) in ``held_out_cannot_run``."""
     out = {**fit.metrics, "e_sum": float(sum(fit.metrics.values()))}
-    val = problem.prediction_errors(fit.theta)
+    every = problem.prediction_errors(fit.theta)
+    val = {k: v for k, v in every.items() if math.isfinite(v)}
+    if len(val) < len(every):
+        out["held_out_cannot_run"] = [k for k in every if k not in val]
     if val:
         excess = [math.sqrt(max(v**2 - (floors.get(k) or 0.0) ** 2, 0.0)) for k, v in val.items()]
         out["held_out_error_beyond_noise"] = float(np.mean(excess))

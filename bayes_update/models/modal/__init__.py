@@ -27,11 +27,18 @@ Nonlinear elements, their coefficients parameters with the null value 0:
 ``k2`` x^2 [1/(m s^2)], ``k3`` x^3 [1/(m^2 s^2)] (quadratic and cubic
 stiffness), ``c3`` x'^3 [s/m^2] (cubic damping), ``friction`` F tanh(x'/v0)
 [m/s^2] (a smooth Coulomb friction: no stick stiffness, so its equivalent
-damping falls with amplitude, unlike a joint's micro-slip) and ``clearance`` kc (x - gap) for
+damping falls with amplitude, unlike a joint's micro-slip), ``clearance`` kc (x - gap) for
 x > gap, kc (x + gap) for x < -gap, 0 between [1/s^2] (a contact spring beyond
-a symmetric gap, a backlash), per unit modal mass; the friction's v0 [m/s] and
-the clearance's gap [m] are constants the user gives
-(``Nonlinearity("friction", at="acc1", v0=1e-3)``), not parameters.  An
+a symmetric gap, a backlash) and ``jenkins`` -kt z [1/s^2] (a Jenkins element: a
+spring kt in series with a slider that slips when the spring's stretch x - z
+reaches +-slip, z the slider's travel; the mode's linear stiffness holds kt, so
+the element adds nothing while it sticks and takes kt away as it slips: a joint's
+micro-slip, its frequency falling and its damping rising with amplitude, the
+loop's area 4 kt slip (X - slip) a cycle of amplitude X), per unit modal mass;
+the friction's v0 [m/s], the clearance's gap [m] and the Jenkins element's slip
+[m] are constants the user gives (``Nonlinearity("friction", at="acc1",
+v0=1e-3)``), not parameters (:meth:`ModalModel.coordinate_rms` gives their
+scale: a coordinate's rms at each test's level).  An
 element in a mode (``Nonlinearity("k3", 1)``) acts on that mode's coordinate,
 x = q_m.  An element at a sensor (``Nonlinearity("k3", at="acc1")``) is a
 joint at the point that sensor measures: x_j = sum_m c_mj q_m, the point's

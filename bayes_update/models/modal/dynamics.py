@@ -129,8 +129,9 @@ def step_rate_hz(f_top_hz: float, contact: float = 0.0, slope: float = 0.0) -> f
 @dataclass(frozen=True)
 class Coupling:
     """Elements at points, as the integrator takes them (:mod:`.joints`): the displacement of
-    point j is x_j = weights[j] @ r (``weights`` (P, M)); its force g_j (``values`` (P, 5): k2,
-    k3, c3, friction, clearance in SI units per unit modal mass; ``shapes`` (P, 2): v0, gap)
+    point j is x_j = weights[j] @ r (``weights`` (P, M)); its force g_j (``values`` (P, 6): k2,
+    k3, c3, friction, clearance, Jenkins in SI units per unit modal mass; ``shapes`` (P, 3): v0,
+    gap, slip)
     enters mode m's equation times ``shares[j, m]``.  The modes it couples (a weight or share
     not 0) are integrated together by RK4, ``steps`` steps per sample; ``points`` names the
     points (for a message)."""
@@ -162,7 +163,7 @@ def mode_responses(
     from ``state0`` (M, 2) (default rest) at the first sample.
 
     elements : ``{mode index (0-based): (coefficients, shapes)}``, the mode's (k2, k3, c3,
-        friction, clearance) in SI units and (v0, gap) [m/s, m]; these modes are integrated
+        friction, clearance, Jenkins) in SI units and (v0, gap, slip) [m/s, m, m]; these modes are integrated
         by RK4, ``steps[index]`` steps per sample; the others are linear.
     coupling : elements at points; the modes they couple are integrated together (with
         their own ``elements``), ``coupling.steps`` steps per sample.
@@ -207,7 +208,7 @@ def mode_responses(
 
 def _coupled(u, fs, w, zeta, elements, state0, coupling: Coupling, coupled: np.ndarray) -> np.ndarray:
     """(n, K, 3): the coupled modes by one RK4; ModelError when they diverge.  A coupled mode's
-    own friction or clearance goes in as one more point, whose weights and shares pick that mode
+    own friction, clearance or Jenkins element goes in as one more point, whose weights and shares pick that mode
     (x = its coordinate, exactly: the other weights are 0), as the loop takes them."""
     K = coupled.size
     own = np.zeros((K, 3))
@@ -218,7 +219,7 @@ def _coupled(u, fs, w, zeta, elements, state0, coupling: Coupling, coupled: np.n
             continue
         c, shape = (np.asarray(a, float) for a in elements[m])
         own[k] = c[:3]
-        if np.any(shape):  # a friction or a clearance in this mode
+        if np.any(shape):  # a friction, a clearance or a Jenkins element in this mode
             weights.append(np.eye(K)[k : k + 1])
             shares.append(np.eye(K)[k : k + 1])
             values.append(np.concatenate([np.zeros(3), c[3:]])[None])
@@ -249,7 +250,8 @@ def _coupled(u, fs, w, zeta, elements, state0, coupling: Coupling, coupled: np.n
 
 
 def _loop_shapes(shapes) -> np.ndarray:
-    """Shape constants (v0 [m/s], gap [m]) as the loops take them: (1 / v0, gap), 0 where no v0."""
+    """Shape constants (v0 [m/s], gap [m], slip [m]) as the loops take them: (1 / v0, gap, slip), 0
+    where no v0."""
     out = np.array(shapes, dtype=float)
     v0 = out[..., 0]
     out[..., 0] = np.divide(1.0, v0, out=np.zeros_like(v0), where=v0 > 0)

@@ -23,7 +23,15 @@ import numpy as np
 from .dynamics import mode_responses, residual_columns
 from .spec import KINDS
 
-__all__ = ["RecordFit", "fit_outputs", "element_bounds", "ELEMENT_SHARE", "DAMPING_FACTOR", "CONTACT_FACTOR"]
+__all__ = [
+    "RecordFit",
+    "fit_outputs",
+    "element_bounds",
+    "ELEMENT_SHARE",
+    "DAMPING_FACTOR",
+    "CONTACT_FACTOR",
+    "SLIP_SHARE",
+]
 
 #: default prior of k2 and k3: symmetric, the element's force at the rms amplitude of the mode's
 #: linear response to the strongest force at most this share of the mode's linear stiffness force;
@@ -35,6 +43,10 @@ DAMPING_FACTOR = 4.0
 #: default prior of a clearance's contact stiffness kc: [0, this many times the static stiffness of
 #: its place] (a contact stiffer than the structure it stops: an actuator behind its free play)
 CONTACT_FACTOR = 10.0
+#: default prior of a Jenkins element's stiffness kt: [0, this share of the static stiffness of its
+#: place] (fully slipped, the place keeps at least the rest: a joint that takes all of a structure's
+#: stiffness with it when it slips is not a joint but a mechanism)
+SLIP_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -131,7 +143,8 @@ def element_bounds(
     of the stiffness force at the rms x), c3 in [0, top] (:data:`DAMPING_FACTOR` times the
     damping force at the rms x'), a friction's F in [0, :data:`ELEMENT_SHARE` of the stiffness
     force at the rms x], a clearance's kc in [0, :data:`CONTACT_FACTOR` times the stiffness]
-    (whatever its gap).  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
+    (whatever its gap), a Jenkins element's kt in [0, :data:`SLIP_SHARE` of the stiffness] (whatever
+    its slip).  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
     sensor's point j (``coefficients`` (M, S), ``sensors``, ``driving`` the driving point's
     index; :mod:`.joints`): x = sum_m c_mj q_m, the point's static stiffness per kg
     1 / sum_m (c_mj^2 / c_md) / w_m^2 (phi_jm^2 = c_mj^2 / c_md), and the damping 2 zeta w
@@ -159,8 +172,21 @@ def element_bounds(
             out[e.name] = (0.0, ELEMENT_SHARE * stiffness * x_rms)
         elif e.kind == "clearance":
             out[e.name] = (0.0, CONTACT_FACTOR * stiffness)
+        elif e.kind == "jenkins":
+            out[e.name] = (0.0, SLIP_SHARE * stiffness)
         else:
             power = 2 if e.kind == "k3" else 1
             top = ELEMENT_SHARE * stiffness / x_rms**power
             out[e.name] = (-top, top)
+    return out
+
+
+def coordinate_rms(modes: np.ndarray, coefficients: np.ndarray, sensors: tuple, force, fs: float) -> dict:
+    """``{place: rms [m]}`` of the linear response to ``force`` [N] (mean removed) at ``fs`` [Hz]
+    of ``modes`` (M, 2): each mode's coordinate q_m (place: its 1-based number) and each sensor's
+    point, x_j = sum_m c_mj q_m (place: the sensor's name; ``coefficients`` (M, S), ``sensors``
+    ((name, kind), ...)), whatever the sensor's kind."""
+    R = mode_responses(np.asarray(force, float) - np.mean(force), fs, modes[:, 0], modes[:, 1])[:, :, 0]
+    out = {m + 1: float(np.std(R[:, m])) for m in range(modes.shape[0])}
+    out.update({name: float(np.std(R @ coefficients[:, j])) for j, (name, _) in enumerate(sensors)})
     return out

@@ -11,7 +11,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_substeps, step_rate_hz
-from .fit import element_bounds, fit_outputs
+from .fit import coordinate_rms, element_bounds, fit_outputs
 from .joints import check_driving_point, joint_matrices
 from .residual_modes import excited_top, fit_residual_modes
 from .spec import (
@@ -54,8 +54,9 @@ class ModalModel:
         e.g. ``[1, 3]``); the others stay at their nominal values.
     nonlinear : elements, as :class:`~bayes_update.models.modal.Nonlinearity` or
         ``(kind, mode)`` and ``(kind, sensor name)`` pairs, kind ``"k2"``, ``"k3"`` or
-        ``"c3"``, or ``Nonlinearity("friction", ..., v0=)`` and ``Nonlinearity("clearance",
-        ..., gap=)`` with their shape constants [m/s, m]: each adds its coefficient
+        ``"c3"``, or ``Nonlinearity("friction", ..., v0=)``, ``Nonlinearity("clearance",
+        ..., gap=)`` and ``Nonlinearity("jenkins", ..., slip=)`` with their shape constants
+        [m/s, m, m]: each adds its coefficient
         ``<kind>_<mode>`` or ``<kind>_at_<sensor>`` (null 0) to the parameters.  An element
         in a mode acts on that mode's coordinate; one at a sensor is a joint at the point the
         sensor measures, acting on every mode through that point's displacement
@@ -152,8 +153,8 @@ class ModalModel:
         return y[:, 0] if y.shape[1] == 1 else y
 
     def _values(self, theta) -> tuple:
-        """Frequencies [Hz], damping ratios [-], ``{mode index: (coefficients (5,), shapes (2,))}``
-        and the joints' (P, 5) coefficients at their points at theta (the columns: :data:`ELEMENTS`,
+        """Frequencies [Hz], damping ratios [-], ``{mode index: (coefficients (6,), shapes (3,))}``
+        and the joints' (P, 6) coefficients at their points at theta (the columns: :data:`ELEMENTS`,
         :data:`SHAPES`)."""
         if not isinstance(theta, Mapping):
             raise ValueError(f"theta must map each parameter name to a value, got {type(theta).__name__}")
@@ -195,7 +196,10 @@ class ModalModel:
         top = {p.name: max(abs(p.low), abs(p.high)) for p in self.parameters + self._candidate_parameters}
         contact = slope = 0.0
         for e in self.nonlinear + self.candidates:
-            if e.kind not in SHAPES or (e.at is None and e.index not in modes) or (e.at is not None and not joints):
+            # a Jenkins element only softens (its stuck stiffness is in the mode's): no faster motion
+            if e.kind not in ("clearance", "friction"):
+                continue
+            if (e.at is None and e.index not in modes) or (e.at is not None and not joints):
                 continue
             j = self._points.index(e.at) if e.at is not None else None
             ws = 1.0 if j is None else float(self._weights[j] @ self._shares[j])
@@ -249,6 +253,15 @@ class ModalModel:
         every = self.nonlinear + self.candidates
         shapes = {e.name: {SHAPES[e.kind][0]: e.shape} for e in every if e.kind in SHAPES}
         return {"shapes": shapes} if shapes else {}
+
+    def coordinate_rms(self, dataset) -> dict:
+        """``{test name: {place: rms [m]}}``: the rms of each mode's coordinate (place: its 1-based
+        number) and of each sensor's point (its name) in the linear response of the model's nominal
+        modes to each test's force (:func:`~bayes_update.models.modal.fit.coordinate_rms`).  The
+        scale of a Jenkins element's ``slip`` and a clearance's ``gap``: a joint whose frequency and
+        damping move between two levels has its slip between their rms at its place."""
+        fs = float(dataset.sampling_rate_hz)
+        return {t.name: coordinate_rms(self.modes, self.coefficients, self.sensors, t.force, fs) for t in dataset.tests}
 
     def check_dataset(self, dataset) -> None:
         """Refuse a data set whose sensors are not the model's (their number and kinds, in order)."""

@@ -44,12 +44,14 @@ ELEMENTS = {
     "c3": ("cubic damping c3 x'^3", "s/m^2"),
     "friction": ("smooth Coulomb friction F tanh(x'/v0)", "m/s^2"),
     "clearance": ("contact spring kc (x - gap) for x > gap, kc (x + gap) for x < -gap, 0 between", "1/s^2"),
+    "jenkins": ("Jenkins element: a spring kt in series with a slider, -kt z, z the slider's travel", "1/s^2"),
 }
 #: the elements with a shape constant, fixed by the user (an argument of :class:`Nonlinearity`, not a
 #: parameter): its name, SI unit and meaning; in this order in the integrator's rows of constants
 SHAPES = {
     "friction": ("v0", "m/s", "its smoothing velocity (the force is 76 % of F at x' = v0)"),
     "clearance": ("gap", "m", "the half-width of its gap (contact from |x| = gap on)"),
+    "jenkins": ("slip", "m", "its spring's stretch at which the slider slips (slip force kt x slip)"),
 }
 #: default prior of an updated mode: frequency within +-5 %, damping ratio x0.5..x2 (log-uniform;
 #: below 1 always: its top is at most halfway from the damping ratio to critical damping)
@@ -60,19 +62,21 @@ DAMPING_SPAN = 2.0
 @dataclass(frozen=True)
 class Nonlinearity:
     """A nonlinear element, ``kind`` one of :data:`ELEMENTS` (``"k2"``, ``"k3"``, ``"c3"``,
-    ``"friction"``, ``"clearance"``), either in the equation of mode ``mode`` (1-based; its modal
+    ``"friction"``, ``"clearance"``, ``"jenkins"``), either in the equation of mode ``mode`` (1-based; its modal
     coordinate's force) or ``at`` a sensor (its name: a joint at the point that sensor measures,
     acting on every mode through that point's displacement, :mod:`bayes_update.models.modal.joints`).
     Its coefficient is the parameter :attr:`name` (``"k3_1"``, ``"k3_at_acc1"``), in the unit
     :attr:`unit`, null (switched off) at 0.  A friction takes its smoothing velocity ``v0`` [m/s]
     (``Nonlinearity("friction", at="acc1", v0=1e-3)``), a clearance the half-width of its gap
-    ``gap`` [m] (``Nonlinearity("clearance", 1, gap=2e-4)``): constants of the model (:data:`SHAPES`)."""
+    ``gap`` [m] (``Nonlinearity("clearance", 1, gap=2e-4)``), a Jenkins element the stretch ``slip`` [m]
+    at which it slips (``Nonlinearity("jenkins", 2, slip=5e-4)``): constants of the model (:data:`SHAPES`)."""
 
     kind: str
     mode: int | None = None
     at: str | None = None
     v0: float | None = None
     gap: float | None = None
+    slip: float | None = None
 
     @property
     def name(self) -> str:
@@ -95,8 +99,9 @@ class Nonlinearity:
 
     @property
     def shape(self) -> float:
-        """The shape constant, v0 [m/s] or gap [m] (0 for an element without one)."""
-        return {"v0": self.v0, "gap": self.gap}[SHAPES[self.kind][0]] if self.kind in SHAPES else 0.0
+        """The shape constant, v0 [m/s], gap [m] or slip [m] (0 for an element without one)."""
+        own = {"v0": self.v0, "gap": self.gap, "slip": self.slip}
+        return own[SHAPES[self.kind][0]] if self.kind in SHAPES else 0.0
 
 
 def _identifier(text: str) -> str:
@@ -190,8 +195,9 @@ def check_updated(updated, n_modes: int) -> tuple:
 
 def check_nonlinear(nonlinear, n_modes: int, sensor_names=(), what: str = "nonlinear") -> tuple:
     """Nonlinear elements as :class:`Nonlinearity` objects, from those or pairs: ``(kind, mode)``
-    (1-based) or ``(kind, sensor name)`` (an element at that sensor's point); a friction or a
-    clearance as a :class:`Nonlinearity`, with its shape constant (``v0=``, ``gap=``)."""
+    (1-based) or ``(kind, sensor name)`` (an element at that sensor's point); a friction, a
+    clearance or a Jenkins element as a :class:`Nonlinearity`, with its shape constant (``v0=``, ``gap=``,
+    ``slip=``)."""
     out = []
     for item in nonlinear or ():
         if isinstance(item, Nonlinearity):
@@ -228,7 +234,7 @@ def _check_shape(el: Nonlinearity, what: str = "nonlinear") -> dict:
     """``{"v0": value}``, ``{"gap": value}`` or ``{}``: the element's shape constant, a finite positive
     float where its kind takes one (:data:`SHAPES`), none where it does not."""
     own = SHAPES[el.kind][0] if el.kind in SHAPES else None
-    for arg, value in (("v0", el.v0), ("gap", el.gap)):
+    for arg, value in (("v0", el.v0), ("gap", el.gap), ("slip", el.slip)):
         if arg != own and value is not None:
             kinds = [k for k, (a, _, _) in SHAPES.items() if a == arg]
             raise ValueError(f"{what}: {el.kind} at {el.where} takes no {arg}= (only {kinds[0]} does)")
