@@ -168,5 +168,9 @@ def test_discrepancy_names_the_joints_micro_slip_and_the_held_out_error_drops():
     # 0.59, 0.60)
     assert after["ms_mid"]["relative_error"] < 0.8 * before["ms_mid"]["relative_error"]
     assert after["sweep_low"]["relative_error"] < 0.8 * before["sweep_low"]["relative_error"]
+    # its signature: the joint mode's frequency and damping in every test, model against measured
+    # (median over the tests of their difference in % and percentage points), measured 6.00 -> 1.12
+    sig = res.signature["jenkins_2"]
+    assert sig["signature"] == "mode 2" and sig["after"] < 0.4 * sig["before"], sig
     # the high sweep drives the other modes too, whose softening no element in mode 2 gives: a gap remains
     assert not res.explains_gap and "A gap remains with jenkins_2" in res.gap_sentence()

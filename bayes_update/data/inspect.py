@@ -197,7 +197,14 @@ def _test_entry(record, fs, noise, warnings) -> dict:
     return entry
 
 
-def _level_dependence(dataset, modes, fs, warnings) -> list:
+def level_dependence(dataset, modes, warnings: list | None = None) -> list:
+    """Each of ``modes`` ``[(f_hz, zeta), ...]`` (the linear test's) as every test of ``dataset``
+    shows it: ``[{"freq_hz": {test file: f}, "damping_ratio": {test file: zeta}}, ...]``, the
+    equivalent linear modes :func:`find_modes` reads from each test whose excited band holds the
+    mode, each matched to the nearest of ``modes``; a test where none is found adds a line to
+    ``warnings``."""
+    fs = float(dataset.sampling_rate_hz)
+    warnings = [] if warnings is None else warnings
     out = [{"freq_hz": {}, "damping_ratio": {}} for _ in modes]
     for t in dataset.tests:
         lo, hi = excited_band(t.force, fs)
@@ -275,7 +282,7 @@ def inspect_dataset(dataset, noise: dict | None = None) -> dict:
             modes = find_modes(ref.force, ref.response, fs, ref.period_samples)
         except ValueError as exc:
             warnings.append(f"test {ref.file}: no mode found ({exc})")
-        dependence = _level_dependence(dataset, modes, fs, warnings)
+        dependence = level_dependence(dataset, modes, warnings)
     return {
         "dataset": dataset.name,
         "source": dataset.source,

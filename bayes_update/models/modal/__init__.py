@@ -63,7 +63,8 @@ constants (:class:`ModalModel`), from modes and a record
 least squares, :mod:`.fit`) or from a data set (:meth:`ModalModel.from_dataset`:
 the modes the first look at its linear test finds).  Modules: :mod:`.spec`
 (the checks and the declared parameters), :mod:`.dynamics`, :mod:`.fit`, :mod:`.residual_modes`,
-:mod:`.joints` (elements at a point), :mod:`.model`, and the compiled loops in ``_kernels``.
+:mod:`.joints` (elements at a point), :mod:`.signature` (the modes' level dependence, model against
+records: the discrepancy workflow's diagnostics), :mod:`.model`, and the compiled loops in ``_kernels``.
 """
 
 from .model import ModalModel

@@ -215,6 +215,22 @@ class ModalModel:
         ``{}`` when the model has none (the discrepancy workflow then refuses it)."""
         return {p.name: [p] for p in self._candidate_parameters}
 
+    def diagnose(self, dataset, theta, basis=None) -> dict:
+        """Every mode's frequency and damping in every test, measured and of the model at
+        ``theta``, and their mismatch per mode (:func:`~bayes_update.models.modal.signature.diagnose`;
+        ``basis`` unused: the modes are read from the time records)."""
+        from .signature import diagnose
+
+        return diagnose(self, dataset, theta)
+
+    def signature(self, effect: str, diagnostics: dict, gap: dict):
+        """(key, meaning, value): the mismatch of the candidate element's mode (an element at a
+        point: of every mode) that adding it should shrink
+        (:func:`~bayes_update.models.modal.signature.signature`)."""
+        from .signature import signature
+
+        return signature(self, effect, diagnostics)
+
     def refined(self) -> "ModalModel":
         """The same model with twice the RK4 substeps (the framework's model-error term).
         RK4's error falls 16-fold when its steps halve, so the difference from this
