@@ -61,5 +61,5 @@ def test_a_joint_at_a_point_looks_at_every_mode_and_an_unknown_name_at_none():
     )
     d = {"mismatch": [0.3, 4.0]}
     key, _, value = model.signature("k3_at_a2", d, {})
-    assert key == "every mode (a joint at 'a2')" and value == pytest.approx(np.sqrt((0.09 + 16.0) / 2))
+    assert key == "every mode (a joint at sensor 'a2')" and value == pytest.approx(np.sqrt((0.09 + 16.0) / 2))
     assert model.signature("c3_1", d, {}) is None

@@ -43,7 +43,9 @@ element in a mode (``Nonlinearity("k3", 1)``) acts on that mode's coordinate,
 x = q_m.  An element at a sensor (``Nonlinearity("k3", at="acc1")``) is a
 joint at the point that sensor measures: x_j = sum_m c_mj q_m, the point's
 displacement whatever the sensor's kind, and its force enters every mode's
-equation times c_mj / c_md, d the *driving point* (``driving_point=``: the
+equation times c_mj / c_md (an element between two sensors' points,
+``Nonlinearity("k3", at="store", to="mid")``, acts on their relative displacement:
+c_mj becomes c_m,store - c_m,mid), d the *driving point* (``driving_point=``: the
 sensor where the force acts, whose coefficients c_md = phi_dm^2 x 1 kg are
 positive, phi_dm the mass-normalised shape there).  Its coefficient is the joint's physical one per kg, numerically
 in N/m^2, N/m^3, N s^3/m^3, N, N/m (:mod:`.joints` derives it).

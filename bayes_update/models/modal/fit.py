@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .dynamics import mode_responses, residual_columns
+from .joints import point_weights
 from .spec import KINDS
 
 __all__ = [
@@ -146,7 +147,8 @@ def element_bounds(
     (whatever its gap), a Jenkins element's kt in [0, :data:`SLIP_SHARE` of the stiffness] (whatever
     its slip).  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
     sensor's point j (``coefficients`` (M, S), ``sensors``, ``driving`` the driving point's
-    index; :mod:`.joints`): x = sum_m c_mj q_m, the point's static stiffness per kg
+    index; :mod:`.joints`): x = sum_m c_mj q_m (between the points of sensors i and j: c_mi - c_mj
+    for c_mj here and below), the point's static stiffness per kg
     1 / sum_m (c_mj^2 / c_md) / w_m^2 (phi_jm^2 = c_mj^2 / c_md), and the damping 2 zeta w
     c_md / c_mj^2 of the mode that moves the point fastest (its damping seen at the point)."""
     units = [mode_responses(np.asarray(u, float) - np.mean(u), fs, modes[:, 0], modes[:, 1]) for u in forces]
@@ -157,7 +159,7 @@ def element_bounds(
         if e.at is None:
             c, cd = np.eye(modes.shape[0])[e.index], np.ones(modes.shape[0])
         else:
-            c, cd = coefficients[:, names.index(e.at)], coefficients[:, driving]
+            c, cd = point_weights(coefficients, names, e.at, e.to), coefficients[:, driving]
         rms = np.array([[np.sqrt(np.mean((R[:, :, p] * c) ** 2, axis=0)) for p in (0, 1)] for R in units])
         x_rms = max(float(np.sqrt(np.mean((R[:, :, 0] @ c) ** 2))) for R in units)
         xd_rms = max(float(np.sqrt(np.mean((R[:, :, 1] @ c) ** 2))) for R in units)
@@ -181,12 +183,15 @@ def element_bounds(
     return out
 
 
-def coordinate_rms(modes: np.ndarray, coefficients: np.ndarray, sensors: tuple, force, fs: float) -> dict:
+def coordinate_rms(modes: np.ndarray, coefficients: np.ndarray, sensors: tuple, force, fs: float, between=()) -> dict:
     """``{place: rms [m]}`` of the linear response to ``force`` [N] (mean removed) at ``fs`` [Hz]
-    of ``modes`` (M, 2): each mode's coordinate q_m (place: its 1-based number) and each sensor's
+    of ``modes`` (M, 2): each mode's coordinate q_m (place: its 1-based number), each sensor's
     point, x_j = sum_m c_mj q_m (place: the sensor's name; ``coefficients`` (M, S), ``sensors``
-    ((name, kind), ...)), whatever the sensor's kind."""
+    ((name, kind), ...)), whatever the sensor's kind, and for each pair ``(i, j)`` of sensor names
+    in ``between`` the displacement of i's point relative to j's (place ``"i-j"``)."""
     R = mode_responses(np.asarray(force, float) - np.mean(force), fs, modes[:, 0], modes[:, 1])[:, :, 0]
+    names = [name for name, _ in sensors]
     out = {m + 1: float(np.std(R[:, m])) for m in range(modes.shape[0])}
-    out.update({name: float(np.std(R @ coefficients[:, j])) for j, (name, _) in enumerate(sensors)})
+    out.update({name: float(np.std(R @ coefficients[:, j])) for j, name in enumerate(names)})
+    out.update({f"{i}-{j}": float(np.std(R @ point_weights(coefficients, names, i, j))) for i, j in between})
     return out

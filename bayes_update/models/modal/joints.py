@@ -23,7 +23,9 @@ j's kind, the displacement of its point is x_j = sum_m c_mj r_m, and the share o
 force in mode m's equation is phi_jm / phi_dm = c_mj / c_md, with the coefficients of a sensor at
 the driving point (the *driving-point sensor*), c_md = phi_dm^2 m0: positive for every mode,
 whatever that sensor's kind (a mode the force excites is seen where the force acts, in phase).
-The joint at the driving point itself has the share 1 in every mode.  So::
+The joint at the driving point itself has the share 1 in every mode.  A joint between the points
+of sensors i and j (one body held on another) acts on both, +g at i and -g at j, on their relative
+displacement x = x_i - x_j: its weights and its share are c_mi - c_mj and (c_mi - c_mj) / c_md.  So::
 
     r_m'' + 2 zeta_m w_m r_m' + w_m^2 r_m + sum_j (c_mj / c_md) kappa_j(x_j, x_j') = u [N] / m0
 
@@ -47,7 +49,7 @@ import numpy as np
 
 from .spec import SHAPES
 
-__all__ = ["DRIVING_SHARE", "check_driving_point", "joint_matrices"]
+__all__ = ["DRIVING_SHARE", "check_driving_point", "joint_matrices", "point_weights"]
 
 #: the smallest c_md / max_s abs(c_ms) of a mode at the driving point (phi_dm / max_s abs(phi_sm)): below it
 #: the mode is not seen where the force acts, and its share of a joint's force (1 / phi_dm) not known
@@ -90,16 +92,24 @@ def joint_matrices(elements: tuple, sensors: tuple, coefficients: np.ndarray, dr
     (P, M) the share of point j's force in mode m's equation (c_mj / c_md), ``shapes`` (P, 2) the
     shape constants of its friction and clearance (v0 [m/s], gap [m]; 0 where there is none)."""
     names = [n for n, _ in sensors]
-    points = tuple(dict.fromkeys(e.at for e in elements if e.at is not None))
+    ends = {e.point: (e.at, e.to) for e in elements if e.at is not None}
+    points = tuple(ends)
     M = coefficients.shape[0]
     weights, shares = np.zeros((len(points), M)), np.zeros((len(points), M))
     shapes = np.zeros((len(points), len(SHAPES)))
     for e in elements:
         if e.at is not None and e.kind in SHAPES:
-            shapes[points.index(e.at), list(SHAPES).index(e.kind)] = e.shape
+            shapes[points.index(e.point), list(SHAPES).index(e.kind)] = e.shape
     for p, name in enumerate(points):
-        weights[p] = coefficients[:, names.index(name)]
+        weights[p] = point_weights(coefficients, names, *ends[name])
         shares[p] = weights[p] / coefficients[:, driving]
         if not np.any(weights[p]):
-            raise ValueError(f"nonlinear: sensor {name!r} sees no mode (its coefficients are all 0): no joint there")
+            raise ValueError(f"nonlinear: sensor(s) {name!r} see no mode (its coefficients are all 0): no joint there")
     return points, weights, shares, shapes
+
+
+def point_weights(coefficients: np.ndarray, names: list, at: str, to: str | None = None) -> np.ndarray:
+    """(M,): x = weights @ r, the displacement of sensor ``at``'s point, or of it relative to
+    sensor ``to``'s: c_m,at - c_m,to."""
+    w = coefficients[:, names.index(at)].astype(float)
+    return w if to is None else w - coefficients[:, names.index(to)]

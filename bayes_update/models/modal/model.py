@@ -18,6 +18,7 @@ from .spec import (
     ELEMENTS,
     KINDS,
     SHAPES,
+    Nonlinearity,
     check_coefficients,
     check_modes,
     check_nonlinear,
@@ -176,7 +177,7 @@ class ModalModel:
                 raise ValueError(f"theta['{e.name}'] = {value!r} {e.unit}: must be finite")
             kind = list(ELEMENTS).index(e.kind)
             if e.at is not None:
-                values[self._points.index(e.at), kind] = value
+                values[self._points.index(e.point), kind] = value
                 continue
             c, shapes = elements.setdefault(e.index, (np.zeros(len(ELEMENTS)), np.zeros(len(SHAPES))))
             c[kind] = value
@@ -201,7 +202,7 @@ class ModalModel:
                 continue
             if (e.at is None and e.index not in modes) or (e.at is not None and not joints):
                 continue
-            j = self._points.index(e.at) if e.at is not None else None
+            j = self._points.index(e.point) if e.at is not None else None
             ws = 1.0 if j is None else float(self._weights[j] @ self._shares[j])
             if e.kind == "clearance":
                 contact += top[e.name] * ws
@@ -270,14 +271,23 @@ class ModalModel:
         shapes = {e.name: {SHAPES[e.kind][0]: e.shape} for e in every if e.kind in SHAPES}
         return {"shapes": shapes} if shapes else {}
 
-    def coordinate_rms(self, dataset) -> dict:
+    def coordinate_rms(self, dataset, between=()) -> dict:
         """``{test name: {place: rms [m]}}``: the rms of each mode's coordinate (place: its 1-based
-        number) and of each sensor's point (its name) in the linear response of the model's nominal
-        modes to each test's force (:func:`~bayes_update.models.modal.fit.coordinate_rms`).  The
-        scale of a Jenkins element's ``slip`` and a clearance's ``gap``: a joint whose frequency and
-        damping move between two levels has its slip between their rms at its place."""
+        number), of each sensor's point (its name) and of the relative displacement of each pair of
+        sensors' points in ``between`` (``[("store", "mid")]``: place ``"store-mid"``) in the linear
+        response of the model's nominal modes to each test's force
+        (:func:`~bayes_update.models.modal.fit.coordinate_rms`).  The scale of a Jenkins element's
+        ``slip`` and a clearance's ``gap``: a joint whose frequency and damping move between two
+        levels has its slip between their rms at its place."""
         fs = float(dataset.sampling_rate_hz)
-        return {t.name: coordinate_rms(self.modes, self.coefficients, self.sensors, t.force, fs) for t in dataset.tests}
+        pairs = [tuple(p) for p in between]
+        for pair in pairs:
+            # the pair's names checked as an element's between them would be
+            check_nonlinear([Nonlinearity("k3", at=pair[0], to=pair[1])], len(self.modes), [n for n, _ in self.sensors])
+        return {
+            t.name: coordinate_rms(self.modes, self.coefficients, self.sensors, t.force, fs, pairs)
+            for t in dataset.tests
+        }
 
     def check_dataset(self, dataset) -> None:
         """Refuse a data set whose sensors are not the model's (their number and kinds, in order)."""

@@ -73,4 +73,4 @@ def signature(model, effect: str, diagnostics: dict):
         return f"mode {element.mode}", MEANING, float(mismatch[element.index])
     seen = mismatch[np.isfinite(mismatch)]
     value = float(np.sqrt(np.mean(seen**2))) if seen.size else math.nan
-    return f"every mode (a joint at {element.at!r})", MEANING, value
+    return f"every mode (a joint at {element.where})", MEANING, value

@@ -64,7 +64,9 @@ class Nonlinearity:
     """A nonlinear element, ``kind`` one of :data:`ELEMENTS` (``"k2"``, ``"k3"``, ``"c3"``,
     ``"friction"``, ``"clearance"``, ``"jenkins"``), either in the equation of mode ``mode`` (1-based; its modal
     coordinate's force) or ``at`` a sensor (its name: a joint at the point that sensor measures,
-    acting on every mode through that point's displacement, :mod:`bayes_update.models.modal.joints`).
+    acting on every mode through that point's displacement, :mod:`bayes_update.models.modal.joints`),
+    or between the points of sensors ``at`` and ``to`` (x the displacement of the first relative to
+    the second: a joint that holds one body on another).
     Its coefficient is the parameter :attr:`name` (``"k3_1"``, ``"k3_at_acc1"``), in the unit
     :attr:`unit`, null (switched off) at 0.  A friction takes its smoothing velocity ``v0`` [m/s]
     (``Nonlinearity("friction", at="acc1", v0=1e-3)``), a clearance the half-width of its gap
@@ -77,12 +79,23 @@ class Nonlinearity:
     v0: float | None = None
     gap: float | None = None
     slip: float | None = None
+    to: str | None = None
 
     @property
     def name(self) -> str:
+        if self.to is not None and self.at is not None:
+            return f"{self.kind}_between_{_identifier(self.at)}_{_identifier(self.to)}"
         if self.at is not None:
             return f"{self.kind}_at_{_identifier(self.at)}"
         return f"{self.kind}_{self.mode}"
+
+    @property
+    def point(self) -> str | None:
+        """The joint's place: the sensor's name (``"acc1"``), or ``"acc1-acc2"`` for an element
+        between two sensors' points; None for an element in a mode."""
+        if self.at is None:
+            return None
+        return self.at if self.to is None else f"{self.at}-{self.to}"
 
     @property
     def unit(self) -> str:
@@ -94,7 +107,9 @@ class Nonlinearity:
 
     @property
     def where(self) -> str:
-        """``mode 1`` or ``sensor 'acc1'``: what the messages name."""
+        """``mode 1``, ``sensor 'acc1'`` or ``sensors 'acc1' and 'acc2'``: what the messages name."""
+        if self.to is not None and self.at is not None:
+            return f"sensors {self.at!r} and {self.to!r}"
         return f"sensor {self.at!r}" if self.at is not None else f"mode {self.mode}"
 
     @property
@@ -204,6 +219,8 @@ def check_nonlinear(nonlinear, n_modes: int, sensor_names=(), what: str = "nonli
             el = item
         elif len(item) == 2 and isinstance(item[1], str):
             el = Nonlinearity(item[0], at=item[1])
+        elif len(item) == 3 and all(isinstance(x, str) for x in item):
+            el = Nonlinearity(item[0], at=item[1], to=item[2])
         else:
             el = Nonlinearity(*item)
         if el.kind not in ELEMENTS:
@@ -215,12 +232,19 @@ def check_nonlinear(nonlinear, n_modes: int, sensor_names=(), what: str = "nonli
             )
         shapes = _check_shape(el, what)
         if el.at is not None:
-            if el.at not in sensor_names:
-                raise ValueError(
-                    f"{what}: {el.kind} at sensor {el.at!r}, which does not exist; the sensors are {list(sensor_names)}"
-                )
-            out.append(Nonlinearity(el.kind, at=str(el.at), **shapes))
+            for end in (el.at, el.to):
+                if end is not None and end not in sensor_names:
+                    known = list(sensor_names)
+                    raise ValueError(
+                        f"{what}: {el.kind} at sensor {end!r}, which does not exist; the sensors are {known}"
+                    )
+            if el.to is not None and el.to == el.at:
+                raise ValueError(f"{what}: {el.kind} between sensor {el.at!r} and itself: give two sensors")
+            to = {} if el.to is None else {"to": str(el.to)}
+            out.append(Nonlinearity(el.kind, at=str(el.at), **to, **shapes))
             continue
+        if el.to is not None:
+            raise ValueError(f"{what}: {el.kind} to={el.to!r} needs at= (an element between two sensors' points)")
         if not (isinstance(el.mode, (int, np.integer)) and 1 <= el.mode <= n_modes):
             raise ValueError(f"{what}: {el.kind} on mode {el.mode!r}; the modes are numbered 1 to {n_modes}")
         out.append(Nonlinearity(el.kind, int(el.mode), **shapes))
