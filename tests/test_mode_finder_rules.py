@@ -143,6 +143,24 @@ def test_a_sweeps_weights_hold_the_force_noise():
         assert 0.4 < ratio < 1.6, (seed, ratio)  # measured 0.66-1.02; without the force's share 3.3-3.5
 
 
+def test_a_periodic_multisines_band_is_its_lines_not_the_whole_spectrum():
+    """Nine periods of a random-phase multisine on the lines of 2-12 Hz at 400 Hz, white noise
+    1/300 of its rms on the force: its power sits on every ninth line of the record's
+    periodogram, a comb whose running median was the noise between its teeth, as low inside the
+    band as outside it: the band was read as (0.5, 200) Hz, the whole spectrum."""
+    fs, period = 400.0, 8192
+    k = np.arange(1, period // 2)
+    lines = k[(k * fs / period >= 2.0) & (k * fs / period <= 12.0)]
+    rng = np.random.default_rng(57)
+    t = np.arange(9 * period) / fs
+    phases = 2 * np.pi * rng.random(lines.size)
+    u = np.sum([np.cos(2 * np.pi * kk * fs / period * t + ph) for kk, ph in zip(lines, phases)], axis=0)
+    u = u / np.std(u) + rng.standard_normal(t.size) / 300
+    lo, hi = excited_band(u, fs)
+    # measured (1.75, 12.25): Welch's 4 s Hann segments, 0.25 Hz apart, and the main lobe's half-width
+    assert 1.5 <= lo <= 2.0 and 12.0 <= hi <= 12.5, (lo, hi)
+
+
 def test_a_sweeps_band_reaches_its_ends():
     fs, duration, f0, f1 = 400.0, 30.0, 4.3, 41.0
     t = np.arange(int(duration * fs)) / fs

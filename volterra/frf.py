@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.ndimage import median_filter
+from scipy.ndimage import uniform_filter1d
 from scipy.signal import csd, welch
 
 from ._validation import as_record_list, paired_records
@@ -148,7 +148,7 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
     for r, m in zip(records, seg):
         # Welch's window tapers the record's first and last half segment: a sweep's first and last
         # frequencies lose their weight (a 5.1 -> 56.6 Hz sweep of 37 s read from 6.67 Hz, its 7 Hz
-        # mode then outside the band). The whole record's periodogram, its median over Welch's main
+        # mode then outside the band). The whole record's periodogram, its mean over Welch's main
         # lobe, weighs every sample alike: the band is widened over the lines next to it where that
         # stays above SWEEP_EDGE of its peak (only next to it: an input sensor's drift fills the
         # lowest lines; not down to ``level``: a fast sweep's abrupt start spreads below its first
@@ -159,13 +159,16 @@ def excited_band(u, fs: float, level: float = 0.01, nperseg: int | None = None) 
 
 def _widened(r, fs, nperseg, lo, hi):
     """(lo, hi) [Hz] widened on each side over the contiguous lines where the whole record's
-    periodogram (linear trend removed), its running median over the lines of a Hann main
+    periodogram (linear trend removed), its running mean over the lines of a Hann main
     lobe of ``nperseg`` samples, exceeds :data:`SWEEP_EDGE` x its peak (at 2 fs / nperseg
-    and above)."""
+    and above).  The mean, not the median: a periodic multisine of P periods puts its power
+    on every P-th line of the record's periodogram, and a median over such a comb is the
+    noise between its teeth, as low inside the band as outside it (a GVT multisine of nine
+    periods at 400 Hz, its band 2-12 Hz, read as 0.5-200 Hz)."""
     x = np.arange(r.size)
     p = np.abs(np.fft.rfft(r - np.polyval(np.polyfit(x, r, 1), x))) ** 2
     f = np.fft.rfftfreq(r.size, 1.0 / fs)
-    p = median_filter(p, size=max(1, int(round(4 * r.size / nperseg))) | 1, mode="nearest")
+    p = uniform_filter1d(p, size=max(1, int(round(4 * r.size / nperseg))) | 1, mode="nearest")
     resolved = f >= 2.0 * fs / nperseg
     above = resolved & (p >= SWEEP_EDGE * p[resolved].max())
     k = int(np.searchsorted(f, lo))
