@@ -13,7 +13,7 @@ import pytest
 from scipy import integrate, linalg, signal
 
 from bayes_update.models.modal import ModalModel, Nonlinearity
-from bayes_update.models.modal.fit import ELEMENT_SHARE, element_bounds
+from bayes_update.models.modal.fit import ELEMENT_SHARE, coordinate_rms, element_bounds
 
 # masses [kg], springs ground-1, 1-2, 2-3 [N/m], C = alpha M + beta K; the force on mass 1
 MASS, SPRINGS, ALPHA, BETA = (1.2, 0.8, 0.5), (24000.0, 16000.0, 9000.0), 1.7, 3.0e-5
@@ -143,3 +143,7 @@ def test_bad_pairs_are_refused_by_name():
         model(Nonlinearity("k3", at="a2", to="tip"), (-1.0, 1.0))
     with pytest.raises(ValueError, match="to='a2' needs at="):
         model(Nonlinearity("k3", 1, to="a2"), (-1.0, 1.0))
+    m = model(Nonlinearity("k3", at="v3", to="a2"), (-1.0, 1.0))
+    for pair in (("a2", "a2"), ("a2", "tip"), ("a2",)):
+        with pytest.raises(ValueError, match=r"between: .* must name two different sensors of \['d1', 'a2', 'v3'\]"):
+            coordinate_rms(m.modes, m.coefficients, m.sensors, force(), FS, between=[pair])

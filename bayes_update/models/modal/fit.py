@@ -189,8 +189,12 @@ def coordinate_rms(modes: np.ndarray, coefficients: np.ndarray, sensors: tuple, 
     point, x_j = sum_m c_mj q_m (place: the sensor's name; ``coefficients`` (M, S), ``sensors``
     ((name, kind), ...)), whatever the sensor's kind, and for each pair ``(i, j)`` of sensor names
     in ``between`` the displacement of i's point relative to j's (place ``"i-j"``)."""
-    R = mode_responses(np.asarray(force, float) - np.mean(force), fs, modes[:, 0], modes[:, 1])[:, :, 0]
     names = [name for name, _ in sensors]
+    between = [tuple(p) for p in between]
+    for pair in between:
+        if len(pair) != 2 or pair[0] == pair[1] or not set(pair) <= set(names):
+            raise ValueError(f"between: {pair!r} must name two different sensors of {names}")
+    R = mode_responses(np.asarray(force, float) - np.mean(force), fs, modes[:, 0], modes[:, 1])[:, :, 0]
     out = {m + 1: float(np.std(R[:, m])) for m in range(modes.shape[0])}
     out.update({name: float(np.std(R @ coefficients[:, j])) for j, name in enumerate(names)})
     out.update({f"{i}-{j}": float(np.std(R @ point_weights(coefficients, names, i, j))) for i, j in between})

@@ -18,7 +18,7 @@ from .spec import (
     ELEMENTS,
     KINDS,
     SHAPES,
-    Nonlinearity,
+    check_candidates,
     check_coefficients,
     check_modes,
     check_nonlinear,
@@ -105,7 +105,7 @@ class ModalModel:
         self.residual = check_residual(residual, S)
         self.updated = check_updated(updated, M)
         self.nonlinear = check_nonlinear(nonlinear, M, [n for n, _ in self.sensors])
-        self.candidates = _check_candidates(candidates, M, self.sensors, driving_point)
+        self.candidates = check_candidates(candidates, M, self.sensors, driving_point)
         every = self.nonlinear + self.candidates
         driving = check_driving_point(driving_point, self.sensors, self.coefficients, every)
         self.driving_point = None if driving is None else self.sensors[driving][0]
@@ -217,16 +217,14 @@ class ModalModel:
         return {p.name: [p] for p in self._candidate_parameters}
 
     def diagnose(self, dataset, theta, basis=None) -> dict:
-        """Every mode's frequency and damping in every test, measured and of the model at
-        ``theta``, and their mismatch per mode (:func:`~bayes_update.models.modal.signature.diagnose`;
-        ``basis`` unused: the modes are read from the time records)."""
+        """Every mode's frequency and damping in every test, measured and of the model at ``theta``
+        (:func:`~bayes_update.models.modal.signature.diagnose`; ``basis`` unused)."""
         from .signature import diagnose
 
         return diagnose(self, dataset, theta)
 
     def signature(self, effect: str, diagnostics: dict, gap: dict):
-        """(key, meaning, value): the mismatch of the candidate element's mode (an element at a
-        point: of every mode) that adding it should shrink
+        """(key, meaning, value): the mismatch a candidate element should shrink
         (:func:`~bayes_update.models.modal.signature.signature`)."""
         from .signature import signature
 
@@ -272,20 +270,13 @@ class ModalModel:
         return {"shapes": shapes} if shapes else {}
 
     def coordinate_rms(self, dataset, between=()) -> dict:
-        """``{test name: {place: rms [m]}}``: the rms of each mode's coordinate (place: its 1-based
-        number), of each sensor's point (its name) and of the relative displacement of each pair of
-        sensors' points in ``between`` (``[("store", "mid")]``: place ``"store-mid"``) in the linear
-        response of the model's nominal modes to each test's force
-        (:func:`~bayes_update.models.modal.fit.coordinate_rms`).  The scale of a Jenkins element's
-        ``slip`` and a clearance's ``gap``: a joint whose frequency and damping move between two
-        levels has its slip between their rms at its place."""
+        """``{test name: {place: rms [m]}}`` in the linear response of the nominal modes to each test's
+        force: each mode (its number), sensor's point (its name) and pair of points in ``between``
+        (``[("store", "mid")]``: ``"store-mid"``; :func:`~bayes_update.models.modal.fit.coordinate_rms`):
+        the scale of a slip or a gap, between their rms at the two levels a joint's mode moves between."""
         fs = float(dataset.sampling_rate_hz)
-        pairs = [tuple(p) for p in between]
-        for pair in pairs:
-            # the pair's names checked as an element's between them would be
-            check_nonlinear([Nonlinearity("k3", at=pair[0], to=pair[1])], len(self.modes), [n for n, _ in self.sensors])
         return {
-            t.name: coordinate_rms(self.modes, self.coefficients, self.sensors, t.force, fs, pairs)
+            t.name: coordinate_rms(self.modes, self.coefficients, self.sensors, t.force, fs, between)
             for t in dataset.tests
         }
 
@@ -343,7 +334,7 @@ class ModalModel:
         if isinstance(updated, str) and updated == "all":
             updated = range(1, n_band + 1)
         elements = check_nonlinear(nonlinear, modes.shape[0], [n for n, _ in sensors])
-        cands = _check_candidates(candidates, modes.shape[0], sensors, driving_point)
+        cands = check_candidates(candidates, modes.shape[0], sensors, driving_point)
         fit = fit_outputs(modes, force, response, fs, sensors, residual, transient)
         driving = check_driving_point(driving_point, sensors, fit.coefficients, elements + cands)
         prior = element_bounds(elements + cands, modes, [force, *strongest], fs, fit.coefficients, sensors, driving)
@@ -406,15 +397,3 @@ class ModalModel:
             residual_modes=residual_modes,
             **options,
         )
-
-
-def _check_candidates(candidates, n_modes: int, sensors: tuple, driving_point) -> tuple:
-    """The candidate elements, checked as ``nonlinear`` is; one at a sensor needs a driving point."""
-    out = check_nonlinear(candidates, n_modes, [n for n, _ in sensors], what="candidates")
-    joints = [e.name for e in out if e.at is not None]
-    if joints and driving_point is None:
-        raise ValueError(
-            f"candidates: {joints[0]} sits at a sensor's point, but no driving point is named: give "
-            "driving_point=<the sensor at the point where the force acts> (bayes_update.models.modal.joints)"
-        )
-    return out

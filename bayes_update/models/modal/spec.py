@@ -29,6 +29,7 @@ __all__ = [
     "check_residual",
     "check_updated",
     "check_nonlinear",
+    "check_candidates",
     "declare",
     "element_parameter",
 ]
@@ -340,3 +341,15 @@ def _pair(value, name: str) -> tuple:
     if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
         raise ValueError(f"bounds['{name}'] = ({lo!r}, {hi!r}): need finite low < high")
     return lo, hi
+
+
+def check_candidates(candidates, n_modes: int, sensors: tuple, driving_point) -> tuple:
+    """The candidate elements, checked as ``nonlinear`` is; one at a sensor needs a driving point."""
+    out = check_nonlinear(candidates, n_modes, [n for n, _ in sensors], what="candidates")
+    joints = [e.name for e in out if e.at is not None]
+    if joints and driving_point is None:
+        raise ValueError(
+            f"candidates: {joints[0]} sits at a sensor's point, but no driving point is named: give "
+            "driving_point=<the sensor at the point where the force acts> (bayes_update.models.modal.joints)"
+        )
+    return out
