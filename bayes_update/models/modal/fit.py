@@ -196,6 +196,6 @@ def coordinate_rms(modes: np.ndarray, coefficients: np.ndarray, sensors: tuple, 
             raise ValueError(f"between: {pair!r} must name two different sensors of {names}")
     R = mode_responses(np.asarray(force, float) - np.mean(force), fs, modes[:, 0], modes[:, 1])[:, :, 0]
     out = {m + 1: float(np.std(R[:, m])) for m in range(modes.shape[0])}
-    out.update({name: float(np.std(R @ coefficients[:, j])) for j, name in enumerate(names)})
-    out.update({f"{i}-{j}": float(np.std(R @ point_weights(coefficients, names, i, j))) for i, j in between})
+    places = {name: (name, None) for name in names} | {f"{i}-{j}": (i, j) for i, j in between}
+    out.update({p: float(np.std(R @ point_weights(coefficients, names, *ends))) for p, ends in places.items()})
     return out

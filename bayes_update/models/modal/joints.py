@@ -89,8 +89,9 @@ def check_driving_point(driving_point, sensors: tuple, coefficients: np.ndarray,
 def joint_matrices(elements: tuple, sensors: tuple, coefficients: np.ndarray, driving: int | None) -> tuple:
     """``(points, weights, shares, shapes)`` of the elements at sensors: ``points`` the sensors'
     names that carry one (P,), ``weights`` (P, M) with x_j = weights[j] @ r (c_mj), ``shares``
-    (P, M) the share of point j's force in mode m's equation (c_mj / c_md), ``shapes`` (P, 2) the
-    shape constants of its friction and clearance (v0 [m/s], gap [m]; 0 where there is none)."""
+    (P, M) the share of point j's force in mode m's equation (c_mj / c_md), ``shapes`` (P, 3) the
+    shape constants of its friction, clearance and Jenkins element (v0 [m/s], gap [m], slip [m]; 0
+    where there is none).  A point is a sensor's name, or ``"i-j"`` for an element between two."""
     names = [n for n, _ in sensors]
     ends = {e.point: (e.at, e.to) for e in elements if e.at is not None}
     points = tuple(ends)
