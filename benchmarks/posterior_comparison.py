@@ -36,9 +36,9 @@ THRESHOLDS = {"mean_diff_sd": 0.3, "hdi_overlap": 0.8, "ks_D": 0.1}
 
 
 def hdi(x, prob=0.94):
-    import arviz as az
+    from bayes_update.core.posterior.arviz_lines import hdi as pooled_hdi
 
-    return az.hdi(np.asarray(x), hdi_prob=prob)
+    return np.array(pooled_hdi(x, prob))
 
 
 def compare(a: dict, b: dict, rng) -> dict:

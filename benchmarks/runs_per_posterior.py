@@ -143,9 +143,9 @@ def compare(draws: dict, ref: dict, rng) -> dict:
 
 
 def _hdi(x, prob=0.94):
-    import arviz as az
+    from bayes_update.core.posterior.arviz_lines import hdi as pooled_hdi
 
-    return az.hdi(np.asarray(x), hdi_prob=prob)
+    return np.array(pooled_hdi(x, prob))
 
 
 def _report(res) -> dict:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator, NullLocator
 
 
 def _label(space, name: str) -> str:
@@ -198,32 +199,74 @@ def predictive_records(time_bands: dict, coverage: dict, fs: float, sensors, rol
     return fig
 
 
-def arviz_figures(res, truth: dict | None = None) -> dict:
-    """Pair plot (with the truth, if given) and traces of a posterior, drawn by
-    ArviZ, each variable labelled with its unit."""
-    import arviz as az
+def _posterior_arrays(res) -> dict:
+    """{variable: (chain, draw) array} of the reported variables (InferenceData or DataTree)."""
+    group = res.idata["posterior"]
+    return {n: np.asarray(group[n].values, float) for n in res.space.report_units}
 
-    names = list(res.space.report_units)
-    labeller = az.labels.MapLabeller(var_name_map={n: _label(res.space, n) for n in names})
-    axes = az.plot_pair(
-        res.idata,
-        var_names=names,
-        kind="kde" if len(names) <= 3 else "scatter",
-        marginals=True,
-        reference_values=truth or None,
-        labeller=labeller,
-        figsize=(2.6 * len(names), 2.6 * len(names)),
-    )
-    pair = np.ravel(axes)[0].figure
-    trace = np.ravel(az.plot_trace(res.idata, var_names=names, compact=True, labeller=labeller))[0].figure
-    return {"corner": pair, "traces": trace}
+
+def corner(res, truth: dict | None = None, bins: int = 40):
+    """Pairs of the posterior's reported variables (a 2D histogram of the draws
+    below the diagonal, each marginal on it), with the truth if given, each axis
+    in its unit."""
+    draws = _posterior_arrays(res)
+    names = list(draws)
+    n = len(names)
+    fig = Figure(figsize=(2.4 * n, 2.4 * n), constrained_layout=True)
+    axes = np.atleast_2d(fig.subplots(n, n, squeeze=False))
+    for i, yi in enumerate(names):
+        for j, xj in enumerate(names):
+            ax = axes[i, j]
+            if j > i:
+                ax.set_visible(False)
+                continue
+            x = draws[xj].ravel()
+            if i == j:
+                ax.hist(x, bins=bins, color="C0", histtype="stepfilled", alpha=0.6)
+                if truth and xj in truth:
+                    ax.axvline(truth[xj], color="k", lw=1.2)
+            else:
+                ax.hist2d(x, draws[yi].ravel(), bins=bins, cmap="Blues")
+                if truth and xj in truth and yi in truth:
+                    ax.plot(truth[xj], truth[yi], "x", color="k", ms=8, mew=2)
+            ax.xaxis.set_major_locator(MaxNLocator(3))
+            ax.yaxis.set_major_locator(NullLocator() if i == j else MaxNLocator(3))
+            ax.ticklabel_format(axis="x", useOffset=False)
+            if i != j:
+                ax.ticklabel_format(axis="y", useOffset=False)
+            ax.set_xlim(np.quantile(x, [0.001, 0.999]))
+            if i == n - 1:
+                ax.set_xlabel(_label(res.space, xj))
+                ax.tick_params(axis="x", labelrotation=30)
+            else:
+                ax.tick_params(labelbottom=False)
+            if j == 0 and i > 0:
+                ax.set_ylabel(_label(res.space, yi))
+            elif i != j:
+                ax.tick_params(labelleft=False)
+            if 0 < i != j:
+                ax.set_ylim(np.quantile(draws[yi], [0.001, 0.999]))
+    return fig
+
+
+def traces(res):
+    """Each reported variable's chains (one line a walker) against the draw index."""
+    draws = _posterior_arrays(res)
+    fig = Figure(figsize=(9, 1.7 * len(draws)), constrained_layout=True)
+    axes = np.atleast_1d(fig.subplots(len(draws), 1, sharex=True, squeeze=False)[:, 0])
+    for ax, (name, values) in zip(axes, draws.items()):
+        ax.plot(values.T, lw=0.4, alpha=0.5)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.set_ylabel(_label(res.space, name))
+    axes[-1].set_xlabel("draw (kept, thinned)")
+    return fig
 
 
 def posterior_figures(res, truth: dict | None = None) -> dict:
     """{file stem: Figure} of a :class:`~bayes_update.core.posterior.PosteriorResult`:
-    ArviZ's pair plot and traces, the predictive bands and the GP checks, and
+    the pairs and traces of the draws, the predictive bands and the GP checks, and
     the beam's ridge when the result carries its linear-only posterior."""
-    figs = arviz_figures(res, truth)
+    figs = {"corner": corner(res, truth), "traces": traces(res)}
     if res.predictive.get("_bands"):
         names = {st: t.name for st, t in res.problem.tests.items()}
         figs["predictive"] = predictive_bands(
@@ -242,10 +285,10 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
         )
     linear_only = res.extras.get("linear_only", {})
     if linear_only.get("_draws") is not None:
-        figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
+        figs["ridge", "traces"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
     if res.surrogates or res.sensitivity:
         figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
     return figs
 
 
-__all__ = ["arviz_figures", "gp_diagnostics", "posterior_figures", "predictive_bands", "predictive_records", "ridge"]
+__all__ = ["corner", "gp_diagnostics", "posterior_figures", "predictive_bands", "predictive_records", "ridge", "traces"]

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from bayes_update.core.parameters import ParameterSet
+from bayes_update.core.posterior.arviz_lines import add_group, ess, from_dict, rhat, summary
 from bayes_update.core.posterior.target import Whitening
 
 
@@ -87,16 +88,7 @@ def chain_convergence(draws: dict) -> dict:
     """R-hat and bulk and tail ESS of ``{variable: (walkers, draws) array}`` (ArviZ,
     each walker a chain), per variable, and whether all meet :data:`RHAT_TARGET`
     and :data:`MIN_ESS`."""
-    import arviz as az
-
-    per = {}
-    for k, v in draws.items():
-        v = np.asarray(v, float)
-        per[k] = {
-            "r_hat": float(az.rhat(v, method="rank")),
-            "ess_bulk": float(az.ess(v, method="bulk")),
-            "ess_tail": float(az.ess(v, method="tail")),
-        }
+    per = {k: {"r_hat": rhat(v), "ess_bulk": ess(v, "bulk"), "ess_tail": ess(v, "tail")} for k, v in draws.items()}
     worst = {
         "max_r_hat": max(p["r_hat"] for p in per.values()),
         "min_ess_bulk": min(p["ess_bulk"] for p in per.values()),
@@ -148,7 +140,7 @@ def run_to_convergence(
 def to_inference_data(
     chain, log_prob, space, attrs: dict, log_likelihood: dict | None = None, observed: dict | None = None
 ):
-    """ArviZ InferenceData (chain = walker) of the space's reported variables
+    """ArviZ InferenceData (0.x) or DataTree (1.x) (chain = walker) of the space's reported variables
     (:meth:`ParameterSet.report`: the parameters in their units, then derived
     coordinates such as the beam's P_eff), each with its ``units`` attribute;
     ``sample_stats`` with the log posterior ``lp``; ``log_likelihood`` (the
@@ -158,22 +150,20 @@ def to_inference_data(
     ``observation`` names the test and direction of each, so that ``az.loo(idata)``
     and ``az.compare`` need no argument) and ``observed_data`` (one variable per
     test: its record, {name: (values (n,) or (n, k), units)}) when given."""
-    import arviz as az
-
     X = np.swapaxes(chain, 0, 1)  # (walker, draw, d)
     values = space.report(X.reshape(-1, X.shape[-1]))
     post = {k: v.reshape(X.shape[:2]) for k, v in values.items()}
-    groups = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}, "dims": {}, "coords": {}}
+    groups, dims, coords = {"posterior": post, "sample_stats": {"lp": np.swapaxes(log_prob, 0, 1)}}, {}, {}
     if log_likelihood:
         groups["log_likelihood"] = {
             "observations": np.swapaxes(np.concatenate(list(log_likelihood.values()), axis=-1), 0, 1)
         }
-        groups["dims"]["observations"] = ["observation"]
-        groups["coords"]["observation"] = [f"{k}[{j}]" for k, v in log_likelihood.items() for j in range(v.shape[-1])]
+        dims["observations"] = ["observation"]
+        coords["observation"] = [f"{k}[{j}]" for k, v in log_likelihood.items() for j in range(v.shape[-1])]
     if observed:
         groups["observed_data"] = {k: v for k, (v, _) in observed.items()}
-        groups["dims"].update({k: _record_dims(k, v) for k, (v, _) in observed.items()})
-    idata = az.from_dict(**groups, attrs=dict(attrs))
+        dims.update({k: _record_dims(k, v) for k, (v, _) in observed.items()})
+    idata = from_dict(groups, dims, coords, attrs)
     for var, unit in space.report_units.items():
         idata.posterior[var].attrs["units"] = unit
     for k, (_, unit) in (observed or {}).items():
@@ -189,13 +179,8 @@ def add_posterior_predictive(idata, draws: dict, units: dict) -> None:
     """Add the ``posterior_predictive`` group: {test: (n draws, n samples[, sensors])}
     of the predicted record at posterior draws (one chain), on the dimensions of
     ``observed_data``."""
-    import arviz as az
-
-    pp = az.from_dict(
-        posterior_predictive={k: v[None] for k, v in draws.items()},
-        dims={k: _record_dims(k, v[0]) for k, v in draws.items()},
-    )
-    idata.add_groups({"posterior_predictive": pp.posterior_predictive})
+    variables = {k: v[None] for k, v in draws.items()}
+    add_group(idata, "posterior_predictive", variables, {k: _record_dims(k, v[0]) for k, v in draws.items()})
     for k in draws:
         idata.posterior_predictive[k].attrs["units"] = units.get(k, "")
 
@@ -203,18 +188,15 @@ def add_posterior_predictive(idata, draws: dict, units: dict) -> None:
 def summarize(idata, space, hdi_prob: float = 0.94) -> dict:
     """Per variable: mean, sd, hdi_3%, hdi_97%, r_hat, ess_bulk, ess_tail and its
     ``units`` (:attr:`ParameterSet.report_units`)."""
-    import arviz as az
-
-    s = az.summary(idata, hdi_prob=hdi_prob, round_to="none")
-    lo, hi = f"hdi_{100 * (1 - hdi_prob) / 2:g}%", f"hdi_{100 * (1 + hdi_prob) / 2:g}%"
+    s = summary(idata, hdi_prob)
     out = {}
     for var, unit in space.report_units.items():
         row = s.loc[var]
         out[var] = {
             "mean": float(row["mean"]),
             "sd": float(row["sd"]),
-            "hdi_3%": float(row[lo]),
-            "hdi_97%": float(row[hi]),
+            "hdi_3%": float(row["hdi_lo"]),
+            "hdi_97%": float(row["hdi_hi"]),
             "r_hat": float(row["r_hat"]),
             "ess_bulk": float(row["ess_bulk"]),
             "ess_tail": float(row["ess_tail"]),
