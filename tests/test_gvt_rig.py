@@ -371,3 +371,31 @@ def test_the_first_look_follows_every_mode_through_the_levels():
     for name in ("ms_high.csv", "sweep_high.csv"):
         found = [d["freq_hz"][name] for d in dep if name in d["freq_hz"]]
         assert len(found) == len(set(found)), (name, found)
+    # the multisines' unexcited lines (all lines of the band excited: the lines above it, class
+    # "any"): the low level at the noise on every sensor, the middle and high levels' distortion
+    # above it at the tip and mid sensors, growing with the level (measured -51.6 -> -34.6 dB at
+    # the tip, -41.4 -> -26.2 dB at mid for 3x the force; a cubic law gives +19 dB); the sweeps
+    # do not repeat (no entry), and the linear test (ms_low) does not warn
+    tests = look["tests"]
+    assert all(not r["any"]["detected"] for r in tests["ms_low.csv"]["distortion"]["sensors"].values())
+    for sensor in ("tip", "mid"):
+        mid, high = (tests[f"ms_{lv}.csv"]["distortion"]["sensors"][sensor]["any"] for lv in ("mid", "high"))
+        assert mid["detected"] and high["detected"] and high["level_db"] > mid["level_db"] + 10, (mid, high)
+    assert tests["sweep_high.csv"]["distortion"] is None
+    assert not any("is not linear" in w for w in look["warnings"]), look["warnings"]
+
+
+def test_a_linear_test_that_distorts_is_told(campaign):
+    """The high-level multisine taken for the linear test: its distortion (-23.9 dB of the output at
+    the mid sensor, seed 2027; -34.2 at the tip, -40.1 at the store: only mid is above the -30 dB
+    warning level) is a warning of the first look, about that sensor alone."""
+    import dataclasses
+
+    from bayes_update.data.inspect import _distortion
+
+    ds, _ = campaign
+    high = dataclasses.replace(next(t for t in ds.tests if t.name == "ms_high"), role="linear")
+    warnings = []
+    entry = _distortion(high, ds.sampling_rate_hz, warnings)
+    assert entry["sensors"]["mid"]["any"]["detected"]
+    assert len(warnings) == 1 and "'mid'" in warnings[0] and "the linear test is not linear" in warnings[0], warnings

@@ -153,7 +153,10 @@ def test_the_figures_are_written(which, lab_set, default_set, tmp_path):
         {"inspection.json", "modes.png", "noise_force.png"}
         | {f"frf_{n}.png" for n, _ in ds.sensors}
         | {f"noise_{n}.png" for n, _ in ds.sensors}
+        # where a test repeats (the lab set's multisines, the default set's sines): its lines
+        | {f"distortion_{n}.png" for n, _ in ds.sensors}
     )
+    assert any(entry["period_samples"] for entry in out["tests"].values())  # declared or found
     assert set(paths) == names
     assert all(p.stat().st_size > 10_000 for n, p in paths.items() if n.endswith(".png"))
     assert json.loads(paths["inspection.json"].read_text())["tests"].keys() == out["tests"].keys()

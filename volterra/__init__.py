@@ -26,6 +26,7 @@ f1 + f2 + f3 = fn is not representable).
 """
 
 from .basis import DEFAULT_N_FUNCTIONS, ROBUST_LINEAR_N_FUNCTIONS, KautzBasis
+from .distortion import Distortion, distortion
 from .fit import FitInfo, fit_volterra
 from .frf import estimate_h1, excited_band, periodic_h1
 from .gobf import (
@@ -44,6 +45,8 @@ from .projector import VolterraProjector
 from .regressors import index_tuples, multiplicity, n_terms
 
 __all__ = [
+    "Distortion",
+    "distortion",
     "KautzPole",
     "RealPole",
     "KautzBasis",

@@ -43,7 +43,7 @@ from .lpm import DEFAULT_HALF_WIDTH as LPM_HALF_WIDTH
 from .lpm import local_polynomial
 from .periods import PeriodLayout, find_periods, steady_periods
 
-__all__ = ["Lines", "record_lines"]
+__all__ = ["Lines", "period_spectra", "record_lines"]
 
 #: input lines of a periodic record count as excited above this fraction of the strongest, and
 #: this power ratio above their own scatter between periods (noise on an unexcited line: about 1)
@@ -116,20 +116,34 @@ class Lines:
         )
 
 
-def _periodic(r_u, r_y, layout: PeriodLayout, fs):
-    """Lines of the periods every sensor has settled in; an excited line has an input
-    at least 1e-3 of the strongest and 20 dB above its own scatter between periods."""
+def period_spectra(r_u, r_y, layout: PeriodLayout):
+    """Spectra (DFT / sqrt(N)) of the periods every sensor of ``r_y`` ((n, S)) has settled in
+    (:func:`~volterra.periods.steady_periods`): ``U`` (P, K) of the input ``r_u``, ``Y``
+    (S, P, K), and the excited lines (K,) bool: an input at least
+    :data:`PERIODIC_LINE_LEVEL` of the strongest line's power and :data:`PERIODIC_LINE_SNR`
+    above its own scatter between periods (line 0 never; none with fewer than two periods)."""
     first, last = steady_periods(r_y, layout)
     N, P = layout.period, last - first
     a = layout.start + first * N
     U = np.fft.rfft(r_u[a : a + P * N].reshape(P, N), axis=1) / np.sqrt(N)  # (P, K)
     Y = np.fft.rfft(r_y[a : a + P * N].T.reshape(r_y.shape[1], P, N), axis=2) / np.sqrt(N)
+    upow = np.abs(U.mean(axis=0)) ** 2
+    if P < 2:  # no scatter to judge a line by
+        return U, Y, np.zeros(upow.size, bool)
+    s_u = np.sum(np.abs(U - U.mean(axis=0)) ** 2, axis=0) / (P - 1)
+    excited = (upow >= PERIODIC_LINE_LEVEL * upow[1:].max()) & (upow >= PERIODIC_LINE_SNR * s_u / P)
+    excited[0] = False
+    return U, Y, excited
+
+
+def _periodic(r_u, r_y, layout: PeriodLayout, fs):
+    """Lines of the periods every sensor has settled in (:func:`period_spectra`)."""
+    U, Y, excited = period_spectra(r_u, r_y, layout)
+    N, P = layout.period, U.shape[0]
     Um, Ym = U.mean(axis=0), Y.mean(axis=1)
     upow = np.abs(Um) ** 2
     dU, dY = U - Um, Y - Ym[:, None, :]
     s_u = np.sum(np.abs(dU) ** 2, axis=0) / (P - 1)
-    excited = (upow >= PERIODIC_LINE_LEVEL * upow[1:].max()) & (upow >= PERIODIC_LINE_SNR * s_u / P)
-    excited[0] = False
     with np.errstate(divide="ignore", invalid="ignore"):
         H = (Ym / Um).T  # (K, S)
         s_y = np.sum(np.abs(dY) ** 2, axis=1).T / (P - 1)

@@ -84,6 +84,8 @@ def cmd_inspect(args) -> int:
         )
         band = t.get("excited_band_hz")
         print(f"{name}: band {band[0]:.1f}-{band[1]:.1f} Hz; noise sd: {noise}" if band else f"{name}: {noise}")
+        if t.get("distortion") and "sensors" in t["distortion"]:
+            print(f"  {_distortion_line(t['distortion'])}")
     print(
         "modes of the linear test: "
         + (", ".join(f"{m['freq_hz']:.3f} Hz (zeta {m['damping_ratio']:.4f})" for m in doc["modes"]) or "none found")
@@ -92,3 +94,16 @@ def cmd_inspect(args) -> int:
         print(f"WARNING: {w}")
     print(f"wrote {args.final_out}")
     return 0
+
+
+def _distortion_line(d: dict) -> str:
+    """One line on a periodic test's unexcited lines: each class's level where detected."""
+    found = [
+        f"{sensor} {cls} {r['level_db']:.0f} dB"
+        for sensor, classes in d["sensors"].items()
+        for cls, r in classes.items()
+        if r["detected"] and cls != "noise"
+    ]
+    classes = "/".join(c for c in d["classes"] if c != "noise")
+    what = ", ".join(found) if found else "at the noise on every sensor"
+    return f"distortion on the unexcited {classes} lines ({d['periods']} periods; dB of the output): {what}"

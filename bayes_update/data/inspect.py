@@ -12,7 +12,11 @@
     not strict: a channel may be ``unknown``); ``offset.<channel>`` [unit],
     ``drift.<channel>`` [share of rms], ``clipping.<channel>``
     (:mod:`bayes_update.data.checks`); ``coherence.<sensor>`` = the median
-    coherence over the excited band and the share of its lines below 0.9.
+    coherence over the excited band and the share of its lines below 0.9;
+    ``distortion`` (a periodic record: :func:`volterra.distortion`, what its
+    unexcited lines hold beyond the noise, odd and even, per sensor and for the
+    force; ``{"not_read": why}`` where it cannot be read; None for a record that
+    does not repeat).
 ``modes``
     ``[{"freq_hz", "damping_ratio"}, ...]`` of the (first) ``linear`` test,
     every sensor sharing the poles (:func:`find_modes`); ``modes_from`` its file.
@@ -22,7 +26,8 @@
     lies within 20 % of it.
 ``warnings``
     plain sentences: offsets, drifts, clipping, coherence loss, noise that
-    is unknown, large or differs between tests, modes not found.
+    is unknown, large or differs between tests, modes not found, a linear
+    test that distorts.
 
 Frequencies Hz, damping ratios [-], sd and offsets in each channel's unit.
 """
@@ -36,6 +41,7 @@ from bayes_update.data import checks, spectral
 from bayes_update.data.noise import dataset_noise
 from bayes_update.data.periodic import PeriodLayout, find_periods
 from bayes_update.data.quiet import excited_band, quiet_sections
+from volterra.distortion import distortion
 
 #: warn above these: offset / rms, drift (share of rms), noise / rms, noise ratio between tests
 OFFSET_WARN = 0.05
@@ -47,6 +53,8 @@ COHERENCE_LOW = 0.9
 COHERENCE_SHARE = 0.2
 #: a test's mode belongs to the linear test's mode within this relative frequency distance
 MODE_MATCH = 0.2
+#: a 'linear' test whose unexcited lines hold distortion above this share of its output [dB] warns
+LINEAR_DISTORTION_DB = -30.0
 TRANSIENT_SIGNALS = ("chirp", "sweep", "burst", "impact", "hammer")
 
 
@@ -132,6 +140,32 @@ def _period(record):
     return layout.period if isinstance(layout, PeriodLayout) else None
 
 
+def _distortion(record, fs, warnings) -> dict | None:
+    """:func:`volterra.distortion` of a periodic record (JSON-ready; None for another record,
+    or where it cannot be read, with the reason), and a warning where a test of role
+    'linear' shows distortion above :data:`LINEAR_DISTORTION_DB` of its output."""
+    layout = find_periods(record.force, record.period_samples)
+    if not isinstance(layout, PeriodLayout):
+        return None
+    try:
+        d = distortion(record.force, record.response, fs, layout, sensors=[n for n, _ in record.sensors])
+    except ValueError as exc:
+        return {"not_read": str(exc)}
+    if record.role == "linear":
+        for name, classes in d.sensors.items():
+            loud = {
+                c: r["level_db"] for c, r in classes.items() if r["detected"] and r["level_db"] > LINEAR_DISTORTION_DB
+            }
+            if loud:
+                what = ", ".join(f"{c} lines {v:.0f} dB" for c, v in loud.items())
+                warnings.append(
+                    f"test {record.file} (role linear), sensor {name!r}: distortion on its unexcited lines ({what} "
+                    "of the output): the linear test is not linear at its level; a lower level, or the "
+                    "nonlinearity in the model's first stage"
+                )
+    return d.to_dict()
+
+
 def _test_entry(record, fs, noise, warnings) -> dict:
     band = excited_band(record.force, fs)
     entry = {
@@ -148,6 +182,7 @@ def _test_entry(record, fs, noise, warnings) -> dict:
         "drift": {},
         "clipping": {},
         "coherence": {},
+        "distortion": _distortion(record, fs, warnings),
     }
     units = record.units
     for ch in record.channels:

@@ -12,7 +12,9 @@ inspect``; the numbers are :func:`bayes_update.data.inspect.inspect_dataset`).
   (:func:`bayes_update.data.noise_spectrum.noise_spectrum`);
 * ``modes.png``: each mode's frequency and damping ratio against the
   test's force level, in % of the linear test's (the ``level_dependence``
-  entries).
+  entries);
+* ``distortion_<sensor>.png``: where a test repeats, its excited lines, the
+  unexcited odd and even lines and their noise (:func:`plot_distortion`).
 
 Figures are built without pyplot (nothing shown, no global state).  Units:
 Hz, the channels' SI units, force rms [N].
@@ -30,6 +32,7 @@ from scipy.signal import welch
 from bayes_update.data.inspect import frf, inspect_dataset
 from bayes_update.data.noise import dataset_noise
 from bayes_update.data.noise_spectrum import noise_spectrum
+from bayes_update.data.periodic import find_periods
 
 
 def _by_level(dataset) -> list:
@@ -125,6 +128,59 @@ def plot_modes(dataset, inspection: dict) -> Figure:
     return fig
 
 
+#: how each class of lines is drawn: (marker, colour, label)
+LINE_STYLE = {
+    "excited": ("o", "k", "excited"),
+    "odd": ("v", "C3", "odd (odd-degree distortion)"),
+    "even": ("^", "C0", "even (even-degree distortion)"),
+    "any": ("v", "C3", "unexcited"),
+    "noise": (".", "0.6", "no distortion reaches (noise)"),
+}
+
+
+def plot_distortion(dataset, sensor: str, inspection: dict):
+    """The lines of every periodic test at ``sensor``: the excited lines, the unexcited
+    odd and even lines (the linear response to the force's content on them taken out)
+    and the noise of the period mean on every line (grey), in dB of ``sensor``'s unit
+    (:func:`volterra.distortion`); None where no test was read."""
+    from volterra.distortion import distortion
+
+    fs = float(dataset.sampling_rate_hz)
+    tests = [
+        t
+        for t in _by_level(dataset)
+        if (inspection["tests"][t.file].get("distortion") or {}).get("sensors") is not None
+    ]
+    if not tests:
+        return None
+    fig = Figure(figsize=(9, 2.6 * len(tests)), constrained_layout=True)
+    axes = np.atleast_1d(fig.subplots(len(tests), 1, squeeze=False)[:, 0])
+    for ax, t in zip(axes, tests):
+        layout = find_periods(t.force, t.period_samples)
+        d = distortion(t.force, t.response, fs, layout, sensors=[n for n, _ in t.sensors])
+        noise_f, noise_p = [], []
+        for cls, f in d.lines.items():
+            power, noise = d.power[sensor][cls]
+            marker, color, label = LINE_STYLE[cls]
+            ax.plot(f, 10 * np.log10(np.maximum(power, 1e-300)), marker, color=color, ms=3, ls="none", label=label)
+            noise_f.append(f)
+            noise_p.append(noise)
+        order = np.argsort(np.concatenate(noise_f))
+        ax.plot(
+            np.concatenate(noise_f)[order],
+            10 * np.log10(np.maximum(np.concatenate(noise_p)[order], 1e-300)),
+            color="0.5",
+            lw=0.8,
+            label="noise of the period mean",
+        )
+        ax.set_title(f"{t.name} ({t.level}): {d.verdict(sensor)}", fontsize=8)
+        ax.set_ylabel(f"dB ({dataset.units[sensor]})^2")
+        ax.grid(True, alpha=0.3)
+    axes[0].legend(fontsize=7, ncol=3, loc="best")
+    axes[-1].set_xlabel("frequency [Hz]")
+    return fig
+
+
 def write_inspection(dataset, out, inspection: dict | None = None, noise: dict | None = None) -> dict:
     """Write ``inspection.json`` and the figures into the folder ``out``;
     returns ``{name: path}``.  ``inspection``, ``noise``: already computed
@@ -140,6 +196,10 @@ def write_inspection(dataset, out, inspection: dict | None = None, noise: dict |
     channels = ["force"] + [name for name, _ in dataset.sensors]
     figures.update({f"noise_{ch}.png": plot_noise(dataset, ch, noise) for ch in channels})
     figures["modes.png"] = plot_modes(dataset, inspection)
+    for name, _ in dataset.sensors:
+        fig = plot_distortion(dataset, name, inspection)
+        if fig is not None:
+            figures[f"distortion_{name}.png"] = fig
     for name, fig in figures.items():
         paths[name] = out / name
         fig.savefig(paths[name], dpi=110)

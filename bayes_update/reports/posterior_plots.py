@@ -285,7 +285,7 @@ def posterior_figures(res, truth: dict | None = None) -> dict:
         )
     linear_only = res.extras.get("linear_only", {})
     if linear_only.get("_draws") is not None:
-        figs["ridge", "traces"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
+        figs["ridge"] = ridge(res.space, linear_only["_draws"], res.draws, truth)
     if res.surrogates or res.sensitivity:
         figs["gp_diagnostics"] = gp_diagnostics(res.predictive, res.sensitivity)
     return figs

@@ -223,6 +223,12 @@ class ModalModel:
 
         return diagnose(self, dataset, theta)
 
+    def diagnostics_figure(self, diagnostics: dict):
+        """:meth:`diagnose`'s result drawn (:func:`~bayes_update.models.modal.figures.diagnostics_figure`)."""
+        from .figures import diagnostics_figure
+
+        return diagnostics_figure(diagnostics)
+
     def signature(self, effect: str, diagnostics: dict, gap: dict):
         """(key, meaning, value): the mismatch a candidate element should shrink
         (:func:`~bayes_update.models.modal.signature.signature`)."""

@@ -21,7 +21,7 @@ import math
 
 import numpy as np
 
-__all__ = ["MEANING", "diagnose", "signature"]
+__all__ = ["MEANING", "diagnose", "distortion_against", "signature"]
 
 #: what :func:`signature`'s number is
 MEANING = (
@@ -34,7 +34,8 @@ MEANING = (
 def diagnose(model, dataset, theta) -> dict:
     """``{"measured", "model": [per mode {"freq_hz": {test file: f}, "damping_ratio": {...}}],
     "mismatch": [per mode, the median over the tests both show it in of hypot(100 df / f,
-    100 dzeta)]}`` for the model at ``theta`` [its parameters] against ``dataset``'s records
+    100 dzeta)], "distortion": the odd and even lines of every periodic test, measured and model
+    (:func:`distortion_against`)}`` for the model at ``theta`` [its parameters] against ``dataset``'s records
     (NaN for a mode no test shows on both sides)."""
     from bayes_update.data.inspect import level_dependence
 
@@ -45,7 +46,48 @@ def diagnose(model, dataset, theta) -> dict:
         dataset, tests=[dataclasses.replace(t, response=np.asarray(y)) for t, y in zip(dataset.tests, runs)]
     )
     measured, mine = level_dependence(dataset, modes), level_dependence(simulated, modes)
-    return {"measured": measured, "model": mine, "mismatch": [_mismatch(a, b) for a, b in zip(measured, mine)]}
+    return {
+        "measured": measured,
+        "model": mine,
+        "mismatch": [_mismatch(a, b) for a, b in zip(measured, mine)],
+        "distortion": distortion_against(dataset, runs),
+    }
+
+
+def distortion_against(dataset, runs) -> dict:
+    """{test file: {sensor: {class: {"measured_db", "model_db", "measured_detected",
+    "model_detected"}}}} for every periodic test: :func:`volterra.distortion` of the record and
+    of the model's response ``runs`` (one (n, S) array per test) to the same recorded force (its
+    noise in both), each class's distortion in dB of the output (-inf where not above the
+    noise): whether the model's nonlinearity puts what the structure's puts on the odd and even
+    lines."""
+    from volterra.distortion import distortion
+    from volterra.periods import PeriodLayout, find_periods
+
+    fs = float(dataset.sampling_rate_hz)
+    out = {}
+    for t, y in zip(dataset.tests, runs):
+        layout = find_periods(t.force, t.period_samples)
+        if not isinstance(layout, PeriodLayout):
+            continue
+        names = [n for n, _ in t.sensors]
+        try:
+            sides = [distortion(t.force, r, fs, layout, sensors=names) for r in (t.response, np.asarray(y))]
+        except ValueError:
+            continue
+        out[t.file] = {
+            n: {
+                c: {
+                    "measured_db": sides[0].sensors[n][c]["level_db"],
+                    "model_db": sides[1].sensors[n][c]["level_db"],
+                    "measured_detected": sides[0].sensors[n][c]["detected"],
+                    "model_detected": sides[1].sensors[n][c]["detected"],
+                }
+                for c in sides[0].sensors[n]
+            }
+            for n in names
+        }
+    return out
 
 
 def _mismatch(measured: dict, mine: dict) -> float:
