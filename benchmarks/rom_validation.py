@@ -98,26 +98,7 @@ def fe_static(model, params, load):
     a = model._arrays(model.describe(params), params)
     u = np.zeros(model.n_dof)
     status, _ = K.static_newton(
-        a["X"],
-        a["Y"],
-        a["L0"],
-        a["c0"],
-        a["s0"],
-        a["t0"],
-        a["EA"],
-        a["EI"],
-        a["shallow"],
-        a["d_dof"],
-        a["d_law"],
-        a["d_p1"],
-        a["d_p2"],
-        a["fixed"],
-        a["f_const"] + load * a["b_load"],
-        u,
-        KD,
-        10,
-        1e-10 * params.F,
-        50,
+        a["elements"], a["discrete"], a["fixed"], a["f_const"] + load * a["b_load"], u, KD, 10, 1e-10 * params.F, 50
     )
     assert status == 0
     top = u[model.top_axial_dof]

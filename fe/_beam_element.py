@@ -9,6 +9,17 @@ algorithm.
 Conventions: node i carries the global dofs (3i, 3i+1, 3i+2) = (axial x,
 transverse y, rotation theta); element e joins nodes e and e+1.
 
+Every kernel takes the beam as two tuples (built once per parameter set by
+``BeamModel._arrays``):
+
+* ``elements = (X, Y, L0, c0, s0, t0, EA, EI, beta, shallow)``: the nodes'
+  reference coordinates X, Y [m] (n_nodes,), each element's reference length
+  L0 [m], chord cosine c0 and sine s0, reference end rotations t0 (n_el, 2)
+  [rad], the axial and bending stiffness EA [N] and EI [N m^2], the
+  Kelvin-Voigt ratio beta = eta_b / E [s] and the shallow-arch strain flag;
+* ``discrete = (d_dof, d_law, d_p1, d_p2)``: each discrete element's dof, law
+  (``LAW_*``) and its two constants (:class:`fe.model.DiscreteElement`).
+
 Element (Crisfield 1991, vol. 1, ch. 7; Battini 2002): the co-rotational frame
 follows the chord; the local deformations are the stretch u_l = L_n - L_0 and
 the end rotations relative to the chord t1, t2.  With ``shallow`` the local
@@ -60,8 +71,10 @@ def _arch(t1, t2):
 
 
 @njit(cache=True, error_model="numpy")
-def internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint):
+def internal_force(elements, discrete, u, v, fint):
     """Internal force only (the hot path of the transient: no allocation)."""
+    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow = elements
+    d_dof, d_law, d_p1, d_p2 = discrete
     ne = L0.shape[0]
     fint[:] = 0.0
     for e in range(ne):
@@ -119,15 +132,15 @@ def internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_
 
 
 @njit(cache=True)
-def assemble(
-    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint, want_k, kfac, cfac, band, kd
-):
+def assemble(elements, discrete, u, v, fint, want_k, kfac, cfac, band, kd):
     """Internal force (elastic + viscous + discrete elements) into ``fint``;
-    if ``want_k``, adds kfac * (K + cfac * C) into ``band``.
+    if ``want_k``, adds kfac * (K + cfac * C) into ``band`` (half-bandwidth ``kd``).
 
     K is d fint / d u (consistent, including the viscous force's dependence on
     the co-rotational frame), C is d fint / d v.
     """
+    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow = elements
+    d_dof, d_law, d_p1, d_p2 = discrete
     ne = L0.shape[0]
     fint[:] = 0.0
     B = np.empty((3, 6))
@@ -288,8 +301,10 @@ def assemble(
 
 
 @njit(cache=True)
-def strain_energy(X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, u):
+def strain_energy(elements, discrete, u):
     """Elastic energy of the beam elements and the discrete springs [J]."""
+    X, Y, L0, c0, s0, t0, EA, EI, _, shallow = elements
+    d_dof, d_law, d_p1, _ = discrete
     ne = L0.shape[0]
     energy = 0.0
     for e in range(ne):

@@ -35,14 +35,15 @@ def apply_dirichlet(band, kd, fixed):
 
 
 @njit(cache=True)
-def static_newton(
-    X, Y, L0, c0, s0, t0, EA, EI, shallow, d_dof, d_law, d_p1, d_p2, fixed, f_ext, u, kd, n_increments, tol, max_iter
-):
-    """Static equilibrium f_int(u) = f_ext by Newton with load increments.
+def static_newton(elements, discrete, fixed, f_ext, u, kd, n_increments, tol, max_iter):
+    """Static equilibrium f_int(u) = f_ext by Newton with load increments (``elements``,
+    ``discrete``: :mod:`fe._beam_element`; the viscosity plays no part).
 
     ``u`` is the start (modified in place).  Returns (status, iterations):
     status 0 converged, 1 no convergence, 2 singular tangent.
     """
+    X, Y, L0, c0, s0, t0, EA, EI, _, shallow = elements
+    elastic = (X, Y, L0, c0, s0, t0, EA, EI, 0.0, shallow)
     n = u.shape[0]
     v = np.zeros(n)
     fint = np.empty(n)
@@ -54,30 +55,7 @@ def static_newton(
         converged = False
         for it in range(max_iter):
             band[:, :] = 0.0
-            assemble(
-                X,
-                Y,
-                L0,
-                c0,
-                s0,
-                t0,
-                EA,
-                EI,
-                0.0,
-                shallow,
-                d_dof,
-                d_law,
-                d_p1,
-                d_p2,
-                u,
-                v,
-                fint,
-                True,
-                1.0,
-                0.0,
-                band,
-                kd,
-            )
+            assemble(elastic, discrete, u, v, fint, True, 1.0, 0.0, band, kd)
             rmax = 0.0
             for i in range(n):
                 res[i] = 0.0 if fixed[i] else lam * f_ext[i] - fint[i]
@@ -98,55 +76,28 @@ def static_newton(
 
 
 @njit(cache=True, error_model="numpy")
-def transient(
-    X,
-    Y,
-    L0,
-    c0,
-    s0,
-    t0,
-    EA,
-    EI,
-    beta,
-    shallow,
-    d_dof,
-    d_law,
-    d_p1,
-    d_p2,
-    fixed,
-    m_band,
-    f_const,
-    b_load,
-    force,
-    substeps,
-    dt,
-    alpha_m,
-    alpha_f,
-    gamma,
-    beta_n,
-    u,
-    v,
-    tol,
-    max_iter,
-    W,
-    axial_dof,
-    out_disp,
-    out_vel,
-    out_axial,
-):
+def transient(elements, discrete, fixed, m_band, loads, substeps, scheme, u, v, newton, W, axial_dof, outputs):
     """Generalized-alpha (Chung and Hulbert 1993) transient, the paper's eq. 4-10
     (inertia and internal/external forces weighted by alpha_m, alpha_f).
 
-    The force samples ``force`` (one per output sample, spacing ``substeps * dt``)
-    are interpolated linearly within a sample interval.  ``u, v`` are the initial
-    state (modified in place; the final state on return).  Outputs at every
-    sample: W @ u, W @ v and u[axial_dof].
+    ``elements``, ``discrete``: the beam (:mod:`fe._beam_element`); ``fixed`` the
+    fixed dofs, ``m_band`` the banded mass; ``loads = (f_const, b_load, force)``:
+    the constant load, the shaker's load vector and the force samples ``force``
+    (one per output sample, spacing ``substeps * dt``), interpolated linearly
+    within a sample interval; ``scheme = (dt, alpha_m, alpha_f, gamma, beta_n)``;
+    ``newton = (tol, max_iter)``.  ``u, v`` are the initial state (modified in
+    place; the final state on return).  ``outputs = (out_disp, out_vel,
+    out_axial)`` receive at every sample W @ u, W @ v and u[axial_dof].
 
     Newton with the consistent tangent, refactored whenever the residual has not
     dropped tenfold since the last iteration (else the factors are reused).
     Returns (status, failed_sample, iterations): status 0 ok, 1 no convergence,
     2 singular Newton matrix.
     """
+    f_const, b_load, force = loads
+    dt, alpha_m, alpha_f, gamma, beta_n = scheme
+    tol, max_iter = newton
+    out_disp, out_vel, out_axial = outputs
     n = u.shape[0]
     kd = m_band.shape[1] // 2
     ns = force.shape[0]
@@ -166,7 +117,7 @@ def transient(
     atmp = np.empty(n)
     band = np.empty((n, 2 * kd + 1))
     # initial acceleration: M a0 = f_ext(0) - f_int(u0, v0)
-    internal_force(X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u, v, fint_old)
+    internal_force(elements, discrete, u, v, fint_old)
     for i in range(n):
         a[i] = 0.0 if fixed[i] else f_const[i] + b_load[i] * force[0] - fint_old[i]
     band[:, :] = m_band
@@ -200,9 +151,7 @@ def transient(
                     a_new[i] = (u_new[i] - u[i] - dt * v[i] - dt * dt * (0.5 - beta_n) * a[i]) / (beta_n * dt * dt)
                     v_new[i] = v[i] + dt * ((1.0 - gamma) * a[i] + gamma * a_new[i])
                     atmp[i] = (1.0 - alpha_m) * a_new[i] + alpha_m * a[i]
-                internal_force(
-                    X, Y, L0, c0, s0, t0, EA, EI, beta, shallow, d_dof, d_law, d_p1, d_p2, u_new, v_new, fint
-                )
+                internal_force(elements, discrete, u_new, v_new, fint)
                 band_matvec(m_band, kd, atmp, ma)
                 rmax = 0.0
                 for i in range(n):
@@ -225,30 +174,7 @@ def transient(
                     for i in range(n):
                         for j in range(2 * kd + 1):
                             band[i, j] = mfac * m_band[i, j]
-                    assemble(
-                        X,
-                        Y,
-                        L0,
-                        c0,
-                        s0,
-                        t0,
-                        EA,
-                        EI,
-                        beta,
-                        shallow,
-                        d_dof,
-                        d_law,
-                        d_p1,
-                        d_p2,
-                        u_new,
-                        v_new,
-                        fint,
-                        True,
-                        kfac,
-                        cfac,
-                        band,
-                        kd,
-                    )
+                    assemble(elements, discrete, u_new, v_new, fint, True, kfac, cfac, band, kd)
                     apply_dirichlet(band, kd, fixed)
                     if band_lu(band, kd) >= 0:
                         return 2, k + 1, iterations

@@ -79,12 +79,21 @@ def _accel(kappa, b, beta, q, qd, a, N, f, out):
 
 
 @njit(cache=True)
-def _transient(kappa, G, g0, b, W, beta, kb, F, ks, c, force, ns, substeps, h, q, qd, U, out_d, out_v, out_a):
+def _transient(reduced, W, top, force, ns, substeps, h, state, outputs):
     """RK4 in (q, q') with the top state U integrated exactly for an
-    interpolated drive (see :func:`_top_weights`).  ``force`` holds the force
-    at every RK4 stage time, 2 substeps points per sample.  Outputs W q, W q'
-    and U at each of the ``ns`` samples; ``q``, ``qd`` hold the final state on
-    return."""
+    interpolated drive (see :func:`_top_weights`).
+
+    ``reduced = (kappa, G, g0, b)``: the reduced beam (:class:`fe.rom_basis.ReducedSystem`);
+    ``top = (beta, kb, F, ks, c)``: the Kelvin-Voigt ratio [s], the beam's axial
+    stiffness, the preload, the top spring and damper; ``force`` holds the force
+    at every RK4 stage time, 2 substeps points per sample, ``h`` the step [s];
+    ``state = (q, qd, U)`` the start (``q``, ``qd`` hold the final state on
+    return).  ``outputs = (out_d, out_v, out_a)`` receive W q, W q' and U at
+    each of the ``ns`` samples."""
+    kappa, G, g0, b = reduced
+    beta, kb, F, ks, c = top
+    q, qd, U = state
+    out_d, out_v, out_a = outputs
     n = q.shape[0]
     nout = W.shape[0]
     bkb = beta * kb

@@ -49,30 +49,7 @@ class BeamEquilibrium:
             u[0::3] = -p * self.node_x / self.rig.EA  # uniform compression by p
             band = np.zeros((n, 2 * KD + 1))
             fint = np.empty(n)
-            K.assemble(
-                a["X"],
-                a["Y"],
-                a["L0"],
-                a["c0"],
-                a["s0"],
-                a["t0"],
-                a["EA"],
-                a["EI"],
-                0.0,
-                a["shallow"],
-                a["d_dof"],
-                a["d_law"],
-                a["d_p1"],
-                a["d_p2"],
-                u,
-                np.zeros(n),
-                fint,
-                True,
-                1.0,
-                0.0,
-                band,
-                KD,
-            )
+            K.assemble(a["elements"], a["discrete"], u, np.zeros(n), fint, True, 1.0, 0.0, band, KD)
             return band_to_dense(band, KD)[np.ix_(free, free)]
 
         p_ref = 1.0
@@ -96,28 +73,7 @@ class BeamEquilibrium:
         u = np.zeros(n)
         tol = self.newton_rtol * params.F + self._roundoff_force
         n_inc = 1 if not self.effects else 10
-        status, _ = K.static_newton(
-            a["X"],
-            a["Y"],
-            a["L0"],
-            a["c0"],
-            a["s0"],
-            a["t0"],
-            a["EA"],
-            a["EI"],
-            a["shallow"],
-            a["d_dof"],
-            a["d_law"],
-            a["d_p1"],
-            a["d_p2"],
-            a["fixed"],
-            a["f_const"],
-            u,
-            KD,
-            n_inc,
-            tol,
-            50,
-        )
+        status, _ = K.static_newton(a["elements"], a["discrete"], a["fixed"], a["f_const"], u, KD, n_inc, tol, 50)
         if status != 0:
             raise ConvergenceError(
                 f"static Newton solve of the preloaded equilibrium failed (status {status}) at "

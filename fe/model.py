@@ -186,21 +186,20 @@ class BeamModel(BeamEquilibrium, BeamTransient):
             mband[dof, KD] += mass
         laws = DiscreteElement._LAWS
         d = system.discrete
+        beta = rig.beam_viscosity(params.eta) / rig.youngs_modulus_pa
+        shallow = self.formulation == "shallow_arch"
         return dict(
             X=X,
             Y=Y,
             L0=L0,
-            c0=c0,
-            s0=s0,
-            t0=t0,
-            EA=rig.EA,
-            EI=rig.EI,
-            beta=rig.beam_viscosity(params.eta) / rig.youngs_modulus_pa,
-            shallow=self.formulation == "shallow_arch",
-            d_dof=np.array([e.dof for e in d], dtype=np.int64),
-            d_law=np.array([laws[e.law] for e in d], dtype=np.int64),
-            d_p1=np.array([e.p1 for e in d], dtype=float),
-            d_p2=np.array([e.p2 for e in d], dtype=float),
+            # the kernels' two tuples (fe._beam_element): the beam elements, the discrete ones
+            elements=(X, Y, L0, c0, s0, t0, float(rig.EA), float(rig.EI), float(beta), bool(shallow)),
+            discrete=(
+                np.array([e.dof for e in d], dtype=np.int64),
+                np.array([laws[e.law] for e in d], dtype=np.int64),
+                np.array([e.p1 for e in d], dtype=float),
+                np.array([e.p2 for e in d], dtype=float),
+            ),
             fixed=system.fixed.astype(np.bool_),
             m_band=mband,
             f_const=np.asarray(system.f_const, float),
@@ -222,30 +221,7 @@ class BeamModel(BeamEquilibrium, BeamTransient):
 
         def tangent(cfac):
             band = np.zeros((n, 2 * KD + 1))
-            K.assemble(
-                a["X"],
-                a["Y"],
-                a["L0"],
-                a["c0"],
-                a["s0"],
-                a["t0"],
-                a["EA"],
-                a["EI"],
-                a["beta"],
-                a["shallow"],
-                a["d_dof"],
-                a["d_law"],
-                a["d_p1"],
-                a["d_p2"],
-                u,
-                v,
-                fint,
-                True,
-                1.0,
-                cfac,
-                band,
-                KD,
-            )
+            K.assemble(a["elements"], a["discrete"], u, v, fint, True, 1.0, cfac, band, KD)
             return band_to_dense(band, KD)
 
         Kt = tangent(0.0)
@@ -264,21 +240,7 @@ class BeamModel(BeamEquilibrium, BeamTransient):
         system = self.describe(params)
         a = self._arrays(system, params)
         mv = band_to_dense(a["m_band"], KD) @ v
-        strain = K.strain_energy(
-            a["X"],
-            a["Y"],
-            a["L0"],
-            a["c0"],
-            a["s0"],
-            a["t0"],
-            a["EA"],
-            a["EI"],
-            a["shallow"],
-            a["d_dof"],
-            a["d_law"],
-            a["d_p1"],
-            u,
-        )
+        strain = K.strain_energy(a["elements"], a["discrete"], u)
         return float(0.5 * v @ mv + strain - a["f_const"] @ u)
 
 

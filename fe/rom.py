@@ -225,26 +225,15 @@ class ModalROM(ROMBasis, ROMEquilibrium):
         out_v = np.empty((ns, positions.size))
         out_a = np.empty(ns)
         _transient(
-            red.kappa,
-            red.G,
-            red.g0,
-            red.b,
+            (red.kappa, red.G, red.g0, red.b),
             W,
-            beta,
-            rig.axial_stiffness,
-            params.F,
-            params.k_s,
-            params.c,
+            (beta, rig.axial_stiffness, params.F, params.k_s, params.c),
             upsample(force, 2 * substeps, self.input_interpolation),
             ns,
             substeps,
             1.0 / (fs * substeps),
-            q,
-            qd,
-            st.top_displacement,
-            out_d,
-            out_v,
-            out_a,
+            (q, qd, st.top_displacement),
+            (out_d, out_v, out_a),
         )
         if not (np.isfinite(out_v[-1]).all() and np.isfinite(out_a[-1])):
             raise ConvergenceError(

@@ -140,25 +140,7 @@ def test_independent_element_has_fe_forces():
     u[-2:] = 0.0
     a = m._arrays(m.describe(PAPER), PAPER)
     ours = np.empty(beam.n)
-    K.internal_force(
-        a["X"],
-        a["Y"],
-        a["L0"],
-        a["c0"],
-        a["s0"],
-        a["t0"],
-        a["EA"],
-        a["EI"],
-        a["beta"],
-        a["shallow"],
-        a["d_dof"],
-        a["d_law"],
-        a["d_p1"],
-        a["d_p2"],
-        u,
-        v,
-        ours,
-    )
+    K.internal_force(a["elements"], a["discrete"], u, v, ours)
     theirs = beam.internal_force(u, v)
     assert np.max(np.abs(ours - theirs)) < 1e-12 * np.max(np.abs(theirs))
     k_t, _ = beam.tangents(u, v)

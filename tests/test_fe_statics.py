@@ -112,13 +112,9 @@ def test_fast_force_kernel_equals_assembly_force():
     a = model._arrays(model.describe(params), params)
     rng = np.random.default_rng(2)
     u, v = 1e-3 * rng.standard_normal(model.n_dof), rng.standard_normal(model.n_dof)
-    args = [
-        a[k]
-        for k in ("X", "Y", "L0", "c0", "s0", "t0", "EA", "EI", "beta", "shallow", "d_dof", "d_law", "d_p1", "d_p2")
-    ]
     f1, f2 = np.empty(model.n_dof), np.empty(model.n_dof)
-    K.internal_force(*args, u, v, f1)
-    K.assemble(*args, u, v, f2, False, 0.0, 0.0, np.empty((1, 1)), 5)
+    K.internal_force(a["elements"], a["discrete"], u, v, f1)
+    K.assemble(a["elements"], a["discrete"], u, v, f2, False, 0.0, 0.0, np.empty((1, 1)), 5)
     np.testing.assert_allclose(f1, f2, rtol=1e-10, atol=1e-9)
 
 
@@ -134,28 +130,7 @@ def test_cantilever_large_deflection_against_elastica(load_parameter):
     f_ext = np.zeros(model.n_dof)
     f_ext[tip + 1] = load_parameter * RIG.EI / RIG.length_m**2
     u = np.zeros(model.n_dof)
-    status, _ = K.static_newton(
-        a["X"],
-        a["Y"],
-        a["L0"],
-        a["c0"],
-        a["s0"],
-        a["t0"],
-        a["EA"],
-        a["EI"],
-        a["shallow"],
-        a["d_dof"],
-        a["d_law"],
-        a["d_p1"],
-        a["d_p2"],
-        a["fixed"],
-        f_ext,
-        u,
-        5,
-        20,
-        1e-7,
-        50,
-    )
+    status, _ = K.static_newton(a["elements"], a["discrete"], a["fixed"], f_ext, u, 5, 20, 1e-7, 50)
     assert status == 0
     deflection, shortening = cantilever_elastica(load_parameter)
     assert u[tip + 1] / RIG.length_m == pytest.approx(deflection, rel=0.01)

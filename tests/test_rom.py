@@ -124,28 +124,7 @@ def fe_static(model, params, shaker_force):
     a = model._arrays(system, params)
     u = np.zeros(model.n_dof)
     f_ext = a["f_const"] + shaker_force * a["b_load"]
-    status, _ = K.static_newton(
-        a["X"],
-        a["Y"],
-        a["L0"],
-        a["c0"],
-        a["s0"],
-        a["t0"],
-        a["EA"],
-        a["EI"],
-        a["shallow"],
-        a["d_dof"],
-        a["d_law"],
-        a["d_p1"],
-        a["d_p2"],
-        a["fixed"],
-        f_ext,
-        u,
-        KD,
-        10,
-        1e-10 * params.F,
-        50,
-    )
+    status, _ = K.static_newton(a["elements"], a["discrete"], a["fixed"], f_ext, u, KD, 10, 1e-10 * params.F, 50)
     assert status == 0
     return u, a
 
