@@ -17,6 +17,9 @@ under one opens under the other (``az.from_netcdf`` on 0.x,
 
 from __future__ import annotations
 
+import warnings
+from contextlib import contextmanager
+
 import numpy as np
 
 
@@ -48,6 +51,15 @@ def _stats():
     return arviz_stats
 
 
+@contextmanager
+def _many_chains():
+    """ArviZ 0.x warns when the chains outnumber the draws: the package's kept draws are many
+    walkers (each a chain) of a few thinned draws each, on purpose (:mod:`.mcmc`)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="More chains", category=UserWarning)
+        yield
+
+
 def from_dict(groups: dict, dims: dict, coords: dict, attrs: dict):
     """A posterior's InferenceData (0.x) or DataTree (1.x).
 
@@ -58,7 +70,8 @@ def from_dict(groups: dict, dims: dict, coords: dict, attrs: dict):
     if LINE == 0:
         import arviz as az
 
-        return az.from_dict(**groups, dims=dims, coords=coords, attrs=dict(attrs))
+        with _many_chains():
+            return az.from_dict(**groups, dims=dims, coords=coords, attrs=dict(attrs))
     import arviz_base
 
     tree = arviz_base.from_dict(groups, dims=dims, coords=coords)
@@ -80,15 +93,17 @@ def add_group(idata, name: str, variables: dict, dims: dict) -> None:
 
 def rhat(values) -> float:
     """Rank-normalised split R-hat of a (chain, draw) array."""
-    return float(_stats().rhat(np.asarray(values, float), method="rank"))
+    with _many_chains():
+        return float(_stats().rhat(np.asarray(values, float), method="rank"))
 
 
 def ess(values, method: str) -> float:
     """Bulk or tail effective sample size of a (chain, draw) array."""
     values = np.asarray(values, float)
-    if method == "tail" and LINE == 1:
-        return float(_stats().ess(values, method="tail", prob=TAIL_QUANTILES))
-    return float(_stats().ess(values, method=method))
+    with _many_chains():
+        if method == "tail" and LINE == 1:
+            return float(_stats().ess(values, method="tail", prob=TAIL_QUANTILES))
+        return float(_stats().ess(values, method=method))
 
 
 def hdi(values, prob: float) -> tuple[float, float]:
@@ -109,7 +124,8 @@ def summary(idata, prob: float):
     if LINE == 0:
         import arviz as az
 
-        s = az.summary(idata, hdi_prob=prob, round_to="none")
+        with _many_chains():
+            s = az.summary(idata, hdi_prob=prob, round_to="none")
         lo, hi = f"hdi_{100 * (1 - prob) / 2:g}%", f"hdi_{100 * (1 + prob) / 2:g}%"
     else:
         s = _stats().summary(idata, ci_kind="hdi", ci_prob=prob, round_to="none")

@@ -28,7 +28,8 @@ class PosteriorSettings:
     n_rounds: int = 12  # refinement rounds (at most, with stop_tolerance)
     batch: int = 0  # points per round (0: 2 per parameter)
     stop_tolerance: float = 0.1  # > 0: the design stops when the surrogate posterior's means move less than
-    #                             this many sd and its sds less than this share, twice in a row (0: all rounds)
+    #                             this many sd and its sds less than this share, twice in a row, or once
+    #                             by a tenth of it (design._Stability; 0: all rounds)
     box_sd: float = 4.0  # half-width of the local box [Laplace marginal sd]
     # the GPs' prior mean: "gauss_newton", each stage's z as the MAP's residual and Jacobian
     # predict it (design.GaussNewtonMean; the GP models the rest), or "constant"
