@@ -14,6 +14,7 @@ from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_s
 from .fit import coordinate_rms, element_bounds, fit_outputs
 from .joints import check_driving_point, joint_matrices
 from .residual_modes import excited_top, fit_residual_modes
+from .signature import diagnose, signature
 from .spec import (
     ELEMENTS,
     KINDS,
@@ -217,31 +218,25 @@ class ModalModel:
         return {p.name: [p] for p in self._candidate_parameters}
 
     def diagnose(self, dataset, theta, basis=None) -> dict:
-        """Every mode's frequency and damping in every test, measured and of the model at ``theta``
-        (:func:`~bayes_update.models.modal.signature.diagnose`; ``basis`` unused)."""
-        from .signature import diagnose
-
+        """Every mode's frequency and damping in every test, and the periodic tests' distortion,
+        measured and of the model at ``theta`` (:mod:`bayes_update.models.modal.signature`; ``basis`` unused)."""
         return diagnose(self, dataset, theta)
 
     def diagnostics_figure(self, diagnostics: dict):
-        """:meth:`diagnose`'s result drawn (:func:`~bayes_update.models.modal.figures.diagnostics_figure`)."""
-        from .figures import diagnostics_figure
+        """:meth:`diagnose`'s result drawn (:func:`bayes_update.models.modal.figures.diagnostics_figure`)."""
+        from .figures import diagnostics_figure  # matplotlib, imported where a figure is drawn
 
         return diagnostics_figure(diagnostics)
 
     def signature(self, effect: str, diagnostics: dict, gap: dict):
-        """(key, meaning, value): the mismatch a candidate element should shrink
-        (:func:`~bayes_update.models.modal.signature.signature`)."""
-        from .signature import signature
-
+        """(key, meaning, value): what an element should shrink (:mod:`~bayes_update.models.modal.signature`)."""
         return signature(self, effect, diagnostics)
 
     def refined(self) -> "ModalModel":
-        """The same model with twice the RK4 substeps (the framework's model-error term).
-        RK4's error falls 16-fold when its steps halve, so the difference from this
-        model is some 15/16 of the model's own time-step error; its linear modes are
-        exact at any step and do not change.  With a clearance the error falls some 4-fold
-        on average but erratically (:mod:`.dynamics`): the difference is its size, roughly."""
+        """The same model with twice the RK4 substeps (the framework's model-error term). RK4's error
+        falls 16-fold when its steps halve, so the difference from this model is some 15/16 of the
+        model's own time-step error; its linear modes are exact at any step and do not change.  With a
+        clearance the error falls some 4-fold on average but erratically (:mod:`.dynamics`)."""
         finer = copy.copy(self)
         finer.substeps = 2 * self.substeps
         return finer
