@@ -34,7 +34,9 @@ spring kt in series with a slider that slips when the spring's stretch x - z
 reaches +-slip, z the slider's travel; the mode's linear stiffness holds kt, so
 the element adds nothing while it sticks and takes kt away as it slips: a joint's
 micro-slip, its frequency falling and its damping rising with amplitude, the
-loop's area 4 kt slip (X - slip) a cycle of amplitude X), per unit modal mass;
+loop's area 4 kt slip (X - slip) a cycle of amplitude X) and ``iwan`` (an Iwan
+element: four Jenkins sliders of kt / 4 each, slipping at a quarter, half, three
+quarters and all of its slip: a slip spread over a range of levels), per unit modal mass;
 the friction's v0 [m/s], the clearance's gap [m] and the Jenkins element's slip
 [m] are constants the user gives (``Nonlinearity("friction", at="acc1",
 v0=1e-3)``), not parameters (:meth:`ModalModel.coordinate_rms` gives their

@@ -34,7 +34,7 @@ import numpy as np
 from bayes_update.core.model_errors import ModelError
 
 from . import _kernels
-from .spec import ELEMENTS
+from .spec import COLUMNS, ELEMENTS
 
 __all__ = [
     "STEP_RAD",
@@ -260,7 +260,7 @@ def _loop_shapes(shapes) -> np.ndarray:
 
 def _named(coefficients) -> str:
     """``k3 = 1e+09 1/(m^2 s^2), ...``: a place's coefficients that are not 0, for a message."""
-    named = [f"{k} = {c:.4g} {ELEMENTS[k][1]}" for k, c in zip(ELEMENTS, coefficients) if c != 0]
+    named = [f"{k} = {c:.4g} {ELEMENTS[k][1]}" for k, c in zip(COLUMNS, coefficients) if c != 0]
     return ", ".join(named) or "every element at its null"
 
 

@@ -144,7 +144,7 @@ def element_bounds(
     of the stiffness force at the rms x), c3 in [0, top] (:data:`DAMPING_FACTOR` times the
     damping force at the rms x'), a friction's F in [0, :data:`ELEMENT_SHARE` of the stiffness
     force at the rms x], a clearance's kc in [0, :data:`CONTACT_FACTOR` times the stiffness]
-    (whatever its gap), a Jenkins element's kt in [0, :data:`SLIP_SHARE` of the stiffness] (whatever
+    (whatever its gap), a Jenkins or Iwan element's kt in [0, :data:`SLIP_SHARE` of the stiffness] (whatever
     its slip).  In a mode: x = q, stiffness w^2, damping 2 zeta w.  At a
     sensor's point j (``coefficients`` (M, S), ``sensors``, ``driving`` the driving point's
     index; :mod:`.joints`): x = sum_m c_mj q_m (between the points of sensors i and j: c_mi - c_mj
@@ -174,7 +174,7 @@ def element_bounds(
             out[e.name] = (0.0, ELEMENT_SHARE * stiffness * x_rms)
         elif e.kind == "clearance":
             out[e.name] = (0.0, CONTACT_FACTOR * stiffness)
-        elif e.kind == "jenkins":
+        elif e.kind in ("jenkins", "iwan"):
             out[e.name] = (0.0, SLIP_SHARE * stiffness)
         else:
             power = 2 if e.kind == "k3" else 1

@@ -45,11 +45,13 @@ share of the mode's largest shape seen): the share c_mj / c_md would then be of 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from .spec import SHAPES
+from .spec import COLUMNS, IWAN_SLIDERS, SHAPE_COLUMNS, SHAPES, column, shape_column
 
-__all__ = ["DRIVING_SHARE", "check_driving_point", "joint_matrices", "point_weights"]
+__all__ = ["DRIVING_SHARE", "check_driving_point", "joint_matrices", "place_values", "point_weights"]
 
 #: the smallest c_md / max_s abs(c_ms) of a mode at the driving point (phi_dm / max_s abs(phi_sm)): below it
 #: the mode is not seen where the force acts, and its share of a joint's force (1 / phi_dm) not known
@@ -91,22 +93,59 @@ def joint_matrices(elements: tuple, sensors: tuple, coefficients: np.ndarray, dr
     names that carry one (P,), ``weights`` (P, M) with x_j = weights[j] @ r (c_mj), ``shares``
     (P, M) the share of point j's force in mode m's equation (c_mj / c_md), ``shapes`` (P, 3) the
     shape constants of its friction, clearance and Jenkins element (v0 [m/s], gap [m], slip [m]; 0
-    where there is none).  A point is a sensor's name, or ``"i-j"`` for an element between two."""
+    where there is none).  A point is a sensor's name, or ``"i-j"`` for an element between two.
+    An Iwan element, at a point or in a mode, is :data:`~.spec.IWAN_SLIDERS` rows of its own,
+    ``"<its name>[i]"``, one Jenkins slider each (in a mode: weights and shares pick the mode)."""
     names = [n for n, _ in sensors]
-    ends = {e.point: (e.at, e.to) for e in elements if e.at is not None}
-    points = tuple(ends)
+    ends = {e.point: (e.at, e.to) for e in elements if e.at is not None and e.kind != "iwan"}
+    iwans = [e for e in elements if e.kind == "iwan"]
+    points = tuple(ends) + tuple(row for e in iwans for row in _iwan_rows(e))
     M = coefficients.shape[0]
     weights, shares = np.zeros((len(points), M)), np.zeros((len(points), M))
-    shapes = np.zeros((len(points), len(SHAPES)))
+    shapes = np.zeros((len(points), len(SHAPE_COLUMNS)))
     for e in elements:
-        if e.at is not None and e.kind in SHAPES:
-            shapes[points.index(e.point), list(SHAPES).index(e.kind)] = e.shape
-    for p, name in enumerate(points):
+        if e.kind == "iwan":
+            rows = [points.index(row) for row in _iwan_rows(e)]
+            shapes[rows, shape_column("iwan")] = e.shape * np.arange(1, IWAN_SLIDERS + 1) / IWAN_SLIDERS
+            w = np.eye(M)[e.index] if e.at is None else point_weights(coefficients, names, e.at, e.to)
+            weights[rows] = w
+            shares[rows] = w if e.at is None else w / coefficients[:, driving]
+        elif e.at is not None and e.kind in SHAPES:
+            shapes[points.index(e.point), shape_column(e.kind)] = e.shape
+    for p, name in enumerate(ends):
         weights[p] = point_weights(coefficients, names, *ends[name])
         shares[p] = weights[p] / coefficients[:, driving]
+    for p, name in enumerate(points):
         if not np.any(weights[p]):
             raise ValueError(f"nonlinear: sensor(s) {name!r} see no mode (its coefficients are all 0): no joint there")
     return points, weights, shares, shapes
+
+
+def _iwan_rows(element) -> list:
+    """The names of an Iwan element's slider rows."""
+    return [f"{element.name}[{i}]" for i in range(IWAN_SLIDERS)]
+
+
+def place_values(elements: tuple, theta, candidates: tuple, points: tuple) -> tuple:
+    """``({mode index: (coefficients (6,), shapes (3,))}, values (P, 6))``: each element's
+    coefficient at ``theta`` in its place's integrator column (:data:`~.spec.COLUMNS`), a mode's
+    own or its point's row; an Iwan element's kt split evenly over its sliders' rows; a candidate
+    absent from ``theta`` at its null 0."""
+    modes, values = {}, np.zeros((len(points), len(COLUMNS)))
+    for e in elements:
+        value = float(theta.get(e.name, 0.0) if e in candidates else theta[e.name])
+        if not math.isfinite(value):
+            raise ValueError(f"theta['{e.name}'] = {value!r} {e.unit}: must be finite")
+        if e.kind == "iwan":
+            values[[points.index(row) for row in _iwan_rows(e)], column("iwan")] = value / IWAN_SLIDERS
+        elif e.at is not None:
+            values[points.index(e.point), column(e.kind)] = value
+        else:
+            c, shapes = modes.setdefault(e.index, (np.zeros(len(COLUMNS)), np.zeros(len(SHAPE_COLUMNS))))
+            c[column(e.kind)] = value
+            if e.kind in SHAPES:
+                shapes[shape_column(e.kind)] = e.shape
+    return modes, values
 
 
 def point_weights(coefficients: np.ndarray, names: list, at: str, to: str | None = None) -> np.ndarray:

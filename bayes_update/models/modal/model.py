@@ -12,11 +12,10 @@ import numpy as np
 
 from .dynamics import Coupling, mode_responses, outputs, residual_columns, rk4_substeps, step_rate_hz
 from .fit import coordinate_rms, element_bounds, fit_outputs
-from .joints import check_driving_point, joint_matrices
+from .joints import check_driving_point, joint_matrices, place_values
 from .residual_modes import excited_top, fit_residual_modes
 from .signature import diagnose, signature
 from .spec import (
-    ELEMENTS,
     KINDS,
     SHAPES,
     check_candidates,
@@ -156,8 +155,7 @@ class ModalModel:
 
     def _values(self, theta) -> tuple:
         """Frequencies [Hz], damping ratios [-], ``{mode index: (coefficients (6,), shapes (3,))}``
-        and the joints' (P, 6) coefficients at their points at theta (the columns: :data:`ELEMENTS`,
-        :data:`SHAPES`)."""
+        and the joints' (P, 6) coefficients at their points at theta (:func:`~.joints.place_values`)."""
         if not isinstance(theta, Mapping):
             raise ValueError(f"theta must map each parameter name to a value, got {type(theta).__name__}")
         missing = [p.name for p in self.parameters if p.name not in theta]
@@ -171,19 +169,7 @@ class ModalModel:
             if not (0 < z < 1):
                 raise ValueError(f"theta['zeta{k}'] = {z!r}: a damping ratio must lie in (0, 1)")
             f_hz[k - 1], zeta[k - 1] = f, z
-        elements, values = {}, np.zeros((len(self._points), len(ELEMENTS)))
-        for e in self.nonlinear + self.candidates:
-            value = float(theta.get(e.name, 0.0) if e in self.candidates else theta[e.name])
-            if not math.isfinite(value):
-                raise ValueError(f"theta['{e.name}'] = {value!r} {e.unit}: must be finite")
-            kind = list(ELEMENTS).index(e.kind)
-            if e.at is not None:
-                values[self._points.index(e.point), kind] = value
-                continue
-            c, shapes = elements.setdefault(e.index, (np.zeros(len(ELEMENTS)), np.zeros(len(SHAPES))))
-            c[kind] = value
-            if e.kind in SHAPES:
-                shapes[list(SHAPES).index(e.kind)] = e.shape
+        elements, values = place_values(self.nonlinear + self.candidates, theta, self.candidates, self._points)
         return f_hz, zeta, elements, values
 
     def _f_top(self, m: int) -> float:

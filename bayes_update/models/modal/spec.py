@@ -22,6 +22,11 @@ __all__ = [
     "KINDS",
     "ELEMENTS",
     "SHAPES",
+    "IWAN_SLIDERS",
+    "COLUMNS",
+    "SHAPE_COLUMNS",
+    "column",
+    "shape_column",
     "Nonlinearity",
     "check_modes",
     "check_sensors",
@@ -46,6 +51,7 @@ ELEMENTS = {
     "friction": ("smooth Coulomb friction F tanh(x'/v0)", "m/s^2"),
     "clearance": ("contact spring kc (x - gap) for x > gap, kc (x + gap) for x < -gap, 0 between", "1/s^2"),
     "jenkins": ("Jenkins element: a spring kt in series with a slider, -kt z, z the slider's travel", "1/s^2"),
+    "iwan": ("Iwan element: Jenkins elements in parallel, each kt / n, their slips spread to slip", "1/s^2"),
 }
 #: the elements with a shape constant, fixed by the user (an argument of :class:`Nonlinearity`, not a
 #: parameter): its name, SI unit and meaning; in this order in the integrator's rows of constants
@@ -53,7 +59,26 @@ SHAPES = {
     "friction": ("v0", "m/s", "its smoothing velocity (the force is 76 % of F at x' = v0)"),
     "clearance": ("gap", "m", "the half-width of its gap (contact from |x| = gap on)"),
     "jenkins": ("slip", "m", "its spring's stretch at which the slider slips (slip force kt x slip)"),
+    "iwan": ("slip", "m", "the largest of its sliders' slips (they slip at slip / n, 2 slip / n, ..., slip)"),
 }
+#: an Iwan element's Jenkins sliders n: each of stiffness kt / n, their slips slip i / n (i = 1 .. n), so
+#: that its joint slips over a range of levels (one Jenkins element slips at one)
+IWAN_SLIDERS = 4
+#: the integrator's columns of coefficients and of shape constants (an Iwan element is Jenkins rows)
+COLUMNS = ("k2", "k3", "c3", "friction", "clearance", "jenkins")
+SHAPE_COLUMNS = ("friction", "clearance", "jenkins")
+
+
+def column(kind: str) -> int:
+    """The integrator's column of an element's coefficient (an Iwan element's: the Jenkins')."""
+    return COLUMNS.index("jenkins" if kind == "iwan" else kind)
+
+
+def shape_column(kind: str) -> int:
+    """The integrator's column of an element's shape constant (an Iwan element's: the Jenkins')."""
+    return SHAPE_COLUMNS.index("jenkins" if kind == "iwan" else kind)
+
+
 #: default prior of an updated mode: frequency within +-5 %, damping ratio x0.5..x2 (log-uniform;
 #: below 1 always: its top is at most halfway from the damping ratio to critical damping)
 FREQ_SPAN = 0.05
@@ -63,8 +88,8 @@ DAMPING_SPAN = 2.0
 @dataclass(frozen=True)
 class Nonlinearity:
     """A nonlinear element, ``kind`` one of :data:`ELEMENTS` (``"k2"``, ``"k3"``, ``"c3"``,
-    ``"friction"``, ``"clearance"``, ``"jenkins"``), either in the equation of mode ``mode`` (1-based; its modal
-    coordinate's force) or ``at`` a sensor (its name: a joint at the point that sensor measures,
+    ``"friction"``, ``"clearance"``, ``"jenkins"``, ``"iwan"``), either in the equation of mode ``mode``
+    (1-based; its modal coordinate's force) or ``at`` a sensor (its name: a joint at the point that sensor measures,
     acting on every mode through that point's displacement, :mod:`bayes_update.models.modal.joints`),
     or between the points of sensors ``at`` and ``to`` (x the displacement of the first relative to
     the second: a joint that holds one body on another).
@@ -72,7 +97,8 @@ class Nonlinearity:
     :attr:`unit`, null (switched off) at 0.  A friction takes its smoothing velocity ``v0`` [m/s]
     (``Nonlinearity("friction", at="acc1", v0=1e-3)``), a clearance the half-width of its gap
     ``gap`` [m] (``Nonlinearity("clearance", 1, gap=2e-4)``), a Jenkins element the stretch ``slip`` [m]
-    at which it slips (``Nonlinearity("jenkins", 2, slip=5e-4)``): constants of the model (:data:`SHAPES`)."""
+    at which it slips (``Nonlinearity("jenkins", 2, slip=5e-4)``), an Iwan element the largest slip of its
+    :data:`IWAN_SLIDERS` sliders (``Nonlinearity("iwan", 2, slip=1e-3)``): constants of the model (:data:`SHAPES`)."""
 
     kind: str
     mode: int | None = None
