@@ -138,26 +138,32 @@ LINE_STYLE = {
 }
 
 
-def plot_distortion(dataset, sensor: str, inspection: dict):
-    """The lines of every periodic test at ``sensor``: the excited lines, the unexcited
-    odd and even lines (the linear response to the force's content on them taken out)
-    and the noise of the period mean on every line (grey), in dB of ``sensor``'s unit
-    (:func:`volterra.distortion`); None where no test was read."""
+def read_distortions(dataset, inspection: dict) -> dict:
+    """{test file: :class:`volterra.Distortion`} of the tests the inspection read (its
+    ``distortion`` entry holds numbers, not the line spectra the figure draws), by level."""
     from volterra.distortion import distortion
 
     fs = float(dataset.sampling_rate_hz)
-    tests = [
-        t
-        for t in _by_level(dataset)
-        if (inspection["tests"][t.file].get("distortion") or {}).get("sensors") is not None
-    ]
+    out = {}
+    for t in _by_level(dataset):
+        if (inspection["tests"][t.file].get("distortion") or {}).get("sensors") is not None:
+            layout = find_periods(t.force, t.period_samples)
+            out[t.file] = distortion(t.force, t.response, fs, layout, sensors=[n for n, _ in t.sensors])
+    return out
+
+
+def plot_distortion(dataset, sensor: str, distortions: dict):
+    """The lines of every periodic test at ``sensor`` (``distortions``: :func:`read_distortions`):
+    the excited lines, the unexcited odd and even lines (the linear response to the force's
+    content on them taken out) and the noise of the period mean on every line (grey), in dB of
+    ``sensor``'s unit (:func:`volterra.distortion`); None where no test was read."""
+    tests = [t for t in _by_level(dataset) if t.file in distortions]
     if not tests:
         return None
     fig = Figure(figsize=(9, 2.6 * len(tests)), constrained_layout=True)
     axes = np.atleast_1d(fig.subplots(len(tests), 1, squeeze=False)[:, 0])
     for ax, t in zip(axes, tests):
-        layout = find_periods(t.force, t.period_samples)
-        d = distortion(t.force, t.response, fs, layout, sensors=[n for n, _ in t.sensors])
+        d = distortions[t.file]
         noise_f, noise_p = [], []
         for cls, f in d.lines.items():
             power, noise = d.power[sensor][cls]
@@ -196,8 +202,9 @@ def write_inspection(dataset, out, inspection: dict | None = None, noise: dict |
     channels = ["force"] + [name for name, _ in dataset.sensors]
     figures.update({f"noise_{ch}.png": plot_noise(dataset, ch, noise) for ch in channels})
     figures["modes.png"] = plot_modes(dataset, inspection)
+    distortions = read_distortions(dataset, inspection)
     for name, _ in dataset.sensors:
-        fig = plot_distortion(dataset, name, inspection)
+        fig = plot_distortion(dataset, name, distortions)
         if fig is not None:
             figures[f"distortion_{name}.png"] = fig
     for name, fig in figures.items():
