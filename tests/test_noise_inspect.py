@@ -79,6 +79,42 @@ def test_modes_and_their_level_dependence_on_lab_records(lab_set):
     assert dep["freq_hz"]["random_low.csv"] == out["modes"][0]["freq_hz"]
 
 
+def test_the_first_look_and_the_problem_share_one_estimate_of_the_modes(monkeypatch):
+    """A command's first look and its problem read the linear test's modes once: every record
+    is estimated once (the high-level test for its level dependence), and the basis's order-1
+    poles are the first look's modes polished on the record's linear fit (within 5e-4 in
+    frequency: the polish moves them up to 1.5e-4 here)."""
+    from collections import OrderedDict
+
+    import volterra
+    from bayes_update.core.problem import Problem
+    from bayes_update.data import modes as modes_module
+
+    monkeypatch.setattr(modes_module, "_ESTIMATES", OrderedDict())
+    real, calls = volterra.estimate_modes, []
+
+    def counted(u, y, *args, **kwargs):
+        calls.append(hash(np.asarray(u).tobytes()))
+        return real(u, y, *args, **kwargs)
+
+    monkeypatch.setattr(volterra, "estimate_modes", counted)
+    ds = lab.lab_dataset(lab.random_tests(seed=41))
+
+    class Stub:  # the problem's basis needs no model run
+        def simulate(self, theta, force, fs):
+            raise AssertionError("not run")
+
+    look = inspect_dataset(ds, dataset_noise(ds, strict=False))
+    n_look = len(calls)
+    problem = Problem(ds, Stub())
+    assert n_look == len(ds.tests) and len(calls) == n_look, (n_look, len(calls))
+    first_look = np.array([m["freq_hz"] for m in look["modes"]])
+    basis = np.sort([p.freq_hz for p in problem.basis.modes(1)])
+    assert first_look.size == 3 and np.allclose(basis, first_look, rtol=5e-4), (basis, first_look)
+    # the linear test's level-dependence entries are its modes, not a second estimate
+    assert [d["freq_hz"]["random_low.csv"] for d in look["level_dependence"]] == list(first_look)
+
+
 def test_clipping_and_coherence_loss_are_reported():
     rec = lab.random_tests()[0]
     clipped = rec.record()

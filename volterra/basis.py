@@ -209,11 +209,22 @@ class KautzBasis:
         est = estimate_modes(
             u, y, fs, f_range=f_range, n_modes=n_modes, refine=refine, period_samples=period_samples, **options
         )
-        poles = est.poles
-        if refine:
+        return cls.from_estimate(est, n_functions, feedthrough, nonlinear_modes, polished=refine)
+
+    @classmethod
+    def from_estimate(
+        cls, estimate, n_functions=DEFAULT_N_FUNCTIONS, feedthrough=True, nonlinear_modes=1, polished: bool = True
+    ) -> "KautzBasis":
+        """Basis on the modes of a :class:`volterra.ModalEstimate` (what
+        :meth:`from_data` builds once it has estimated them): the poles, then
+        (``polished``) moved to those that serve the record's linear fit best in
+        the basis's own order-1 form (:mod:`volterra.polish`); orders 2 and 3 on
+        the first ``nonlinear_modes`` (None: all)."""
+        poles = estimate.poles
+        if polished:
             # the basis's own order-1 form: the poles it serves best, near the modal ones (volterra.polish)
             ft1 = bool(feedthrough) if isinstance(feedthrough, (bool, np.bool_)) else 1 in tuple(feedthrough)
-            poles, _ = polish(est.lines, poles, ft1)
+            poles, _ = polish(estimate.lines, poles, ft1)
         return cls.from_modes(
             poles, n_functions, feedthrough, None if nonlinear_modes is None else min(nonlinear_modes, len(poles))
         )

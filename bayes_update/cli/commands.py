@@ -194,12 +194,13 @@ def _check_first(data, model, space) -> None:
     preflight(data, model, space)
 
 
-def _first_look(data, out) -> None:
+def _first_look(data, out, model) -> None:
     """The data set's first look (``bayes-update inspect``) in OUT/inspection: the first page of
-    every report, so that a calibration is never read without the noise and modes it stood on."""
+    every report, so that a calibration is never read without the noise and modes it stood on
+    (the records prepared as ``model``'s problem prepares them: one estimate of the modes)."""
     from bayes_update.reports.inspection import write_inspection
 
-    paths = write_inspection(data, out / "inspection")
+    paths = write_inspection(data, out / "inspection", remove_offsets=bool(getattr(model, "remove_offsets", True)))
     for w in json.loads(paths["inspection.json"].read_text())["warnings"]:
         print(f"bayes-update: data: {w}", file=sys.stderr)
 
@@ -236,7 +237,7 @@ def cmd_calibrate(args) -> int:
     check_scheduler(args)
     model, data, space, _ = _model_and_data(args)
     _check_first(data, model, space)
-    _first_look(data, args.out)
+    _first_look(data, args.out, model)
     if args.model in beam_cli.BEAM_MODELS:
         from bayes_update.models.beam.calibrate import calibrate, format_tables
         from bayes_update.reports.beam_calibration import write_result
@@ -297,7 +298,7 @@ def cmd_sample(args) -> int:
     check_scheduler(args)
     model, data, space, truth = _model_and_data(args)
     _check_first(data, model, space)
-    _first_look(data, args.out)
+    _first_look(data, args.out, model)
     with executor_from(args) as pool:
         res = sample(
             data,

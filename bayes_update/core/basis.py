@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 import volterra
+from bayes_update.data.modes import linear_modes
 from bayes_update.data.quiet import excited_band
 
 __all__ = [
@@ -58,24 +59,16 @@ def basis_from_reference(
     nonlinear=None,
 ) -> volterra.KautzBasis:
     """The data set's basis from the reference linear record: every mode of its
-    excited, coherent band (LSCF fit of H1 on a stabilisation diagram, refined on
-    the record's linear fit; :meth:`volterra.KautzBasis.from_data`), all of them
+    excited, coherent band (LSCF fit of H1 on a stabilisation diagram,
+    :func:`bayes_update.data.modes.linear_modes`, then polished on the record's
+    linear fit, :meth:`volterra.KautzBasis.from_estimate`), all of them
     at order 1; at orders 2 and 3 the dominant one, or, given the nonlinear
     test's ``(force, response)`` as ``nonlinear``, the mode that represents it
     best (:func:`nonlinear_mode_for`).  ``response``: (n,) or (n, n_sensors),
     the sensors share the poles."""
-    f_lo, f_hi = excited_band(force, fs)
-    basis = volterra.KautzBasis.from_data(
-        force,
-        response,
-        fs,
-        n_functions=n_functions,
-        f_range=(f_lo, f_hi),
-        refine=True,
-        feedthrough=feedthrough,
-        n_modes=n_modes,
-        period_samples=period_samples,
-    )
+    # the estimate the first look reported for the same samples (bayes_update.data.modes), made once
+    estimate = linear_modes(force, response, fs, period_samples, n_modes)
+    basis = volterra.KautzBasis.from_estimate(estimate, n_functions, feedthrough)
     return basis if nonlinear is None else nonlinear_mode_for(basis, *nonlinear)
 
 

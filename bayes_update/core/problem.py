@@ -37,6 +37,7 @@ from bayes_update.core.roles import require_roles
 from bayes_update.core.weights import effective_noise, linear_gain, representation_floor
 from bayes_update.data.checks import require_live_force
 from bayes_update.data.dataset import DatasetError
+from bayes_update.data.modes import without_offsets
 from bayes_update.data.noise import dataset_noise
 
 __all__ = ["Problem", "require_roles"]
@@ -158,11 +159,7 @@ class Problem(ProblemModel):
 
     def _test(self, record) -> _Test:
         require_live_force(record)
-        force, response = np.array(record.force, float), np.array(record.response, float)
-        if self.remove_offsets:
-            force -= force.mean()
-            response -= response.mean(axis=0)
-        return _Test(record.name, force, response)
+        return _Test(record.name, *without_offsets(record.force, record.response, self.remove_offsets))
 
     # ------------------------------------------------------------ pickling
     def __getstate__(self):

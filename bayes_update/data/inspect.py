@@ -38,6 +38,7 @@ import numpy as np
 
 import volterra
 from bayes_update.data import checks, spectral
+from bayes_update.data.modes import find_modes
 from bayes_update.data.noise import dataset_noise
 from bayes_update.data.periodic import PeriodLayout, find_periods
 from bayes_update.data.quiet import excited_band, quiet_sections
@@ -62,22 +63,6 @@ def _detrended(x) -> np.ndarray:
     x = np.asarray(x, float)
     t = np.arange(x.size)
     return x - np.polyval(np.polyfit(t, x, 1), t)
-
-
-def find_modes(force, response, fs: float, period_samples=None, n_modes=None) -> list:
-    """``[(freq_hz, damping_ratio), ...]`` of every mode a record shows in the band
-    it excites, sorted by frequency: :func:`volterra.estimate_modes` with its
-    defaults (the same modes ``calibrate``'s basis takes; period-synchronous
-    spectra when the force repeats, with ``period_samples`` or without);
-    ``n_modes``: that many, the most energetic (a high-level test's equivalent
-    linear modes, where its distortion would read as more).  Offsets and
-    linear drifts are removed first.  Raises
-    :class:`volterra.PoleEstimationError` (a ValueError) when no mode is found.
-    """
-    u, y = _detrended(force), np.asarray(response, float)
-    y = _detrended(y) if y.ndim == 1 else np.column_stack([_detrended(c) for c in y.T])
-    est = volterra.estimate_modes(u, y, fs, period_samples=period_samples, n_modes=n_modes)
-    return sorted((float(p.freq_hz), float(p.damping_ratio)) for p in est.poles)
 
 
 def is_transient(record, fs: float) -> bool:
@@ -232,12 +217,15 @@ def _test_entry(record, fs, noise, warnings) -> dict:
     return entry
 
 
-def level_dependence(dataset, modes, warnings: list | None = None) -> list:
+def level_dependence(
+    dataset, modes, warnings: list | None = None, remove_offsets: bool = True, modes_from: str | None = None
+) -> list:
     """Each of ``modes`` ``[(f_hz, zeta), ...]`` (the linear test's) as every test of ``dataset``
     shows it: ``[{"freq_hz": {test file: f}, "damping_ratio": {test file: zeta}}, ...]``, the
     equivalent linear modes :func:`find_modes` reads from each test whose excited band holds the
     mode, each matched to the nearest of ``modes``; a test where none is found adds a line to
-    ``warnings``."""
+    ``warnings``; ``remove_offsets``: as :func:`find_modes`; ``modes_from``: the name of the
+    test ``modes`` were read from (its entries are ``modes``, not estimated again)."""
     fs = float(dataset.sampling_rate_hz)
     warnings = [] if warnings is None else warnings
     out = [{"freq_hz": {}, "damping_ratio": {}} for _ in modes]
@@ -246,16 +234,20 @@ def level_dependence(dataset, modes, warnings: list | None = None) -> list:
         inside = [i for i, (f, _) in enumerate(modes) if lo <= f <= hi]
         if not inside:
             continue
+        if t.name == modes_from:
+            for i, (f, z) in enumerate(modes):
+                out[i]["freq_hz"][t.file], out[i]["damping_ratio"][t.file] = f, z
+            continue
         try:
             # as many modes as the linear test has in this test's band: a strong nonlinearity's
             # distortion would read as more (its equivalent linear modes are what moves with level)
-            found = find_modes(t.force, t.response, fs, t.period_samples, n_modes=len(inside))
+            found = find_modes(t.force, t.response, fs, t.period_samples, len(inside), remove_offsets)
         except ValueError:
             try:
                 # fewer stable clusters than that (a mode damped 5x by the level): every mode the
                 # test shows, each matched to the linear test's nearest (the GVT-like wing's high
                 # level: 5 clusters asked 6, all six found this way, its joint mode at 5.3 %)
-                found = find_modes(t.force, t.response, fs, t.period_samples)
+                found = find_modes(t.force, t.response, fs, t.period_samples, None, remove_offsets)
             except ValueError as exc:
                 warnings.append(f"test {t.file}: no mode found ({exc})")
                 continue
@@ -294,11 +286,15 @@ def _noise_spread(dataset, noise, warnings) -> None:
             )
 
 
-def inspect_dataset(dataset, noise: dict | None = None) -> dict:
+def inspect_dataset(dataset, noise: dict | None = None, remove_offsets: bool = True) -> dict:
     """The inspection of a data set (module docstring), JSON-ready.
 
     noise : the result of :func:`bayes_update.data.noise.dataset_noise` if
-        already computed (default: computed here, not strict)."""
+        already computed (default: computed here, not strict).
+    remove_offsets : the modes are read with each channel's mean removed, as a
+        problem prepares its records (False: as recorded, for a model whose
+        records carry no offset, the beam's virtual rig); the first look and the
+        calibration's basis then share one estimate (:mod:`bayes_update.data.modes`)."""
     fs = float(dataset.sampling_rate_hz)
     for t in dataset.tests:
         checks.require_live_force(t)
@@ -314,10 +310,10 @@ def inspect_dataset(dataset, noise: dict | None = None) -> dict:
         ref = linear[0]
         modes_from = ref.file
         try:
-            modes = find_modes(ref.force, ref.response, fs, ref.period_samples)
+            modes = find_modes(ref.force, ref.response, fs, ref.period_samples, None, remove_offsets)
         except ValueError as exc:
             warnings.append(f"test {ref.file}: no mode found ({exc})")
-        dependence = level_dependence(dataset, modes, warnings)
+        dependence = level_dependence(dataset, modes, warnings, remove_offsets, ref.name)
     return {
         "dataset": dataset.name,
         "source": dataset.source,

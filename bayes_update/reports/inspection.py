@@ -187,15 +187,18 @@ def plot_distortion(dataset, sensor: str, distortions: dict):
     return fig
 
 
-def write_inspection(dataset, out, inspection: dict | None = None, noise: dict | None = None) -> dict:
+def write_inspection(
+    dataset, out, inspection: dict | None = None, noise: dict | None = None, remove_offsets: bool = True
+) -> dict:
     """Write ``inspection.json`` and the figures into the folder ``out``;
     returns ``{name: path}``.  ``inspection``, ``noise``: already computed
     results of :func:`inspect_dataset` and :func:`dataset_noise` (default:
-    computed here, not strict)."""
+    computed here, not strict); ``remove_offsets``: how the modes are read
+    (:func:`inspect_dataset`)."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     noise = dataset_noise(dataset, strict=False) if noise is None else noise
-    inspection = inspect_dataset(dataset, noise) if inspection is None else inspection
+    inspection = inspect_dataset(dataset, noise, remove_offsets) if inspection is None else inspection
     paths = {"inspection.json": out / "inspection.json"}
     paths["inspection.json"].write_text(json.dumps(inspection, indent=2) + "\n")
     figures = {f"frf_{name}.png": plot_frfs(dataset, name, inspection) for name, _ in dataset.sensors}
