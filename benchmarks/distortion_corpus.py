@@ -1,8 +1,10 @@
-"""volterra.distortion over the front end's randomized corpus (benchmarks/front_end_draws.py).
+"""volterra.record_distortion over the front end's randomized corpus (benchmarks/front_end_draws.py).
 
-Every periodic test of records 0..300 (structures of seven classes, excitations, sensors, noise,
-offsets and drifts drawn from the seed; none built for this analysis) goes through
-``volterra.distortion``: no exception is allowed, and a linear structure's test should read at
+Every test of records 0..300 (structures of seven classes, excitations, sensors, noise, offsets
+and drifts drawn from the seed; none built for this analysis) goes through
+``volterra.record_distortion``: a periodic test's unexcited lines (``volterra.distortion``), a
+sine sweep's harmonics (``volterra.sweep_distortion``), nothing for another record.  No exception
+is allowed, and a linear structure's test should read at
 the noise on every sensor (a detection there is a false alarm), a nonlinear one's high level
 should not.
 
@@ -29,8 +31,8 @@ sys.path[:0] = [str(HERE), str(HERE.parent)]  # this checkout's packages, not an
 from _machine import machine  # noqa: E402
 from front_end_draws import draw  # noqa: E402
 
-from volterra.distortion import distortion  # noqa: E402
-from volterra.periods import PeriodLayout, find_periods  # noqa: E402
+from volterra.distortion import Distortion  # noqa: E402
+from volterra.sweep_distortion import record_distortion  # noqa: E402
 
 #: the corpus's classes whose structure is nonlinear (the others are linear: a detection is false)
 NONLINEAR = ("sdof_ode", "nonlinear")
@@ -40,15 +42,15 @@ def rows_of(seed: int) -> list:
     data, truth, _ = draw(seed)
     out = []
     for t in data.tests:
-        layout = find_periods(t.force, t.period_samples)
-        if not isinstance(layout, PeriodLayout):
-            continue
-        row = {"seed": seed, "class": truth.details["class"], "test": t.name, "level": t.level}
+        row = {"seed": seed, "class": truth.details["class"], "test": t.name, "level": t.level, "signal": t.signal}
         try:
-            d = distortion(t.force, t.response, data.sampling_rate_hz, layout, sensors=[n for n, _ in t.sensors])
+            names = [n for n, _ in t.sensors]
+            d = record_distortion(t.force, t.response, data.sampling_rate_hz, t.period_samples, sensors=names)
+            if d is None:
+                continue
             row.update(
+                kind="periodic" if isinstance(d, Distortion) else "sweep",
                 classes=d.classes,
-                periods=d.periods,
                 detected={s: [c for c, r in cl.items() if r["detected"]] for s, cl in d.sensors.items()},
                 force_detected=[c for c, r in d.force.items() if r["detected"]],
                 noise_ratio={s: {c: r["noise_ratio"] for c, r in cl.items()} for s, cl in d.sensors.items()},
@@ -72,7 +74,7 @@ def main(argv=None) -> None:
     for r in rows:
         if "detected" not in r:
             continue
-        cell = table[(r["class"], r["level"])]
+        cell = table[(r["kind"], r["class"], r["level"])]
         cell["tests"] += 1
         cell["sensor_detected"] += any(r["detected"].values())
         cell["force_detected"] += bool(r["force_detected"])
@@ -80,20 +82,24 @@ def main(argv=None) -> None:
     refused = [r for r in rows if "refused" in r]
     false = [r for r in rows if "detected" in r and r["class"] not in NONLINEAR and any(r["detected"].values())]
     linear = [r for r in rows if "detected" in r and r["class"] not in NONLINEAR]
+    kinds = collections.Counter(r.get("kind", "refused or crashed") for r in rows)
+    false_kinds = collections.Counter(r["kind"] for r in false)
+    linear_kinds = collections.Counter(r["kind"] for r in linear)
     lines = [
         "# Odd and even distortion over the randomized corpus",
         "",
         f"`python benchmarks/distortion_corpus.py --n {args.n}`; {machine()}; {wall:.0f} s",
         "",
-        f"{len(rows)} periodic tests of {args.n} records: {len(crashes)} exceptions, {len(refused)} refused "
-        f"(a documented ValueError); linear structures: {len(false)} of {len(linear)} tests with a detection "
-        "on some sensor (false alarms).",
+        f"{len(rows)} tests read of {args.n} records ({dict(kinds)}): {len(crashes)} exceptions, "
+        f"{len(refused)} refused (a documented ValueError); linear structures: {len(false)} of {len(linear)} "
+        f"tests with a detection on some sensor (false alarms; periodic {false_kinds['periodic']} of "
+        f"{linear_kinds['periodic']}, sweeps {false_kinds['sweep']} of {linear_kinds['sweep']}).",
         "",
-        "| class | level | tests | a sensor detected | the force detected |",
-        "|---|---|---|---|---|",
+        "| read as | class | level | tests | a sensor detected | the force detected |",
+        "|---|---|---|---|---|---|",
         *(
-            f"| {c} | {lv} | {v['tests']} | {v['sensor_detected']} | {v['force_detected']} |"
-            for (c, lv), v in sorted(table.items())
+            f"| {k} | {c} | {lv} | {v['tests']} | {v['sensor_detected']} | {v['force_detected']} |"
+            for (k, c, lv), v in sorted(table.items())
         ),
     ]
     out = HERE / "results" / "distortion_corpus"

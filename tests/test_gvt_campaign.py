@@ -180,6 +180,13 @@ def test_discrepancy_names_the_joints_micro_slip_and_the_held_out_error_drops():
     # preloaded clearance act between two points, the element in one mode's coordinate)
     high = res.diagnostics_after["distortion"]["ms_high.csv"]["mid"]["any"]
     assert high["measured_detected"] and high["model_db"] < high["measured_db"] - 20, high
+    # and the summary says which: the multisine's lines and the high sweep's even harmonics (the
+    # preloaded clearance acts on one side; a Jenkins element in a mode is symmetric: none)
+    left = {(r["test"], r["sensor"], r["class"]) for r in res.diagnostics_after["harmonics_left"]}
+    assert {("ms_high.csv", "mid", "any"), ("sweep_high.csv", "mid", "even")} <= left, left
+    from bayes_update.reports.discrepancy import format_result
+
+    assert "harmonics left: sweep_high.csv mid even" in format_result(res)
     fig = linear.diagnostics_figure(res.diagnostics_after)  # the discrepancy report's figure
     shown = sum(bool(m["freq_hz"]) for m in res.diagnostics_after["measured"])  # not the residual mode
     assert shown == 6 and len(fig.axes) == 2 * shown + 1 and fig.axes[-1].get_ylabel().startswith("distortion")

@@ -63,3 +63,31 @@ def test_a_joint_at_a_point_looks_at_every_mode_and_an_unknown_name_at_none():
     key, _, value = model.signature("k3_at_a2", d, {})
     assert key == "every mode (a joint at sensor 'a2')" and value == pytest.approx(np.sqrt((0.09 + 16.0) / 2))
     assert model.signature("c3_1", d, {}) is None
+
+
+def test_the_harmonics_left_are_what_the_record_holds_and_the_model_does_not_make():
+    """harmonics_left: a class detected in the record and the model's not detected, or more than
+    6 dB below it, is left (the largest gap first); one the model makes within 6 dB, or one the
+    record does not show, is not; the noise class never."""
+    from bayes_update.models.modal.signature import harmonics_left
+
+    def row(measured, model, m_det=True, k_det=True):
+        return {"measured_db": measured, "model_db": model, "measured_detected": m_det, "model_detected": k_det}
+
+    distortion = {
+        "ms_high.csv": {
+            "mid": {"any": row(-26.2, -67.4)},  # 41 dB short
+            "tip": {"any": row(-34.6, -38.0)},  # within 6 dB: made
+        },
+        "sweep_high.csv": {
+            "mid": {"odd": row(-50.0, -60.0, m_det=False), "even": row(-46.5, float("-inf"), k_det=False)},
+            "tip": {"odd": row(-40.0, -46.5), "noise": row(-30.0, float("-inf"), k_det=False)},
+        },
+    }
+    left = harmonics_left(distortion)
+    got = [(r["test"], r["sensor"], r["class"], r["model_db"]) for r in left]
+    assert got == [
+        ("sweep_high.csv", "mid", "even", None),
+        ("ms_high.csv", "mid", "any", -67.4),
+        ("sweep_high.csv", "tip", "odd", -46.5),
+    ], got

@@ -43,10 +43,14 @@ from .periods import PeriodLayout, find_periods
 from .poles import pole_from_frf, pole_from_modal, refine_bounds, refine_pole
 from .projector import VolterraProjector
 from .regressors import index_tuples, multiplicity, n_terms
+from .sweep_distortion import SweepDistortion, record_distortion, sweep_distortion
 
 __all__ = [
     "Distortion",
     "distortion",
+    "record_distortion",
+    "sweep_distortion",
+    "SweepDistortion",
     "KautzPole",
     "RealPole",
     "KautzBasis",

@@ -97,7 +97,8 @@ def cmd_inspect(args) -> int:
 
 
 def _distortion_line(d: dict) -> str:
-    """One line on a periodic test's unexcited lines: each class's level where detected."""
+    """One line on a periodic test's unexcited lines or a sweep's harmonics: each class's level
+    where detected."""
     found = [
         f"{sensor} {cls} {r['level_db']:.0f} dB"
         for sensor, classes in d["sensors"].items()
@@ -106,4 +107,7 @@ def _distortion_line(d: dict) -> str:
     ]
     classes = "/".join(c for c in d["classes"] if c != "noise")
     what = ", ".join(found) if found else "at the noise on every sensor"
+    if "sweep" in d:
+        lo, hi = d["sweep"]["f0_hz"]
+        return f"distortion in the sweep's {classes} harmonics ({lo:.1f}-{hi:.1f} Hz; dB of the output): {what}"
     return f"distortion on the unexcited {classes} lines ({d['periods']} periods; dB of the output): {what}"

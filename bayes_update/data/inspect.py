@@ -15,8 +15,9 @@
     coherence over the excited band and the share of its lines below 0.9;
     ``distortion`` (a periodic record: :func:`volterra.distortion`, what its
     unexcited lines hold beyond the noise, odd and even, per sensor and for the
-    force; ``{"not_read": why}`` where it cannot be read; None for a record that
-    does not repeat).
+    force; a sine sweep: :func:`volterra.sweep_distortion`, the same numbers from
+    its odd and even harmonics, with ``sweep`` in place of ``periods``;
+    ``{"not_read": why}`` where it cannot be read; None for another record).
 ``modes``
     ``[{"freq_hz", "damping_ratio"}, ...]`` of the (first) ``linear`` test,
     every sensor sharing the poles (:func:`find_modes`); ``modes_from`` its file.
@@ -42,7 +43,7 @@ from bayes_update.data.modes import find_modes
 from bayes_update.data.noise import dataset_noise
 from bayes_update.data.periodic import PeriodLayout, find_periods
 from bayes_update.data.quiet import excited_band, quiet_sections
-from volterra.distortion import distortion
+from volterra.sweep_distortion import record_distortion
 
 #: warn above these: offset / rms, drift (share of rms), noise / rms, noise ratio between tests
 OFFSET_WARN = 0.05
@@ -126,16 +127,17 @@ def _period(record):
 
 
 def _distortion(record, fs, warnings) -> dict | None:
-    """:func:`volterra.distortion` of a periodic record (JSON-ready; None for another record,
+    """:func:`volterra.record_distortion` of a periodic record or a sweep (JSON-ready; None for another record,
     or where it cannot be read, with the reason), and a warning where a test of role
     'linear' shows distortion above :data:`LINEAR_DISTORTION_DB` of its output."""
-    layout = find_periods(record.force, record.period_samples)
-    if not isinstance(layout, PeriodLayout):
-        return None
     try:
-        d = distortion(record.force, record.response, fs, layout, sensors=[n for n, _ in record.sensors])
+        d = record_distortion(
+            record.force, record.response, fs, record.period_samples, sensors=[n for n, _ in record.sensors]
+        )
     except ValueError as exc:
         return {"not_read": str(exc)}
+    if d is None:
+        return None
     if record.role == "linear":
         for name, classes in d.sensors.items():
             loud = {
@@ -144,7 +146,7 @@ def _distortion(record, fs, warnings) -> dict | None:
             if loud:
                 what = ", ".join(f"{c} lines {v:.0f} dB" for c, v in loud.items())
                 warnings.append(
-                    f"test {record.file} (role linear), sensor {name!r}: distortion on its unexcited lines ({what} "
+                    f"test {record.file} (role linear), sensor {name!r}: distortion ({what} "
                     "of the output): the linear test is not linear at its level; a lower level, or the "
                     "nonlinearity in the model's first stage"
                 )

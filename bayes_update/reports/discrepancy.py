@@ -40,7 +40,21 @@ def format_result(res) -> str:
                 f"signature of {name} ({s['signature']}): {s['before']:.4g} -> {s['after']:.4g} "
                 f"({'shrank' if s['shrank'] else 'did NOT shrink'})"
             )
+    lines += _harmonics_left_lines(res.diagnostics_after)
     return "\n".join(lines)
+
+
+def _harmonics_left_lines(diagnostics: dict | None) -> list:
+    """The distortion the record holds and the final model does not make, where the model's
+    diagnostics read it (``harmonics_left``: the modal model's), a line each."""
+    left = (diagnostics or {}).get("harmonics_left")
+    if not left:
+        return [] if left is None else ["harmonics: the final model makes every class of distortion the records hold"]
+    return [
+        f"harmonics left: {r['test']} {r['sensor']} {r['class']}: record {r['measured_db']:.1f} dB of the output, "
+        + ("model at its noise" if r["model_db"] is None else f"model {r['model_db']:.1f} dB")
+        for r in left
+    ]
 
 
 def write_discrepancy(res, out, truth: dict | None = None, figures: bool = True) -> dict:
@@ -50,6 +64,8 @@ def write_discrepancy(res, out, truth: dict | None = None, figures: bool = True)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     doc = res.to_json()
+    if res.diagnostics_after is not None and "harmonics_left" in res.diagnostics_after:
+        doc["harmonics_left"] = res.diagnostics_after["harmonics_left"]
     if truth is not None:
         doc["truth"] = truth
     (out / "discrepancy.json").write_text(json.dumps(doc, indent=1, default=_json_default))

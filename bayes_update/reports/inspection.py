@@ -32,7 +32,7 @@ from scipy.signal import welch
 from bayes_update.data.inspect import frf, inspect_dataset
 from bayes_update.data.noise import dataset_noise
 from bayes_update.data.noise_spectrum import noise_spectrum
-from bayes_update.data.periodic import find_periods
+from volterra.sweep_distortion import SweepDistortion
 
 
 def _by_level(dataset) -> list:
@@ -141,22 +141,40 @@ LINE_STYLE = {
 def read_distortions(dataset, inspection: dict) -> dict:
     """{test file: :class:`volterra.Distortion`} of the tests the inspection read (its
     ``distortion`` entry holds numbers, not the line spectra the figure draws), by level."""
-    from volterra.distortion import distortion
+    from volterra.sweep_distortion import record_distortion
 
     fs = float(dataset.sampling_rate_hz)
     out = {}
     for t in _by_level(dataset):
         if (inspection["tests"][t.file].get("distortion") or {}).get("sensors") is not None:
-            layout = find_periods(t.force, t.period_samples)
-            out[t.file] = distortion(t.force, t.response, fs, layout, sensors=[n for n, _ in t.sensors])
+            names = [n for n, _ in t.sensors]
+            out[t.file] = record_distortion(t.force, t.response, fs, t.period_samples, sensors=names)
     return out
+
+
+def _sweep_harmonics(ax, d, sensor: str, test) -> None:
+    """A sweep's harmonics 2 .. at ``sensor`` against the frequency swept, each in dB of the
+    output at f0 (their noise taken off; below the noise not drawn)."""
+    track = d.harmonics[sensor]
+    for i in range(track.shape[1]):
+        k = i + 2
+        level = np.where(track[:, i] > 0, track[:, i], np.nan)
+        color = "C3" if k % 2 else "C0"
+        ax.plot(d.f0, 10 * np.log10(level), "v" if k % 2 else "^", color=color, ms=3, alpha=0.4 + 0.6 / k)
+        ax.plot([], [], "v" if k % 2 else "^", color=color, label=f"harmonic {k} ({'odd' if k % 2 else 'even'})")
+    ax.set_title(f"{test.name} ({test.level}), sweep: {d.verdict(sensor)}", fontsize=8)
+    ax.set_ylabel("dB of the output at f0")
+    ax.set_xlabel("frequency swept f0 [Hz]")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7, ncol=2, loc="best")
 
 
 def plot_distortion(dataset, sensor: str, distortions: dict):
     """The lines of every periodic test at ``sensor`` (``distortions``: :func:`read_distortions`):
     the excited lines, the unexcited odd and even lines (the linear response to the force's
     content on them taken out) and the noise of the period mean on every line (grey), in dB of
-    ``sensor``'s unit (:func:`volterra.distortion`); None where no test was read."""
+    ``sensor``'s unit (:func:`volterra.distortion`); a sweep's harmonics against the frequency
+    swept (:func:`volterra.sweep_distortion`); None where no test was read."""
     tests = [t for t in _by_level(dataset) if t.file in distortions]
     if not tests:
         return None
@@ -164,6 +182,9 @@ def plot_distortion(dataset, sensor: str, distortions: dict):
     axes = np.atleast_1d(fig.subplots(len(tests), 1, squeeze=False)[:, 0])
     for ax, t in zip(axes, tests):
         d = distortions[t.file]
+        if isinstance(d, SweepDistortion):
+            _sweep_harmonics(ax, d, sensor, t)
+            continue
         noise_f, noise_p = [], []
         for cls, f in d.lines.items():
             power, noise = d.power[sensor][cls]

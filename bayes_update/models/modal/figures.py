@@ -49,15 +49,15 @@ def _distortion_row(ax, distortion: dict) -> None:
     ax.plot(x, model, "s", mfc="none", label="model")
     ax.set_xticks(x, labels, rotation=60, fontsize=6, ha="right")
     ax.set_ylabel("distortion [dB of the output]")
-    ax.set_title("the periodic tests' unexcited lines beyond their noise", fontsize=8)
+    ax.set_title("the periodic tests' unexcited lines and the sweeps' harmonics beyond their noise", fontsize=8)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7)
 
 
 def diagnostics_figure(diagnostics: dict) -> Figure:
     """Two rows of panels, one per mode some test shows (frequency, damping ratio per test,
-    record and model), and below them the distortion of each periodic test, sensor and class of
-    lines."""
+    record and model), and below them the distortion of each periodic test and sweep, sensor and
+    class of lines."""
     n = len(_shown(diagnostics))
     has_distortion = bool(diagnostics.get("distortion"))
     fig = Figure(figsize=(max(2.4 * n, 7), 6.5 + 2.8 * has_distortion), constrained_layout=True)

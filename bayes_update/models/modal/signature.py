@@ -34,9 +34,10 @@ MEANING = (
 def diagnose(model, dataset, theta) -> dict:
     """``{"measured", "model": [per mode {"freq_hz": {test file: f}, "damping_ratio": {...}}],
     "mismatch": [per mode, the median over the tests both show it in of hypot(100 df / f,
-    100 dzeta)], "distortion": the odd and even lines of every periodic test, measured and model
-    (:func:`distortion_against`)}`` for the model at ``theta`` [its parameters] against ``dataset``'s records
-    (NaN for a mode no test shows on both sides)."""
+    100 dzeta)], "distortion": the odd and even lines of every periodic test and the harmonics of
+    every sweep, measured and model (:func:`distortion_against`), "harmonics_left": what of it the
+    model does not make (:func:`harmonics_left`)}`` for the model at ``theta`` [its parameters]
+    against ``dataset``'s records (NaN for a mode no test shows on both sides)."""
     from bayes_update.data.inspect import level_dependence
 
     fs = float(dataset.sampling_rate_hz)
@@ -46,34 +47,58 @@ def diagnose(model, dataset, theta) -> dict:
         dataset, tests=[dataclasses.replace(t, response=np.asarray(y)) for t, y in zip(dataset.tests, runs)]
     )
     measured, mine = level_dependence(dataset, modes), level_dependence(simulated, modes)
+    distortion = distortion_against(dataset, runs)
     return {
         "measured": measured,
         "model": mine,
         "mismatch": [_mismatch(a, b) for a, b in zip(measured, mine)],
-        "distortion": distortion_against(dataset, runs),
+        "distortion": distortion,
+        "harmonics_left": harmonics_left(distortion),
     }
+
+
+#: the model makes a class of distortion when it reaches the record's level within this [dB]
+HARMONICS_MARGIN_DB = 6.0
+
+
+def harmonics_left(distortion: dict) -> list:
+    """The distortion the record holds and the model does not make (:func:`distortion_against`):
+    ``[{"test", "sensor", "class", "measured_db", "model_db"}, ...]`` for every class detected
+    in the record where the model's is not detected or more than :data:`HARMONICS_MARGIN_DB`
+    below it (a factor 2 in amplitude), the largest gap first.  What a named element leaves
+    unexplained in harmonics: a symmetric element makes no even harmonics, a smooth one too
+    little of the higher ones."""
+    out = []
+    for test, sensors in distortion.items():
+        for sensor, classes in sensors.items():
+            for cls, r in classes.items():
+                if cls == "noise" or not r["measured_detected"]:
+                    continue
+                model = r["model_db"] if r["model_detected"] else -math.inf
+                if model < r["measured_db"] - HARMONICS_MARGIN_DB:
+                    row = {"test": test, "sensor": sensor, "class": cls, "measured_db": r["measured_db"]}
+                    out.append({**row, "model_db": model if math.isfinite(model) else None})
+    return sorted(out, key=lambda r: -math.inf if r["model_db"] is None else r["model_db"] - r["measured_db"])
 
 
 def distortion_against(dataset, runs) -> dict:
     """{test file: {sensor: {class: {"measured_db", "model_db", "measured_detected",
-    "model_detected"}}}} for every periodic test: :func:`volterra.distortion` of the record and
-    of the model's response ``runs`` (one (n, S) array per test) to the same recorded force (its
-    noise in both), each class's distortion in dB of the output (-inf where not above the
-    noise): whether the model's nonlinearity puts what the structure's puts on the odd and even
-    lines."""
-    from volterra.distortion import distortion
-    from volterra.periods import PeriodLayout, find_periods
+    "model_detected"}}}} for every periodic test and sine sweep: :func:`volterra.record_distortion`
+    of the record and of the model's response ``runs`` (one (n, S) array per test) to the same
+    recorded force (its noise in both), each class's distortion in dB of the output (-inf where
+    not above the noise): whether the model's nonlinearity puts what the structure's puts on the
+    odd and even lines (a sweep: harmonics)."""
+    from volterra.sweep_distortion import record_distortion
 
     fs = float(dataset.sampling_rate_hz)
     out = {}
     for t, y in zip(dataset.tests, runs):
-        layout = find_periods(t.force, t.period_samples)
-        if not isinstance(layout, PeriodLayout):
-            continue
         names = [n for n, _ in t.sensors]
         try:
-            sides = [distortion(t.force, r, fs, layout, sensors=names) for r in (t.response, np.asarray(y))]
+            sides = [record_distortion(t.force, r, fs, t.period_samples, names) for r in (t.response, np.asarray(y))]
         except ValueError:
+            continue
+        if sides[0] is None or sides[1] is None:
             continue
         out[t.file] = {
             n: {

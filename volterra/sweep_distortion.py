@@ -1,0 +1,423 @@
+"""The harmonics of a sine sweep: odd and even distortion of a record whose input is one
+sine of slowly changing frequency.
+
+A sweep has no unexcited lines to read (:mod:`volterra.distortion` needs a periodic
+input); at each instant, though, its input is one sine of frequency f0(t), and a
+nonlinearity of degree n puts output at multiples of it up to n f0: the odd
+multiples (3 f0, 5 f0) from odd degrees (a cubic spring, friction, a symmetric
+clearance), the even ones (2 f0, 4 f0) from even degrees (a quadratic spring, a gap
+on one side, any asymmetry).  Read on a short-time Fourier transform (Hann frames,
+half overlapping):
+
+* f0 of each frame from the input's spectral peak; frames where the input is not
+  one sine (its peak holds less than :data:`SINE_SHARE` of the frame's power, or
+  silence) are left out;
+* the linear response taken away in time, r = y - h * u, with h the record's own
+  impulse response: the swept band deconvolved over the whole record and kept over
+  the lags where a linear response is, which a sweep's harmonics never reach (Farina
+  2000: harmonic k at frequency f was made when the sweep was at f / k, at a lag of
+  t(f) - t(f / k)).  Taken away in time, the fundamental goes with its leakage and a
+  fast sweep's transients (the ringing of the modes it passed), and the linear
+  response to what the force holds at k f0 (a shaker's force carries the structure's
+  distortion back) is not counted as the structure's;
+* on each harmonic k (2 .. ``n_harmonics``) the power of r in a window of a few bins
+  (the main lobe plus the drift of k f0 over half a frame), against its noise read at
+  the same frequency from the frames where no harmonic is near it (the median over
+  them, over ln 2): a sensor's noise may be coloured, and taking the linear response
+  away adds the force's noise through the structure's resonances, but neither changes
+  with time.  Left out of both: the frames within the kept lags of the sweep's passage
+  of the bin's frequency (the noise went with the response there) and, for a sweep
+  down, as long as the structure rings after it.
+
+Per class (odd, even) and sensor, summed over the frames and harmonics, the same
+numbers as a periodic record's (:class:`volterra.distortion.Distortion`):
+``noise_ratio`` (the harmonics' power over their noise, about 1 without distortion),
+its ``sd`` (the window's own correlation between bins, :func:`_bin_covariance`),
+``detected`` (the ratio above 1 by :data:`DETECT_SD` sds) and ``level_db`` (the
+harmonics' power less their noise over the output's power at f0).  The input's own
+harmonics are read the same way (``force``), its fundamental left in: its leakage
+raises the noise read, so the force's reading errs low.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import get_window, stft
+
+from .distortion import DETECT_SD, TOP_SHARE, distortion
+from .periods import PeriodLayout, find_periods
+
+__all__ = ["SweepDistortion", "record_distortion", "sweep_distortion"]
+
+#: a frame is a sine's when the input's peak (its main lobe) holds at least this share of its power
+SINE_SHARE = 0.8
+#: at least this many such frames, or the record is not a sweep
+MIN_FRAMES = 8
+#: a class is read from at least this many (frame, harmonic) windows, else left unread (NaN): the
+#: ratio's normal approximation needs them (one window of a fast sweep read 25x its noise on a
+#: linear structure of the front end's corpus, its stated sd 0.77)
+MIN_TERMS = 8
+#: the frames' window (a Blackman-Harris's 92 dB side lobes cost a main lobe twice as wide, which
+#: at a GVT's 50 Hz left no third harmonic readable; with the linear response taken away in time
+#: the fundamental's leakage is gone from the sensors)
+WINDOW = "hann"
+#: a bin's noise is read from at least this many frames where no harmonic is near it
+MIN_BACKGROUND = 4
+#: half-width of a harmonic's window in bins beyond its drift: a sine's Hann spectrum holds at least
+#: 96 % of its power within one bin of its nearest (100 % on a bin, 97 % half-way)
+LOBE = 1
+
+
+@dataclass(frozen=True)
+class SweepDistortion:
+    """The harmonics of one sweep (module docstring).
+
+    ``classes``: {"odd": harmonics read (3, 5, ...), "even": (2, 4, ...)}; ``sensors``:
+    {sensor: {class: {"noise_ratio", "sd", "detected", "level_db"}}}, the same for
+    ``force``; ``frames`` used, ``frame_s`` their length [s]; ``f0`` [Hz] each frame's
+    frequency; ``harmonics``: {sensor: (frames, n_harmonics - 1) power of harmonics 2 ..
+    less its noise, over the frame's output power at f0} (NaN where not read)."""
+
+    classes: dict
+    sensors: dict
+    force: dict
+    frames: int
+    frame_s: float
+    f0: np.ndarray
+    harmonics: dict
+
+    def to_dict(self) -> dict:
+        """The numbers, JSON-ready (the per-frame tracks left out; -inf dB and a class not read,
+        NaN, as None)."""
+
+        def finite(classes):
+            def value(v):
+                return None if isinstance(v, float) and not np.isfinite(v) else v
+
+            return {c: {k: value(v) for k, v in r.items()} for c, r in classes.items()}
+
+        return {
+            "classes": {c: list(k) for c, k in self.classes.items()},
+            "sweep": {
+                "frames": self.frames,
+                "frame_s": self.frame_s,
+                "f0_hz": [float(self.f0.min()), float(self.f0.max())],
+            },
+            "sensors": {name: finite(classes) for name, classes in self.sensors.items()},
+            "force": finite(self.force),
+        }
+
+    @property
+    def parity(self) -> bool:
+        """A sweep separates odd from even distortion."""
+        return True
+
+    def verdict(self, sensor: str) -> str:
+        """One line on a sensor's harmonics."""
+        parts = []
+        for cls, r in self.sensors[sensor].items():
+            if not np.isfinite(r["noise_ratio"]):
+                parts.append(f"{cls} harmonics not read (beyond the band, or too few frames)")
+                continue
+            lvl = f"{r['level_db']:.0f} dB of the output" if r["detected"] else "at the noise"
+            parts.append(f"{cls} harmonics {r['noise_ratio']:.3g}x their noise ({lvl})")
+        return "; ".join(parts)
+
+
+def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_s: float | None = None):
+    """The odd and even harmonics of a sine sweep (module docstring).
+
+    u : (n,) input (force); y : (n,) or (n, S) responses; fs : sampling rate [Hz];
+    n_harmonics : the highest harmonic read (at least 3); sensors : S names (default
+    ``y0, y1, ...``); frame_s : frame length [s] (default: the power of two under which
+    harmonic 3 can be read where the response is largest).  Raises ValueError when the
+    input is not a sweep (fewer than :data:`MIN_FRAMES` frames hold one sine)."""
+    u = np.asarray(u, float)
+    Y = np.asarray(y, float)
+    Y = Y[:, None] if Y.ndim == 1 else Y
+    if Y.shape[0] != u.size:
+        raise ValueError(f"y has {Y.shape[0]} samples, u {u.size}")
+    if n_harmonics < 3:
+        raise ValueError(f"n_harmonics must be at least 3, got {n_harmonics}")
+    names = list(sensors) if sensors is not None else [f"y{j}" for j in range(Y.shape[1])]
+    if len(names) != Y.shape[1]:
+        raise ValueError(f"{len(names)} sensor names for {Y.shape[1]} responses")
+    u, Y = u - u.mean(), Y - Y.mean(axis=0)
+    if frame_s is None:
+        first = _first_frame(u, fs)
+        f, U, SY = _spectra(u, Y, fs, first)
+        f0, keep, rate = _track(u, fs, first, (f, U))
+        if f0.size < MIN_FRAMES:
+            raise ValueError(
+                f"not a sweep: {f0.size} frames of any length hold one sine (at least {MIN_FRAMES} needed)"
+            )
+        # where the response is large (a nonlinearity acts there: resonances), each sensor alike
+        k0 = np.rint(f0 / (f[1] - f[0])).astype(int)
+        weight = sum(np.abs(S[k0, keep]) ** 2 / np.max(np.abs(S[k0, keep]) ** 2) for S in SY)
+        nper = _best_frame(f0, rate, fs, u.size, weight)
+    else:
+        nper = _frame(fs, u.size, frame_s)
+    f, U, SY = _spectra(u, Y, fs, nper)
+    f0, keep, rate = _track(u, fs, nper, (f, U))
+    if f0.size < MIN_FRAMES:
+        raise ValueError(f"not a sweep: {f0.size} frames hold one sine (at least {MIN_FRAMES} needed)")
+    T, df = nper / fs, f[1] - f[0]
+    times = _frame_times(U.shape[1], nper, fs)[keep]
+    U = U[:, keep]
+    k0 = np.rint(f0 / df).astype(int)
+    cols = np.arange(U.shape[1])
+    drift = np.abs(rate) * T * T / 2  # bins k f0 moves over half a frame, per harmonic order
+    classes = {"odd": tuple(range(3, n_harmonics + 1, 2)), "even": tuple(range(2, n_harmonics + 1, 2))}
+
+    cov = {}
+
+    def covariance(m):
+        if m not in cov:
+            cov[m] = _bin_covariance(nper, m)
+        return cov[m]
+
+    def read(R, fundamental, cancelled):
+        B, count = _background(np.abs(R) ** 2, f0 / df, drift, n_harmonics, ~cancelled)
+        terms, read_in = {c: [] for c in classes}, {c: set() for c in classes}
+        track = np.full((f0.size, n_harmonics - 1), np.nan)
+        for k in range(2, n_harmonics + 1):
+            w = LOBE + np.ceil(k * drift).astype(int)
+            for i in np.flatnonzero(_readable(f0, rate, T, k, fs)):
+                lo = int(np.rint(k * f0[i] / df)) - w[i]
+                bins = slice(max(lo, 0), lo + 2 * w[i] + 1)
+                if np.any(count[bins] < MIN_BACKGROUND) or np.any(cancelled[bins, i]):
+                    continue
+                p, noise = float(np.sum(np.abs(R[bins, i]) ** 2)), float(np.sum(B[bins]))
+                m = 2 * int(w[i]) + 1
+                terms["odd" if k % 2 else "even"].append((p, noise, m, int(np.min(count[bins])), covariance(m)))
+                read_in["odd" if k % 2 else "even"].add(i)
+                track[i, k - 2] = (p - noise) / fundamental[i]
+        # each class over the output's power at f0 in the frames where it was read
+        return {c: _class_stats(t, float(np.sum(fundamental[sorted(read_in[c])]))) for c, t in terms.items()}, track
+
+    sensors_out, tracks = {}, {}
+    w1 = LOBE + np.ceil(drift).astype(int)
+    for j, name in enumerate(names):
+        Yk = SY[j][:, keep]
+        fund = np.array([_window(Yk[:, i], k0[i], w1[i]) for i in cols])
+        # the linear response taken away in time (the fundamental's leakage and its drift in a
+        # frame go with it): H over the swept band, zero outside, on the whole record's force
+        y_lin, before, after, ring = _linear_response(u, Y[:, j], fs, f0, rate)
+        R = _stft(Y[:, j] - y_lin, fs, nper)[1][:, keep]
+        # frame times from (before) to (after, or as long as the structure rings if longer) after
+        # the sweep passed the bin's frequency, and half a frame: there the kept lags took the
+        # noise away with the response, and past them a mode still rings (a sweep down: the
+        # harmonics at f come after the sweep passed f)
+        cancelled = _near_passage(f, times, f0, before + T / 2, max(after, ring) + T / 2)
+        sensors_out[name], tracks[name] = read(R, fund, cancelled)
+    fund_u = np.array([_window(U[:, i], k0[i], w1[i]) for i in cols])
+    force, _ = read(U, fund_u, np.zeros(U.shape, bool))
+    return SweepDistortion(classes, sensors_out, force, int(f0.size), float(T), f0, tracks)
+
+
+def _near_passage(f, times, f0, before: float, after: float) -> np.ndarray:
+    """(bins, frames): frame ``times`` [s] from ``before`` s before to ``after`` s after the
+    sweep (its track ``f0`` [Hz] at those times) passed each bin's frequency ``f`` [Hz]
+    (bins outside the swept band: never)."""
+    order = np.argsort(f0)
+    inside = (f >= f0.min()) & (f <= f0.max())
+    passed = np.interp(f, f0[order], times[order])
+    lag = times[None, :] - passed[:, None]
+    return inside[:, None] & (lag >= -before) & (lag <= after)
+
+
+def _background(P, centres, drift, n_harmonics: int, usable):
+    """Each bin's noise power (from its median over the frames where neither the fundamental nor a
+    harmonic up to ``n_harmonics`` + 1 is within its window and a bin of it) and how many
+    frames that mean is over.  ``P`` (bins, frames) power, ``centres`` f0 of each frame [bins],
+    ``usable`` (bins, frames) the cells whose noise is whole (:func:`_near_passage`).
+    Read at the harmonic's own frequency, not beside it: the channel's noise may be coloured
+    (a pink sensor, the force's noise through the structure's resonances, which taking the
+    linear response away puts in the residual), but it does not change with time."""
+    bins = np.arange(P.shape[0])[:, None]
+    clean = np.array(usable, bool)
+    for k in range(1, n_harmonics + 2):
+        w = LOBE + np.ceil(k * drift) + 1
+        clean &= np.abs(bins - k * centres[None, :]) > w[None, :]
+    count = clean.sum(axis=1)
+    # the median over those frames over ln 2 (a bin's noise power is exponential: its median is
+    # ln 2 its mean): a response left in a few frames (a mode ringing past the impulse response
+    # kept, the joint's softened ringing) does not raise it
+    masked = np.where(clean, P, np.nan)
+    masked[count == 0] = 0.0  # no frame: no estimate (NaN below), and no warning of an empty median
+    B = np.nanmedian(masked, axis=1) / np.log(2.0)
+    return np.where(count > 0, B, np.nan), count
+
+
+def _readable(f0, rate, T, k, fs):
+    """Where harmonic ``k`` can be read with frames of ``T`` s: its window (the main lobe and
+    the drift of k f0 over half a frame) apart from the noise windows half an f0 away (f0 at
+    least 4 w + 2 bins), and below :data:`TOP_SHARE` of the sampling rate."""
+    df = 1.0 / T
+    w = LOBE + np.ceil(k * np.abs(rate) * T * T / 2)
+    return ((k + 0.5) * f0 + (w + 1) * df < TOP_SHARE * fs) & (f0 / df >= 4 * w + 2)
+
+
+def _linear_response(u, y, fs: float, f0, rate) -> tuple[np.ndarray, float, float, float]:
+    """The record's linear response, the lags [s] before and after its impulse response that
+    were kept, and how long the impulse response rings [s] (where its envelope falls to 10x
+    its floor, kept or not).
+
+    The impulse response is read by deconvolution of the whole record over the swept band
+    (Y U* / (|U|^2 + eps), zero-padded to twice its length), kept over the lags a linear
+    structure's response has, then convolved with ``u``.  Deconvolved, a sweep's harmonics do
+    not land where the linear impulse response is (Farina 2000): harmonic k at frequency f
+    was made when the sweep was at f / k, so it shows at a lag of t(f) - t(f / k), at least
+    ``f0_min / rate`` for a linear sweep (``rate`` [Hz/s] from the track ``f0`` [Hz]): at
+    negative lags for a sweep up, at positive ones for a sweep down.  Kept: lags from -1 % of
+    the record (filters' pre-ringing) to where the envelope has fallen to 10x its floor (the
+    noise, spread over every lag: the noise the kept lags hold goes with the response, at
+    frequency f over the times the sweep is within those lags of f, which
+    :func:`_background` leaves out), at most half the record, and for a sweep down
+    0.8 f0_min / rate."""
+    n = u.size
+    nfft = 2 * n
+    U, Yf = np.fft.rfft(u, nfft), np.fft.rfft(y, nfft)
+    eps = 1e-6 * np.max(np.abs(U) ** 2)
+    # the swept band only, faded over 5 % beyond it: outside it the force holds its noise alone,
+    # and Y / U there is noise over noise, which the lags kept would spread in time
+    freqs = np.fft.rfftfreq(nfft, 1.0 / fs)
+    lo, hi = np.min(f0), np.max(f0)
+    edge = 0.05 * lo, 0.05 * hi
+    rise = np.clip((freqs - (lo - edge[0])) / edge[0], 0.0, 1.0)
+    fall = np.clip(((hi + edge[1]) - freqs) / edge[1], 0.0, 1.0)
+    band = (0.5 - 0.5 * np.cos(np.pi * rise)) * (0.5 - 0.5 * np.cos(np.pi * fall))
+    h = np.fft.irfft(band * Yf * np.conj(U) / (np.abs(U) ** 2 + eps), nfft)
+    pre = max(n // 100, 1)
+    post = n // 2
+    if np.median(rate) < 0:  # a sweep down: its harmonics at positive lags
+        post = int(min(post, 0.8 * np.min(f0) / max(np.median(np.abs(rate)), 1e-12) * fs))
+    # the envelope (a moving mean of h^2 over 1 % of the record) against its floor far out
+    env = np.convolve(h[: post + 1] ** 2, np.ones(pre) / pre, mode="same")
+    floor = np.median(h[n // 2 : nfft - n // 2] ** 2)
+    above = np.flatnonzero(env > 10 * floor)
+    ring = int(1.2 * (above[-1] + pre)) if above.size else pre
+    post = min(post, ring)
+    keep = np.zeros(nfft)
+    keep[: post + 1] = 1.0
+    keep[nfft - pre :] = 1.0
+    return np.fft.irfft(np.fft.rfft(h * keep) * U, nfft)[:n], pre / fs, post / fs, ring / fs
+
+
+def _first_frame(u, fs: float) -> int:
+    """The power-of-two frame under which the most of ``u``'s frames hold one sine (the longer
+    of equals): a first look at a sweep of any rate, slow or fast."""
+    sizes = sorted({_frame(fs, u.size, 2.0**e / fs) for e in range(6, 24)})
+    share = []
+    for m in sizes:
+        f0, _, _ = _track(u, fs, m)
+        share.append(f0.size * (m // 2) / u.size if f0.size >= MIN_FRAMES else 0.0)
+    return sizes[len(share) - 1 - int(np.argmax(share[::-1]))]
+
+
+def _best_frame(f0, rate, fs: float, n: int, weight) -> int:
+    """The power-of-two frame under which harmonic 3 can be read where the response is
+    largest (``f0``, ``rate``: a first track; ``weight``: the output's power at f0 there):
+    long frames resolve the low f0, short ones follow a fast sweep."""
+    sizes = sorted({_frame(fs, n, 2.0**e / fs) for e in range(6, 24)})
+    share = [np.sum(weight * _readable(f0, rate, m / fs, 3, fs)) for m in sizes]
+    return sizes[int(np.argmax(share))]
+
+
+def _frame(fs: float, n: int, seconds: float) -> int:
+    """A power-of-two frame near ``seconds``, between 64 samples and an eighth of the record."""
+    nper = 2 ** int(np.round(np.log2(max(seconds * fs, 64))))
+    return int(min(max(nper, 64), 2 ** int(np.log2(max(n // 8, 64)))))
+
+
+def _stft(x, fs: float, nper: int):
+    """(frequencies [Hz], (bins, frames)) of ``x``: frames of ``nper`` samples, half overlapping."""
+    kw = dict(nperseg=nper, noverlap=nper // 2, boundary=None, padded=False, detrend=False)
+    f, _, X = stft(x, fs=fs, window=WINDOW, **kw)
+    return f, X
+
+
+def _frame_times(n_frames: int, nper: int, fs: float) -> np.ndarray:
+    """The centre of each frame of :func:`_stft` [s]."""
+    return (np.arange(n_frames) * (nper // 2) + nper / 2) / fs
+
+
+def _spectra(u, Y, fs, nper):
+    f, U = _stft(u, fs, nper)
+    return f, U, [_stft(Y[:, j], fs, nper)[1] for j in range(Y.shape[1])]
+
+
+def _bin_covariance(nper: int, m: int) -> float:
+    """Var(sum of m adjacent bins' power) / (m mu^2) for white noise of mean bin power mu:
+    (1/m) sum_{a, b} |rho(a - b)|^2, rho the window's correlation between bins l apart
+    (sum w^2 e^{-2 pi i l n / N} / sum w^2)."""
+    w2 = get_window(WINDOW, nper) ** 2
+    lags = np.arange(-(m - 1), m)
+    rho = np.abs(np.exp(-2j * np.pi * np.outer(lags, np.arange(nper)) / nper) @ w2) / w2.sum()
+    return float(np.sum((m - np.abs(lags)) * rho**2) / m)
+
+
+def _track(u, fs, nper, spectra=None):
+    """f0 [Hz] of the frames that hold one sine, their indices, and the sweep's rate [Hz/s]."""
+    if spectra is None:
+        f, U = _stft(u, fs, nper)
+    else:
+        f, U = spectra
+    P = np.abs(U) ** 2
+    total = P[1:].sum(axis=0)
+    peak = np.argmax(P[1:], axis=0) + 1
+    lobe = np.array([P[max(p - LOBE, 1) : p + LOBE + 1, i].sum() for i, p in enumerate(peak)])
+    loud = total > 1e-3 * np.median(total[total > 0]) if np.any(total > 0) else np.zeros_like(total, bool)
+    keep = np.flatnonzero(loud & (lobe >= SINE_SHARE * np.where(total > 0, total, np.inf)) & (peak > LOBE))
+    keep = keep[peak[keep] < P.shape[0] - LOBE - 1]
+    if keep.size == 0:
+        return np.zeros(0), keep, np.zeros(0)
+    # the peak refined by a parabola through the log powers of its bin and neighbours
+    p = peak[keep]
+    a, b, c = (np.log(P[p + s, keep] + 1e-300) for s in (-1, 0, 1))
+    den = a - 2 * b + c
+    shift = np.where(den < 0, 0.5 * (a - c) / np.where(den < 0, den, -1.0), 0.0)
+    f0 = (p + np.clip(shift, -0.5, 0.5)) * (f[1] - f[0])
+    hop = (nper // 2) / fs
+    rate = np.gradient(f0, keep * hop) if f0.size > 1 else np.zeros(1)
+    return f0, keep, rate
+
+
+def _window(X, centre: float, w: int) -> float:
+    """Power of the bins within ``w`` of the bin nearest ``centre``."""
+    c = int(np.rint(centre))
+    return float(np.sum(np.abs(X[max(c - w, 0) : c + w + 1]) ** 2))
+
+
+def _class_stats(terms, fundamental: float) -> dict:
+    """noise_ratio, sd, detected and level_db of one class from its (power, noise, bins) terms."""
+    if len(terms) < MIN_TERMS:
+        return {"noise_ratio": float("nan"), "sd": float("nan"), "detected": False, "level_db": float("-inf")}
+    p, n, m, n_null, c = (np.array(x, float) for x in zip(*terms))
+    power, noise = float(p.sum()), float(n.sum())
+    if noise <= 0:
+        return {"noise_ratio": float("inf"), "sd": 0.0, "detected": power > 0, "level_db": float("-inf")}
+    # var(power - noise) = (1 + 1 / n_null) c m mu^2, mu = noise / m the mean bin power (_bin_covariance)
+    sd = float(np.sqrt(np.sum((1 + 1 / n_null) * c * n**2 / m))) / noise
+    ratio = power / noise
+    above = power - noise
+    level = 10 * np.log10(above / fundamental) if above > 0 and fundamental > 0 else float("-inf")
+    return {"noise_ratio": ratio, "sd": sd, "detected": bool(ratio > 1.0 + DETECT_SD * sd), "level_db": float(level)}
+
+
+def record_distortion(u, y, fs: float, period_samples=None, sensors=None):
+    """The odd and even distortion of any record: :func:`volterra.distortion` where the
+    input repeats (``period_samples`` [samples], else found), :func:`sweep_distortion` where
+    it is a sine sweep, None for another record (random, an impact).  A record that repeats
+    but cannot be read raises ValueError (:func:`volterra.distortion`'s message)."""
+    layout = find_periods(np.asarray(u, float), period_samples)
+    if isinstance(layout, PeriodLayout):
+        return distortion(u, y, fs, layout, sensors=sensors)
+    try:
+        return sweep_distortion(u, y, fs, sensors=sensors)
+    except ValueError as exc:
+        if str(exc).startswith("not a sweep"):
+            return None
+        raise
