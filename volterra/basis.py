@@ -22,37 +22,18 @@ grow fast with the number of functions.
 
 Default numbers of functions, ``DEFAULT_N_FUNCTIONS = (2, 2, 6)``
 ------------------------------------------------------------------
-Chosen from the measured trade-off (``docs/kautz_basis_study.md``):
-
-* J1 = 2 when the pole is accurate (within about 0.1 zeta fn of the linearised
-  mode: the FE modal analysis of the model itself, or a pole refined on a
-  low-level record).  H1 error near resonance 0.3-0.7 %.  Crucially, a small
-  J1 keeps the amplitude-dependent (cubic) frequency shift out of y1: on a
-  chirp with y3/y1 = 10 % the H1 error is 0.3 % at J = (2, 6) but 4.9 % at
-  (4, 4) and 12 % at (8, 4), because a rich linear basis fits part of the
-  nonlinear response with a linear kernel.
-* J1 = 2 is fragile when the pole is off: a pole frequency off by
-  0.25 zeta fn costs 13-17 % on H1 (J1 = 4: 2-2.5 %, J1 = 8: 0.3-0.4 %).
-  If the pole is uncertain and the record is linear (low level), use J1 = 8
-  (``ROBUST_LINEAR_N_FUNCTIONS``) and check the residual, or refine the pole
-  with :func:`volterra.refine_pole`.
-* J2 = 2: H2 of a quadratic oscillator at (f, -f) near resonance within
-  0.5-3 %; J2 = 4 gained nothing there and made H2 at (fn, fn) worse
-  (27 % against 8 %).
-* J3 = 6: the order-3 component of a Duffing chirp response (y3/y1 = 10 %) is
-  within 9 % of the perturbation hierarchy (J3 = 4: 17-28 %, and H1 from a
-  single 10 % record degrades from 0.3 % to 2.7 %); condition numbers about
-  2e3 on a chirp (J3 = 4: ~20; J3 = 8: 1e6 and more, avoid).
-
-Numbers from ``tests/test_volterra_oscillators.py`` and the planning study
-(fn = 30 Hz, zeta = 0.01, chirp 20-50 Hz + free decay, 40 dB noise), measured
-without the feed-through.  The feed-through adds one function per order
-(3 + 6 + 84 = 93 regressors at (2, 2, 6) instead of 61).  Measured with it on
-the same records: H1 from stacked levels improves (0.185 -> 0.146 %), but H1
-from ONE constant-amplitude chirp at J = (2, 2, 6) degrades (0.14 -> 0.65 %,
-gain -0.58 %): there u^3 = 3/4 A^2 u + (third harmonic), so the order-3
-regressors with the feed-through nearly repeat the order-1 one.  Fit two or
-three levels jointly (as the framework does), or ``feedthrough=False``.
+Chosen from the measured trade-off (``docs/kautz_basis_study.md``, numbers there):
+J1 = 2 keeps the amplitude-dependent (cubic) frequency shift out of y1 when the
+pole is accurate (a low-level record's, refined), and is fragile when it is off
+(use ``ROBUST_LINEAR_N_FUNCTIONS`` on an uncertain pole and a linear record, or
+refine it with :func:`volterra.refine_pole`); J2 = 2 gives H2 near resonance
+within a few %, more made it worse; J3 = 6 follows a Duffing chirp's order-3
+component within 9 % at condition numbers about 2e3 (J3 = 8: 1e6, avoid).  The
+feed-through adds one function per order (93 regressors at (2, 2, 6) instead of
+61): it helps H1 from stacked levels and hurts it from ONE constant-amplitude
+chirp, where u^3 = 3/4 A^2 u + (third harmonic) nearly repeats the order-1
+regressor: fit two or three levels jointly (as the framework does), or
+``feedthrough=False``.
 """
 
 from __future__ import annotations

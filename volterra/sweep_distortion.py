@@ -10,7 +10,7 @@ on one side, any asymmetry).  Read on a short-time Fourier transform (Hann frame
 half overlapping):
 
 * f0 of each frame from the input's spectral peak; frames where the input is not
-  one sine (its peak holds less than :data:`SINE_SHARE` of the frame's power, or
+  one sine (its peak holds less than 80 % of the frame's power, or
   silence) are left out;
 * the linear response taken away in time, r = y - h * u, with h the record's own
   impulse response: the swept band deconvolved over the whole record and kept over
@@ -32,7 +32,7 @@ half overlapping):
 Per class (odd, even) and sensor, summed over the frames and harmonics, the same
 numbers as a periodic record's (:class:`volterra.distortion.Distortion`):
 ``noise_ratio`` (the harmonics' power over their noise, about 1 without distortion),
-its ``sd`` (the window's own correlation between bins, :func:`_bin_covariance`),
+its ``sd`` (the window's own correlation between bins, :func:`volterra.sweep_frames.bin_covariance`),
 ``detected`` (the ratio above 1 by :data:`DETECT_SD` sds) and ``level_db`` (the
 harmonics' power less their noise over the output's power at f0).  The input's own
 harmonics are read the same way (``force``), its fundamental left in: its leakage
@@ -44,30 +44,31 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import get_window, stft
 
-from .distortion import DETECT_SD, TOP_SHARE, distortion
+from .distortion import DETECT_SD, distortion
 from .periods import PeriodLayout, find_periods
+from .sweep_frames import (
+    LOBE,
+    MIN_FRAMES,
+    best_frame,
+    bin_covariance,
+    first_frame,
+    frame_length,
+    frame_times,
+    frames_of,
+    readable,
+    spectra,
+    track,
+)
 
 __all__ = ["SweepDistortion", "record_distortion", "sweep_distortion"]
 
-#: a frame is a sine's when the input's peak (its main lobe) holds at least this share of its power
-SINE_SHARE = 0.8
-#: at least this many such frames, or the record is not a sweep
-MIN_FRAMES = 8
 #: a class is read from at least this many (frame, harmonic) windows, else left unread (NaN): the
 #: ratio's normal approximation needs them (one window of a fast sweep read 25x its noise on a
 #: linear structure of the front end's corpus, its stated sd 0.77)
 MIN_TERMS = 8
-#: the frames' window (a Blackman-Harris's 92 dB side lobes cost a main lobe twice as wide, which
-#: at a GVT's 50 Hz left no third harmonic readable; with the linear response taken away in time
-#: the fundamental's leakage is gone from the sensors)
-WINDOW = "hann"
 #: a bin's noise is read from at least this many frames where no harmonic is near it
 MIN_BACKGROUND = 4
-#: half-width of a harmonic's window in bins beyond its drift: a sine's Hann spectrum holds at least
-#: 96 % of its power within one bin of its nearest (100 % on a bin, 97 % half-way)
-LOBE = 1
 
 
 @dataclass(frozen=True)
@@ -146,9 +147,9 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
         raise ValueError(f"{len(names)} sensor names for {Y.shape[1]} responses")
     u, Y = u - u.mean(), Y - Y.mean(axis=0)
     if frame_s is None:
-        first = _first_frame(u, fs)
-        f, U, SY = _spectra(u, Y, fs, first)
-        f0, keep, rate = _track(u, fs, first, (f, U))
+        first = first_frame(u, fs)
+        f, U, SY = spectra(u, Y, fs, first)
+        f0, keep, rate = track(u, fs, first, (f, U))
         if f0.size < MIN_FRAMES:
             raise ValueError(
                 f"not a sweep: {f0.size} frames of any length hold one sine (at least {MIN_FRAMES} needed)"
@@ -156,15 +157,15 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
         # where the response is large (a nonlinearity acts there: resonances), each sensor alike
         k0 = np.rint(f0 / (f[1] - f[0])).astype(int)
         weight = sum(np.abs(S[k0, keep]) ** 2 / np.max(np.abs(S[k0, keep]) ** 2) for S in SY)
-        nper = _best_frame(f0, rate, fs, u.size, weight)
+        nper = best_frame(f0, rate, fs, u.size, weight)
     else:
-        nper = _frame(fs, u.size, frame_s)
-    f, U, SY = _spectra(u, Y, fs, nper)
-    f0, keep, rate = _track(u, fs, nper, (f, U))
+        nper = frame_length(fs, u.size, frame_s)
+    f, U, SY = spectra(u, Y, fs, nper)
+    f0, keep, rate = track(u, fs, nper, (f, U))
     if f0.size < MIN_FRAMES:
         raise ValueError(f"not a sweep: {f0.size} frames hold one sine (at least {MIN_FRAMES} needed)")
     T, df = nper / fs, f[1] - f[0]
-    times = _frame_times(U.shape[1], nper, fs)[keep]
+    times = frame_times(U.shape[1], nper, fs)[keep]
     U = U[:, keep]
     k0 = np.rint(f0 / df).astype(int)
     cols = np.arange(U.shape[1])
@@ -175,7 +176,7 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
 
     def covariance(m):
         if m not in cov:
-            cov[m] = _bin_covariance(nper, m)
+            cov[m] = bin_covariance(nper, m)
         return cov[m]
 
     def read(R, fundamental, cancelled):
@@ -184,7 +185,7 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
         track = np.full((f0.size, n_harmonics - 1), np.nan)
         for k in range(2, n_harmonics + 1):
             w = LOBE + np.ceil(k * drift).astype(int)
-            for i in np.flatnonzero(_readable(f0, rate, T, k, fs)):
+            for i in np.flatnonzero(readable(f0, rate, T, k, fs)):
                 lo = int(np.rint(k * f0[i] / df)) - w[i]
                 bins = slice(max(lo, 0), lo + 2 * w[i] + 1)
                 if np.any(count[bins] < MIN_BACKGROUND) or np.any(cancelled[bins, i]):
@@ -205,7 +206,7 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
         # the linear response taken away in time (the fundamental's leakage and its drift in a
         # frame go with it): H over the swept band, zero outside, on the whole record's force
         y_lin, before, after, ring = _linear_response(u, Y[:, j], fs, f0, rate)
-        R = _stft(Y[:, j] - y_lin, fs, nper)[1][:, keep]
+        R = frames_of(Y[:, j] - y_lin, fs, nper)[1][:, keep]
         # frame times from (before) to (after, or as long as the structure rings if longer) after
         # the sweep passed the bin's frequency, and half a frame: there the kept lags took the
         # noise away with the response, and past them a mode still rings (a sweep down: the
@@ -249,15 +250,6 @@ def _background(P, centres, drift, n_harmonics: int, usable):
     masked[count == 0] = 0.0  # no frame: no estimate (NaN below), and no warning of an empty median
     B = np.nanmedian(masked, axis=1) / np.log(2.0)
     return np.where(count > 0, B, np.nan), count
-
-
-def _readable(f0, rate, T, k, fs):
-    """Where harmonic ``k`` can be read with frames of ``T`` s: its window (the main lobe and
-    the drift of k f0 over half a frame) apart from the noise windows half an f0 away (f0 at
-    least 4 w + 2 bins), and below :data:`TOP_SHARE` of the sampling rate."""
-    df = 1.0 / T
-    w = LOBE + np.ceil(k * np.abs(rate) * T * T / 2)
-    return ((k + 0.5) * f0 + (w + 1) * df < TOP_SHARE * fs) & (f0 / df >= 4 * w + 2)
 
 
 def _linear_response(u, y, fs: float, f0, rate) -> tuple[np.ndarray, float, float, float]:
@@ -306,85 +298,6 @@ def _linear_response(u, y, fs: float, f0, rate) -> tuple[np.ndarray, float, floa
     return np.fft.irfft(np.fft.rfft(h * keep) * U, nfft)[:n], pre / fs, post / fs, ring / fs
 
 
-def _first_frame(u, fs: float) -> int:
-    """The power-of-two frame under which the most of ``u``'s frames hold one sine (the longer
-    of equals): a first look at a sweep of any rate, slow or fast."""
-    sizes = sorted({_frame(fs, u.size, 2.0**e / fs) for e in range(6, 24)})
-    share = []
-    for m in sizes:
-        f0, _, _ = _track(u, fs, m)
-        share.append(f0.size * (m // 2) / u.size if f0.size >= MIN_FRAMES else 0.0)
-    return sizes[len(share) - 1 - int(np.argmax(share[::-1]))]
-
-
-def _best_frame(f0, rate, fs: float, n: int, weight) -> int:
-    """The power-of-two frame under which harmonic 3 can be read where the response is
-    largest (``f0``, ``rate``: a first track; ``weight``: the output's power at f0 there):
-    long frames resolve the low f0, short ones follow a fast sweep."""
-    sizes = sorted({_frame(fs, n, 2.0**e / fs) for e in range(6, 24)})
-    share = [np.sum(weight * _readable(f0, rate, m / fs, 3, fs)) for m in sizes]
-    return sizes[int(np.argmax(share))]
-
-
-def _frame(fs: float, n: int, seconds: float) -> int:
-    """A power-of-two frame near ``seconds``, between 64 samples and an eighth of the record."""
-    nper = 2 ** int(np.round(np.log2(max(seconds * fs, 64))))
-    return int(min(max(nper, 64), 2 ** int(np.log2(max(n // 8, 64)))))
-
-
-def _stft(x, fs: float, nper: int):
-    """(frequencies [Hz], (bins, frames)) of ``x``: frames of ``nper`` samples, half overlapping."""
-    kw = dict(nperseg=nper, noverlap=nper // 2, boundary=None, padded=False, detrend=False)
-    f, _, X = stft(x, fs=fs, window=WINDOW, **kw)
-    return f, X
-
-
-def _frame_times(n_frames: int, nper: int, fs: float) -> np.ndarray:
-    """The centre of each frame of :func:`_stft` [s]."""
-    return (np.arange(n_frames) * (nper // 2) + nper / 2) / fs
-
-
-def _spectra(u, Y, fs, nper):
-    f, U = _stft(u, fs, nper)
-    return f, U, [_stft(Y[:, j], fs, nper)[1] for j in range(Y.shape[1])]
-
-
-def _bin_covariance(nper: int, m: int) -> float:
-    """Var(sum of m adjacent bins' power) / (m mu^2) for white noise of mean bin power mu:
-    (1/m) sum_{a, b} |rho(a - b)|^2, rho the window's correlation between bins l apart
-    (sum w^2 e^{-2 pi i l n / N} / sum w^2)."""
-    w2 = get_window(WINDOW, nper) ** 2
-    lags = np.arange(-(m - 1), m)
-    rho = np.abs(np.exp(-2j * np.pi * np.outer(lags, np.arange(nper)) / nper) @ w2) / w2.sum()
-    return float(np.sum((m - np.abs(lags)) * rho**2) / m)
-
-
-def _track(u, fs, nper, spectra=None):
-    """f0 [Hz] of the frames that hold one sine, their indices, and the sweep's rate [Hz/s]."""
-    if spectra is None:
-        f, U = _stft(u, fs, nper)
-    else:
-        f, U = spectra
-    P = np.abs(U) ** 2
-    total = P[1:].sum(axis=0)
-    peak = np.argmax(P[1:], axis=0) + 1
-    lobe = np.array([P[max(p - LOBE, 1) : p + LOBE + 1, i].sum() for i, p in enumerate(peak)])
-    loud = total > 1e-3 * np.median(total[total > 0]) if np.any(total > 0) else np.zeros_like(total, bool)
-    keep = np.flatnonzero(loud & (lobe >= SINE_SHARE * np.where(total > 0, total, np.inf)) & (peak > LOBE))
-    keep = keep[peak[keep] < P.shape[0] - LOBE - 1]
-    if keep.size == 0:
-        return np.zeros(0), keep, np.zeros(0)
-    # the peak refined by a parabola through the log powers of its bin and neighbours
-    p = peak[keep]
-    a, b, c = (np.log(P[p + s, keep] + 1e-300) for s in (-1, 0, 1))
-    den = a - 2 * b + c
-    shift = np.where(den < 0, 0.5 * (a - c) / np.where(den < 0, den, -1.0), 0.0)
-    f0 = (p + np.clip(shift, -0.5, 0.5)) * (f[1] - f[0])
-    hop = (nper // 2) / fs
-    rate = np.gradient(f0, keep * hop) if f0.size > 1 else np.zeros(1)
-    return f0, keep, rate
-
-
 def _window(X, centre: float, w: int) -> float:
     """Power of the bins within ``w`` of the bin nearest ``centre``."""
     c = int(np.rint(centre))
@@ -399,7 +312,7 @@ def _class_stats(terms, fundamental: float) -> dict:
     power, noise = float(p.sum()), float(n.sum())
     if noise <= 0:
         return {"noise_ratio": float("inf"), "sd": 0.0, "detected": power > 0, "level_db": float("-inf")}
-    # var(power - noise) = (1 + 1 / n_null) c m mu^2, mu = noise / m the mean bin power (_bin_covariance)
+    # var(power - noise) = (1 + 1 / n_null) c m mu^2, mu = noise / m the mean bin power (bin_covariance)
     sd = float(np.sqrt(np.sum((1 + 1 / n_null) * c * n**2 / m))) / noise
     ratio = power / noise
     above = power - noise
