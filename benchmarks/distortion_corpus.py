@@ -47,6 +47,9 @@ def rows_of(seed: int) -> list:
             names = [n for n, _ in t.sensors]
             d = record_distortion(t.force, t.response, data.sampling_rate_hz, t.period_samples, sensors=names)
             if d is None:
+                if t.signal in ("sweep", "chirp"):  # a sweep the reader turned down: counted
+                    row["not_read"] = "not a sweep by the reader's tests (frames of one sine, f0 moving smoothly)"
+                    out.append(row)
                 continue
             row.update(
                 kind="periodic" if isinstance(d, Distortion) else "sweep",
@@ -82,7 +85,7 @@ def main(argv=None) -> None:
     refused = [r for r in rows if "refused" in r]
     false = [r for r in rows if "detected" in r and r["class"] not in NONLINEAR and any(r["detected"].values())]
     linear = [r for r in rows if "detected" in r and r["class"] not in NONLINEAR]
-    kinds = collections.Counter(r.get("kind", "refused or crashed") for r in rows)
+    kinds = collections.Counter(r.get("kind", "not read" if "not_read" in r else "refused or crashed") for r in rows)
     false_kinds = collections.Counter(r["kind"] for r in false)
     linear_kinds = collections.Counter(r["kind"] for r in linear)
     lines = [

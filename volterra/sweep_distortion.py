@@ -29,6 +29,10 @@ half overlapping):
   of the bin's frequency (the noise went with the response there) and, for a sweep
   down, as long as the structure rings after it.
 
+A record that sweeps up and down again is read as two sweeps (deconvolved together, the
+harmonics of one would land on the other's linear lags); a stepped sine, whose f0 stands
+still between steps, as one.
+
 Per class (odd, even) and sensor, summed over the frames and harmonics, the same
 numbers as a periodic record's (:class:`volterra.distortion.Distortion`):
 ``noise_ratio`` (the harmonics' power over their noise, about 1 without distortion),
@@ -63,6 +67,11 @@ from .sweep_frames import (
 
 __all__ = ["SweepDistortion", "record_distortion", "sweep_distortion"]
 
+#: frames of one sine cover at least this share of a sweep's record (the rest: its rest and decay),
+#: and its f0 moves by at most MAX_JUMP_BINS between at least MIN_SMOOTH of neighbouring frames
+MIN_COVERED = 0.25
+MAX_JUMP_BINS = 2.0
+MIN_SMOOTH = 0.8
 #: a class is read from at least this many (frame, harmonic) windows, else left unread (NaN): the
 #: ratio's normal approximation needs them (one window of a fast sweep read 25x its noise on a
 #: linear structure of the front end's corpus, its stated sd 0.77)
@@ -78,8 +87,9 @@ class SweepDistortion:
     ``classes``: {"odd": harmonics read (3, 5, ...), "even": (2, 4, ...)}; ``sensors``:
     {sensor: {class: {"noise_ratio", "sd", "detected", "level_db"}}}, the same for
     ``force``; ``frames`` used, ``frame_s`` their length [s]; ``f0`` [Hz] each frame's
-    frequency; ``harmonics``: {sensor: (frames, n_harmonics - 1) power of harmonics 2 ..
-    less its noise, over the frame's output power at f0} (NaN where not read)."""
+    frequency; ``harmonics`` and ``noise``: {sensor: (frames, n_harmonics - 1) power of
+    harmonics 2 .. and their noise, over the frame's output power at f0} (NaN where not
+    read)."""
 
     classes: dict
     sensors: dict
@@ -88,6 +98,7 @@ class SweepDistortion:
     frame_s: float
     f0: np.ndarray
     harmonics: dict
+    noise: dict
 
     def to_dict(self) -> dict:
         """The numbers, JSON-ready (the per-frame tracks left out; -inf dB and a class not read,
@@ -146,14 +157,79 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
     if len(names) != Y.shape[1]:
         raise ValueError(f"{len(names)} sensor names for {Y.shape[1]} responses")
     u, Y = u - u.mean(), Y - Y.mean(axis=0)
+    first = first_frame(u, fs)
+    f0, keep, _ = track(u, fs, first)
+    if f0.size < MIN_FRAMES:
+        raise ValueError(f"not a sweep: {f0.size} frames of any length hold one sine (at least {MIN_FRAMES} needed)")
+    covered = f0.size * (first // 2) / u.size
+    adjacent = np.diff(keep) == 1
+    jumps = np.abs(np.diff(f0))[adjacent] * first / fs  # in bins, between neighbouring frames
+    smooth = float(np.mean(jumps <= MAX_JUMP_BINS)) if jumps.size else 0.0
+    if covered < MIN_COVERED or smooth < MIN_SMOOTH:
+        # a random or burst record has frames where one line stands out, its f0 jumping about
+        raise ValueError(
+            f"not a sweep: frames of one sine cover {100 * covered:.0f} % of the record (at least "
+            f"{100 * MIN_COVERED:.0f} %), and f0 moves by at most {MAX_JUMP_BINS:g} bins between "
+            f"{100 * smooth:.0f} % of neighbouring frames (at least {100 * MIN_SMOOTH:.0f} %)"
+        )
+    classes = {"odd": tuple(range(3, n_harmonics + 1, 2)), "even": tuple(range(2, n_harmonics + 1, 2))}
+    parts = [
+        _segment(u[a:b], Y[a:b], fs, n_harmonics, frame_s, classes)
+        for a, b in _one_way(f0, frame_times(keep.max() + 1, first, fs)[keep], fs / first, fs, u.size, first)
+    ]
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        raise ValueError(f"not a sweep: no part of it holds {MIN_FRAMES} frames of one sine")
+
+    def stats(channel):
+        # each class over the output's power at f0 in the frames where it was read, every part
+        return {
+            c: _class_stats(
+                [t for p in parts for t in p["terms"][channel][c]], sum(p["fundamental"][channel][c] for p in parts)
+            )
+            for c in classes
+        }
+
+    names_out = {name: stats(j) for j, name in enumerate(names)}
+    power = {name: np.vstack([p["track"][j][0] for p in parts]) for j, name in enumerate(names)}
+    noise = {name: np.vstack([p["track"][j][1] for p in parts]) for j, name in enumerate(names)}
+    f0_all = np.concatenate([p["f0"] for p in parts])
+    frame_s = parts[0]["frame_s"]
+    return SweepDistortion(classes, names_out, stats("force"), int(f0_all.size), frame_s, f0_all, power, noise)
+
+
+def _one_way(f0, times, df: float, fs: float, n: int, frame: int) -> list:
+    """``[(start, stop), ...]`` samples of the parts of a record that sweep one way: a sweep up
+    then down again is two sweeps (deconvolved together, the harmonics of one would land on the
+    other's linear lags); a stepped sine, whose f0 stands still between steps, one.  ``f0``
+    [Hz] at frame ``times`` [s] read on frames of ``frame`` samples, bin ``df`` [Hz]."""
+    step = np.diff(f0)
+    # f0 is read to a fraction of a bin: a step below a quarter of the frames' bin stands still
+    moving = np.abs(step) > 0.25 * df
+    way = np.sign(step[moving])
+    at = times[1:][moving]
+    flips = np.flatnonzero(way[1:] != way[:-1])
+    cuts = [0] + [int(round(0.5 * (at[k] + at[k + 1]) * fs)) for k in flips] + [n]
+    # a part shorter than MIN_FRAMES frames (f0's jitter read as a turn) joins the one before
+    shortest = MIN_FRAMES * frame // 2
+    kept = [0]
+    for c in cuts[1:-1]:
+        if c - kept[-1] >= shortest and n - c >= shortest:
+            kept.append(c)
+    kept.append(n)
+    return list(zip(kept[:-1], kept[1:]))
+
+
+def _segment(u, Y, fs: float, n_harmonics: int, frame_s, classes) -> dict | None:
+    """One sweep's reading (one way): per channel (sensor index, or "force") and class the
+    terms (power, noise, bins, frames of noise, bin covariance) and the output's power at f0
+    where read; the per-frame tracks; None where it holds too few frames of one sine."""
     if frame_s is None:
         first = first_frame(u, fs)
         f, U, SY = spectra(u, Y, fs, first)
         f0, keep, rate = track(u, fs, first, (f, U))
         if f0.size < MIN_FRAMES:
-            raise ValueError(
-                f"not a sweep: {f0.size} frames of any length hold one sine (at least {MIN_FRAMES} needed)"
-            )
+            return None
         # where the response is large (a nonlinearity acts there: resonances), each sensor alike
         k0 = np.rint(f0 / (f[1] - f[0])).astype(int)
         weight = sum(np.abs(S[k0, keep]) ** 2 / np.max(np.abs(S[k0, keep]) ** 2) for S in SY)
@@ -163,15 +239,13 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
     f, U, SY = spectra(u, Y, fs, nper)
     f0, keep, rate = track(u, fs, nper, (f, U))
     if f0.size < MIN_FRAMES:
-        raise ValueError(f"not a sweep: {f0.size} frames hold one sine (at least {MIN_FRAMES} needed)")
+        return None
     T, df = nper / fs, f[1] - f[0]
     times = frame_times(U.shape[1], nper, fs)[keep]
     U = U[:, keep]
     k0 = np.rint(f0 / df).astype(int)
     cols = np.arange(U.shape[1])
     drift = np.abs(rate) * T * T / 2  # bins k f0 moves over half a frame, per harmonic order
-    classes = {"odd": tuple(range(3, n_harmonics + 1, 2)), "even": tuple(range(2, n_harmonics + 1, 2))}
-
     cov = {}
 
     def covariance(m):
@@ -182,7 +256,7 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
     def read(R, fundamental, cancelled):
         B, count = _background(np.abs(R) ** 2, f0 / df, drift, n_harmonics, ~cancelled)
         terms, read_in = {c: [] for c in classes}, {c: set() for c in classes}
-        track = np.full((f0.size, n_harmonics - 1), np.nan)
+        track_k = np.full((2, f0.size, n_harmonics - 1), np.nan)
         for k in range(2, n_harmonics + 1):
             w = LOBE + np.ceil(k * drift).astype(int)
             for i in np.flatnonzero(readable(f0, rate, T, k, fs)):
@@ -194,17 +268,16 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
                 m = 2 * int(w[i]) + 1
                 terms["odd" if k % 2 else "even"].append((p, noise, m, int(np.min(count[bins])), covariance(m)))
                 read_in["odd" if k % 2 else "even"].add(i)
-                track[i, k - 2] = (p - noise) / fundamental[i]
-        # each class over the output's power at f0 in the frames where it was read
-        return {c: _class_stats(t, float(np.sum(fundamental[sorted(read_in[c])]))) for c, t in terms.items()}, track
+                track_k[:, i, k - 2] = p / fundamental[i], noise / fundamental[i]
+        return terms, {c: float(np.sum(fundamental[sorted(read_in[c])])) for c in classes}, track_k
 
-    sensors_out, tracks = {}, {}
+    out = {"terms": {}, "fundamental": {}, "track": {}, "f0": f0, "frame_s": float(T)}
     w1 = LOBE + np.ceil(drift).astype(int)
-    for j, name in enumerate(names):
+    for j in range(Y.shape[1]):
         Yk = SY[j][:, keep]
         fund = np.array([_window(Yk[:, i], k0[i], w1[i]) for i in cols])
-        # the linear response taken away in time (the fundamental's leakage and its drift in a
-        # frame go with it): H over the swept band, zero outside, on the whole record's force
+        # the linear response taken away in time (the fundamental's leakage, the modes' ringing
+        # and the response to the force's own harmonics go with it)
         y_lin, before, after, ring = _linear_response(u, Y[:, j], fs, f0, rate)
         R = frames_of(Y[:, j] - y_lin, fs, nper)[1][:, keep]
         # frame times from (before) to (after, or as long as the structure rings if longer) after
@@ -212,10 +285,10 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
         # noise away with the response, and past them a mode still rings (a sweep down: the
         # harmonics at f come after the sweep passed f)
         cancelled = _near_passage(f, times, f0, before + T / 2, max(after, ring) + T / 2)
-        sensors_out[name], tracks[name] = read(R, fund, cancelled)
+        out["terms"][j], out["fundamental"][j], out["track"][j] = read(R, fund, cancelled)
     fund_u = np.array([_window(U[:, i], k0[i], w1[i]) for i in cols])
-    force, _ = read(U, fund_u, np.zeros(U.shape, bool))
-    return SweepDistortion(classes, sensors_out, force, int(f0.size), float(T), f0, tracks)
+    out["terms"]["force"], out["fundamental"]["force"], _ = read(U, fund_u, np.zeros(U.shape, bool))
+    return out
 
 
 def _near_passage(f, times, f0, before: float, after: float) -> np.ndarray:
@@ -304,7 +377,7 @@ def _window(X, centre: float, w: int) -> float:
     return float(np.sum(np.abs(X[max(c - w, 0) : c + w + 1]) ** 2))
 
 
-def _class_stats(terms, fundamental: float) -> dict:
+def _class_stats(terms: list, fundamental: float) -> dict:
     """noise_ratio, sd, detected and level_db of one class from its (power, noise, bins) terms."""
     if len(terms) < MIN_TERMS:
         return {"noise_ratio": float("nan"), "sd": float("nan"), "detected": False, "level_db": float("-inf")}

@@ -32,6 +32,8 @@ __all__ = [
 SINE_SHARE = 0.8
 #: at least this many such frames, or the record is not a sweep
 MIN_FRAMES = 8
+#: and the frames at least this many cycles of their median f0 long
+MIN_CYCLES = 8
 #: the frames' window (a Blackman-Harris's 92 dB side lobes cost a main lobe twice as wide, which
 #: at a GVT's 50 Hz left no third harmonic readable; with the linear response taken away in time
 #: the fundamental's leakage is gone from the sensors)
@@ -43,8 +45,10 @@ LOBE = 1
 
 def readable(f0, rate, T, k, fs):
     """Where harmonic ``k`` can be read with frames of ``T`` s: its window (the main lobe and
-    the drift of k f0 over half a frame) apart from the noise windows half an f0 away (f0 at
-    least 4 w + 2 bins), and below :data:`TOP_SHARE` of the sampling rate."""
+    the drift of k f0 over half a frame, w bins each side) half an f0 clear of the fundamental
+    and the other harmonics (f0 at least 4 w + 2 bins: what the linear response leaves of the
+    fundamental leaks a few bins; closer, a fast sweep over sharp modes read as harmonics),
+    and below :data:`TOP_SHARE` of the sampling rate."""
     df = 1.0 / T
     w = LOBE + np.ceil(k * np.abs(rate) * T * T / 2)
     return ((k + 0.5) * f0 + (w + 1) * df < TOP_SHARE * fs) & (f0 / df >= 4 * w + 2)
@@ -57,7 +61,9 @@ def first_frame(u, fs: float) -> int:
     share = []
     for m in sizes:
         f0, _, _ = track(u, fs, m)
-        share.append(f0.size * (m // 2) / u.size if f0.size >= MIN_FRAMES else 0.0)
+        # a frame of a few cycles resolves so little that band-limited noise reads as one sine
+        sine = f0.size >= MIN_FRAMES and np.median(f0) * m / fs >= MIN_CYCLES
+        share.append(f0.size * (m // 2) / u.size if sine else 0.0)
     return sizes[len(share) - 1 - int(np.argmax(share[::-1]))]
 
 

@@ -154,19 +154,22 @@ def read_distortions(dataset, inspection: dict) -> dict:
 
 def _sweep_harmonics(ax, d, sensor: str, test) -> None:
     """A sweep's harmonics 2 .. at ``sensor`` against the frequency swept, each in dB of the
-    output at f0 (their noise taken off; below the noise not drawn)."""
-    track = d.harmonics[sensor]
-    for i in range(track.shape[1]):
+    output at f0, over their noise (grey: the same frequency in the frames where no harmonic
+    is near it)."""
+    power, noise = d.harmonics[sensor], d.noise[sensor]
+    for i in range(power.shape[1]):
         k = i + 2
-        level = np.where(track[:, i] > 0, track[:, i], np.nan)
-        color = "C3" if k % 2 else "C0"
-        ax.plot(d.f0, 10 * np.log10(level), "v" if k % 2 else "^", color=color, ms=3, alpha=0.4 + 0.6 / k)
-        ax.plot([], [], "v" if k % 2 else "^", color=color, label=f"harmonic {k} ({'odd' if k % 2 else 'even'})")
+        color, marker = ("C3", "v") if k % 2 else ("C0", "^")
+        label = f"harmonic {k} ({'odd' if k % 2 else 'even'})"
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ax.plot(d.f0, 10 * np.log10(power[:, i]), marker, color=color, ms=3, ls="none", label=label)
+            ax.plot(d.f0, 10 * np.log10(noise[:, i]), ".", color="0.6", ms=2, label="their noise" if i == 0 else None)
+    ax.set_xlim(float(np.min(d.f0)), float(np.max(d.f0)))
     ax.set_title(f"{test.name} ({test.level}), sweep: {d.verdict(sensor)}", fontsize=8)
     ax.set_ylabel("dB of the output at f0")
     ax.set_xlabel("frequency swept f0 [Hz]")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7, ncol=2, loc="best")
+    ax.legend(fontsize=7, ncol=3, loc="best")
 
 
 def plot_distortion(dataset, sensor: str, distortions: dict):
