@@ -101,8 +101,8 @@ def spectra(u, Y, fs, nper):
 
 def bin_covariance(nper: int, m: int) -> float:
     """Var(sum of m adjacent bins' power) / (m mu^2) for white noise of mean bin power mu:
-    (1/m) sum_{a, b} |rho(a - b)|^2, rho the window's correlation between bins l apart
-    (sum w^2 e^{-2 pi i l n / N} / sum w^2)."""
+    ``(1/m) sum_{a, b} abs(rho(a - b))^2``, rho the window's correlation between bins l apart
+    (``sum w^2 e^{-2 pi i l n / N} / sum w^2``)."""
     w2 = get_window(WINDOW, nper) ** 2
     lags = np.arange(-(m - 1), m)
     rho = np.abs(np.exp(-2j * np.pi * np.outer(lags, np.arange(nper)) / nper) @ w2) / w2.sum()
