@@ -64,6 +64,7 @@ from .sweep_frames import (
     spectra,
     track,
 )
+from .sweep_residual import linear_response, near_passage
 
 __all__ = ["SweepDistortion", "record_distortion", "sweep_distortion"]
 
@@ -278,35 +279,24 @@ def _segment(u, Y, fs: float, n_harmonics: int, frame_s, classes) -> dict | None
         fund = np.array([_window(Yk[:, i], k0[i], w1[i]) for i in cols])
         # the linear response taken away in time (the fundamental's leakage, the modes' ringing
         # and the response to the force's own harmonics go with it)
-        y_lin, before, after, ring = _linear_response(u, Y[:, j], fs, f0, rate)
+        y_lin, before, after, ring = linear_response(u, Y[:, j], fs, f0, rate)
         R = frames_of(Y[:, j] - y_lin, fs, nper)[1][:, keep]
         # frame times from (before) to (after, or as long as the structure rings if longer) after
         # the sweep passed the bin's frequency, and half a frame: there the kept lags took the
         # noise away with the response, and past them a mode still rings (a sweep down: the
         # harmonics at f come after the sweep passed f)
-        cancelled = _near_passage(f, times, f0, before + T / 2, max(after, ring) + T / 2)
+        cancelled = near_passage(f, times, f0, before + T / 2, max(after, ring) + T / 2)
         out["terms"][j], out["fundamental"][j], out["track"][j] = read(R, fund, cancelled)
     fund_u = np.array([_window(U[:, i], k0[i], w1[i]) for i in cols])
     out["terms"]["force"], out["fundamental"]["force"], _ = read(U, fund_u, np.zeros(U.shape, bool))
     return out
 
 
-def _near_passage(f, times, f0, before: float, after: float) -> np.ndarray:
-    """(bins, frames): frame ``times`` [s] from ``before`` s before to ``after`` s after the
-    sweep (its track ``f0`` [Hz] at those times) passed each bin's frequency ``f`` [Hz]
-    (bins outside the swept band: never)."""
-    order = np.argsort(f0)
-    inside = (f >= f0.min()) & (f <= f0.max())
-    passed = np.interp(f, f0[order], times[order])
-    lag = times[None, :] - passed[:, None]
-    return inside[:, None] & (lag >= -before) & (lag <= after)
-
-
 def _background(P, centres, drift, n_harmonics: int, usable):
     """Each bin's noise power (from its median over the frames where neither the fundamental nor a
     harmonic up to ``n_harmonics`` + 1 is within its window and a bin of it) and how many
     frames that mean is over.  ``P`` (bins, frames) power, ``centres`` f0 of each frame [bins],
-    ``usable`` (bins, frames) the cells whose noise is whole (:func:`_near_passage`).
+    ``usable`` (bins, frames) the cells whose noise is whole (:func:`volterra.sweep_residual.near_passage`).
     Read at the harmonic's own frequency, not beside it: the channel's noise may be coloured
     (a pink sensor, the force's noise through the structure's resonances, which taking the
     linear response away puts in the residual), but it does not change with time."""
@@ -323,52 +313,6 @@ def _background(P, centres, drift, n_harmonics: int, usable):
     masked[count == 0] = 0.0  # no frame: no estimate (NaN below), and no warning of an empty median
     B = np.nanmedian(masked, axis=1) / np.log(2.0)
     return np.where(count > 0, B, np.nan), count
-
-
-def _linear_response(u, y, fs: float, f0, rate) -> tuple[np.ndarray, float, float, float]:
-    """The record's linear response, the lags [s] before and after its impulse response that
-    were kept, and how long the impulse response rings [s] (where its envelope falls to 10x
-    its floor, kept or not).
-
-    The impulse response is read by deconvolution of the whole record over the swept band
-    (Y U* / (|U|^2 + eps), zero-padded to twice its length), kept over the lags a linear
-    structure's response has, then convolved with ``u``.  Deconvolved, a sweep's harmonics do
-    not land where the linear impulse response is (Farina 2000): harmonic k at frequency f
-    was made when the sweep was at f / k, so it shows at a lag of t(f) - t(f / k), at least
-    ``f0_min / rate`` for a linear sweep (``rate`` [Hz/s] from the track ``f0`` [Hz]): at
-    negative lags for a sweep up, at positive ones for a sweep down.  Kept: lags from -1 % of
-    the record (filters' pre-ringing) to where the envelope has fallen to 10x its floor (the
-    noise, spread over every lag: the noise the kept lags hold goes with the response, at
-    frequency f over the times the sweep is within those lags of f, which
-    :func:`_background` leaves out), at most half the record, and for a sweep down
-    0.8 f0_min / rate."""
-    n = u.size
-    nfft = 2 * n
-    U, Yf = np.fft.rfft(u, nfft), np.fft.rfft(y, nfft)
-    eps = 1e-6 * np.max(np.abs(U) ** 2)
-    # the swept band only, faded over 5 % beyond it: outside it the force holds its noise alone,
-    # and Y / U there is noise over noise, which the lags kept would spread in time
-    freqs = np.fft.rfftfreq(nfft, 1.0 / fs)
-    lo, hi = np.min(f0), np.max(f0)
-    edge = 0.05 * lo, 0.05 * hi
-    rise = np.clip((freqs - (lo - edge[0])) / edge[0], 0.0, 1.0)
-    fall = np.clip(((hi + edge[1]) - freqs) / edge[1], 0.0, 1.0)
-    band = (0.5 - 0.5 * np.cos(np.pi * rise)) * (0.5 - 0.5 * np.cos(np.pi * fall))
-    h = np.fft.irfft(band * Yf * np.conj(U) / (np.abs(U) ** 2 + eps), nfft)
-    pre = max(n // 100, 1)
-    post = n // 2
-    if np.median(rate) < 0:  # a sweep down: its harmonics at positive lags
-        post = int(min(post, 0.8 * np.min(f0) / max(np.median(np.abs(rate)), 1e-12) * fs))
-    # the envelope (a moving mean of h^2 over 1 % of the record) against its floor far out
-    env = np.convolve(h[: post + 1] ** 2, np.ones(pre) / pre, mode="same")
-    floor = np.median(h[n // 2 : nfft - n // 2] ** 2)
-    above = np.flatnonzero(env > 10 * floor)
-    ring = int(1.2 * (above[-1] + pre)) if above.size else pre
-    post = min(post, ring)
-    keep = np.zeros(nfft)
-    keep[: post + 1] = 1.0
-    keep[nfft - pre :] = 1.0
-    return np.fft.irfft(np.fft.rfft(h * keep) * U, nfft)[:n], pre / fs, post / fs, ring / fs
 
 
 def _window(X, centre: float, w: int) -> float:
