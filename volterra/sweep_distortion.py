@@ -145,8 +145,9 @@ def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_
     u : (n,) input (force); y : (n,) or (n, S) responses; fs : sampling rate [Hz];
     n_harmonics : the highest harmonic read (at least 3); sensors : S names (default
     ``y0, y1, ...``); frame_s : frame length [s] (default: the power of two under which
-    harmonic 3 can be read where the response is largest).  Raises ValueError when the
-    input is not a sweep (fewer than :data:`MIN_FRAMES` frames hold one sine)."""
+    harmonic 3 can be read where the response is largest).  Raises ValueError ("not a
+    sweep: ...") when the input is not one: fewer than 8 frames of 8 cycles or more hold one
+    sine, they cover less than :data:`MIN_COVERED` of the record, or f0 jumps between them."""
     u = np.asarray(u, float)
     Y = np.asarray(y, float)
     Y = Y[:, None] if Y.ndim == 1 else Y
