@@ -157,7 +157,7 @@ def test_a_sweep_up_and_down_or_in_steps_reads_alike(shape):
     lags), and a
     stepped sine (2-30 Hz in 0.5 Hz steps of 2 s, the phase continuous).  Through a linear
     oscillator (scipy's lsim, acceleration), 10 seeds: no detection (measured over 20 seeds:
-    none in 80 readings, the ratios 0.85-1.17); with a cubic on its output (a Wiener system,
+    none in the 40 readings of each shape, the ratios 0.85-1.17); with a cubic on its output (a Wiener system,
     y = a + 0.05 a^3 / max|a|^2): the odd harmonics detected (measured 16x and 18x their noise,
     -42 dB of the output), the even not."""
     if shape == "up_and_down":
