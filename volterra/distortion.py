@@ -81,15 +81,12 @@ class Distortion:
         """The numbers, JSON-ready (the line spectra left out; a level not above the noise,
         -inf dB, as None)."""
 
-        def finite(classes):
-            return {c: {k: (None if v == float("-inf") else v) for k, v in r.items()} for c, r in classes.items()}
-
         return {
             "classes": dict(self.classes),
             "periods": self.periods,
             "spacing_hz": self.spacing,
-            "sensors": {name: finite(classes) for name, classes in self.sensors.items()},
-            "force": finite(self.force),
+            "sensors": {name: json_ready(classes) for name, classes in self.sensors.items()},
+            "force": json_ready(self.force),
         }
 
     @property
@@ -99,13 +96,43 @@ class Distortion:
 
     def verdict(self, sensor: str) -> str:
         """One line on a sensor's distortion."""
-        parts = []
-        for cls, r in self.sensors[sensor].items():
-            if cls == "noise":
-                continue
-            lvl = f"{r['level_db']:.0f} dB of the output" if r["detected"] else "at the noise"
-            parts.append(f"{cls} lines {r['noise_ratio']:.3g}x their noise ({lvl})")
-        return "; ".join(parts)
+        return class_verdict(self.sensors[sensor], "lines")
+
+
+def class_numbers(power: float, noise: float, sd: float, reference: float) -> dict:
+    """A class's numbers from its power and its noise power (summed over its lines or windows),
+    the sd of their ratio and the output's power it is measured against: ``noise_ratio``,
+    ``sd``, ``detected`` (the ratio above 1 by :data:`DETECT_SD` sds) and ``level_db`` (the
+    power less its noise over ``reference``; -inf where not above the noise)."""
+    ratio = power / noise if noise > 0 else (float("inf") if power > 0 else float("nan"))
+    above = power - noise
+    level = 10 * np.log10(above / reference) if above > 0 and reference > 0 else float("-inf")
+    return {"noise_ratio": ratio, "sd": sd, "detected": bool(ratio > 1.0 + DETECT_SD * sd), "level_db": float(level)}
+
+
+def json_ready(classes: dict) -> dict:
+    """``{class: numbers}`` with every non-finite number (a level not above the noise, a class
+    not read) as None."""
+
+    def value(v):
+        return None if isinstance(v, float) and not np.isfinite(v) else v
+
+    return {c: {k: value(v) for k, v in r.items()} for c, r in classes.items()}
+
+
+def class_verdict(classes: dict, what: str) -> str:
+    """One line on a channel's classes (the noise class left out), ``what`` naming what was
+    read ("lines", "harmonics")."""
+    parts = []
+    for cls, r in classes.items():
+        if cls == "noise":
+            continue
+        if not np.isfinite(r["noise_ratio"]):
+            parts.append(f"{cls} {what} not read (beyond the band, or too few frames)")
+            continue
+        lvl = f"{r['level_db']:.0f} dB of the output" if r["detected"] else "at the noise"
+        parts.append(f"{cls} {what} {r['noise_ratio']:.3g}x their noise ({lvl})")
+    return "; ".join(parts)
 
 
 def line_classes(excited: np.ndarray, top: int) -> dict:
@@ -147,13 +174,10 @@ def _frf_between(Um, Ym, excited, k):
 def _class_stats(Ymean, noise_var, excited_power, n_periods) -> dict:
     """noise_ratio, its sd, detected and level_db of one class on one channel."""
     power, noise = float(np.sum(np.abs(Ymean) ** 2)), float(np.sum(noise_var))
-    ratio = power / noise if noise > 0 else float("inf")
     # lines of unequal noise (the force sensor's noise through a resonance) count as fewer
     n_eff = noise**2 / float(np.sum(np.square(noise_var))) if noise > 0 else float(Ymean.size)
     sd = float(np.sqrt((1.0 + 1.0 / max(n_periods - 1, 1)) / n_eff))
-    above = power - noise
-    level = 10 * np.log10(above / excited_power) if above > 0 and excited_power > 0 else float("-inf")
-    return {"noise_ratio": ratio, "sd": sd, "detected": bool(ratio > 1.0 + DETECT_SD * sd), "level_db": float(level)}
+    return class_numbers(power, noise, sd, excited_power)
 
 
 def _drift_removed(x, layout: PeriodLayout):

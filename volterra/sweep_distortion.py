@@ -37,7 +37,7 @@ Per class (odd, even) and sensor, summed over the frames and harmonics, the same
 numbers as a periodic record's (:class:`volterra.distortion.Distortion`):
 ``noise_ratio`` (the harmonics' power over their noise, about 1 without distortion),
 its ``sd`` (the window's own correlation between bins, :func:`volterra.sweep_frames.bin_covariance`),
-``detected`` (the ratio above 1 by :data:`DETECT_SD` sds) and ``level_db`` (the
+``detected`` (the ratio above 1 by :data:`volterra.distortion.DETECT_SD` sds) and ``level_db`` (the
 harmonics' power less their noise over the output's power at f0).  The input's own
 harmonics are read the same way (``force``), its fundamental left in: its leakage
 raises the noise read, so the force's reading errs low.
@@ -49,7 +49,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .distortion import DETECT_SD, distortion
+from .distortion import class_numbers, class_verdict, distortion, json_ready
 from .periods import PeriodLayout, find_periods
 from .sweep_frames import (
     LOBE,
@@ -105,12 +105,6 @@ class SweepDistortion:
         """The numbers, JSON-ready (the per-frame tracks left out; -inf dB and a class not read,
         NaN, as None)."""
 
-        def finite(classes):
-            def value(v):
-                return None if isinstance(v, float) and not np.isfinite(v) else v
-
-            return {c: {k: value(v) for k, v in r.items()} for c, r in classes.items()}
-
         return {
             "classes": {c: list(k) for c, k in self.classes.items()},
             "sweep": {
@@ -118,25 +112,13 @@ class SweepDistortion:
                 "frame_s": self.frame_s,
                 "f0_hz": [float(self.f0.min()), float(self.f0.max())],
             },
-            "sensors": {name: finite(classes) for name, classes in self.sensors.items()},
-            "force": finite(self.force),
+            "sensors": {name: json_ready(classes) for name, classes in self.sensors.items()},
+            "force": json_ready(self.force),
         }
-
-    @property
-    def parity(self) -> bool:
-        """A sweep separates odd from even distortion."""
-        return True
 
     def verdict(self, sensor: str) -> str:
         """One line on a sensor's harmonics."""
-        parts = []
-        for cls, r in self.sensors[sensor].items():
-            if not np.isfinite(r["noise_ratio"]):
-                parts.append(f"{cls} harmonics not read (beyond the band, or too few frames)")
-                continue
-            lvl = f"{r['level_db']:.0f} dB of the output" if r["detected"] else "at the noise"
-            parts.append(f"{cls} harmonics {r['noise_ratio']:.3g}x their noise ({lvl})")
-        return "; ".join(parts)
+        return class_verdict(self.sensors[sensor], "harmonics")
 
 
 def sweep_distortion(u, y, fs: float, n_harmonics: int = 5, sensors=None, frame_s: float | None = None):
@@ -328,14 +310,9 @@ def _class_stats(terms: list, fundamental: float) -> dict:
         return {"noise_ratio": float("nan"), "sd": float("nan"), "detected": False, "level_db": float("-inf")}
     p, n, m, n_null, c = (np.array(x, float) for x in zip(*terms))
     power, noise = float(p.sum()), float(n.sum())
-    if noise <= 0:
-        return {"noise_ratio": float("inf"), "sd": 0.0, "detected": power > 0, "level_db": float("-inf")}
     # var(power - noise) = (1 + 1 / n_null) c m mu^2, mu = noise / m the mean bin power (bin_covariance)
-    sd = float(np.sqrt(np.sum((1 + 1 / n_null) * c * n**2 / m))) / noise
-    ratio = power / noise
-    above = power - noise
-    level = 10 * np.log10(above / fundamental) if above > 0 and fundamental > 0 else float("-inf")
-    return {"noise_ratio": ratio, "sd": sd, "detected": bool(ratio > 1.0 + DETECT_SD * sd), "level_db": float(level)}
+    sd = float(np.sqrt(np.sum((1 + 1 / n_null) * c * n**2 / m))) / noise if noise > 0 else 0.0
+    return class_numbers(power, noise, sd, fundamental)
 
 
 def record_distortion(u, y, fs: float, period_samples=None, sensors=None):
